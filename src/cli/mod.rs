@@ -1,0 +1,43 @@
+//! Command-line interface: one file per subcommand, each parsing its arguments and
+//! calling the library.
+
+mod fit;
+mod plot;
+mod render;
+mod synth;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Fit, check, export, plot and render diffuse fluorescent materials from bispectral
+/// reradiation matrices (Jung et al. 2018).
+#[derive(Parser)]
+#[command(name = "fluorite", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Fit the fluorescent BBRRDF to measured matrices and write material JSON.
+    Fit(fit::FitArgs),
+    /// Write synthetic matrices with known ground truth.
+    Synth(synth::SynthArgs),
+    /// Render a material in the built-in spectral path tracer.
+    Render(render::RenderArgs),
+    /// Plot a fitted material: residual maps, spectra, colour swatches, convergence.
+    Plot(plot::PlotArgs),
+}
+
+/// Parses the command line and runs the chosen subcommand.
+pub fn run() -> anyhow::Result<ExitCode> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Fit(args) => fit::run(args),
+        Command::Synth(args) => synth::run(args),
+        Command::Render(args) => render::run(args),
+        Command::Plot(args) => plot::run(args),
+    }
+}

@@ -1,0 +1,371 @@
+//! The fitted material: the contract between fitting and everything downstream
+//! (check, export, plot, render). Serialised as `fluorite-material/1` JSON.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::spectrum::Spectrum;
+
+/// Schema tag written into every material file.
+pub const SCHEMA: &str = "fluorite-material/1";
+
+/// Tolerance for the normalisations max a = 1 and ∫e = 1.
+pub const NORMALISATION_TOLERANCE: f64 = 1e-6;
+/// Tolerance for range and conservation checks (values may exceed a bound by this much).
+pub const BOUND_TOLERANCE: f64 = 1e-9;
+
+/// A diffuse fluorescent material (Jung et al. 2018), possibly with several fluorophores.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Material {
+    /// Always [`SCHEMA`].
+    pub schema: String,
+    /// A short name (the measurement's file stem for fits).
+    pub name: String,
+    /// r(λ): reflectance of the non-fluorescent part; holds its end values outside its samples.
+    pub reflectance: Spectrum,
+    /// The fluorescent components (one for the paper's model; empty for a plain reflector).
+    pub fluorophores: Vec<Fluorophore>,
+    /// How the material was fitted; absent for hand-written materials.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit: Option<FitReport>,
+    /// Conservation margins, recomputed whenever a material is written.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub conservation: Option<Conservation>,
+}
+
+/// One fluorescent component.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Fluorophore {
+    /// c: fraction absorbed at the absorption peak, in [0, 1].
+    pub concentration: f64,
+    /// Q: energy quantum yield (emitted / absorbed energy), in [0, 1].
+    pub quantum_yield: f64,
+    /// The interval of c for which every constraint holds given the data (c and Q are not
+    /// separately identifiable; only k = c·Q is).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub concentration_range: Option<[f64; 2]>,
+    /// a(λ): absorption, max 1, zero outside its samples.
+    pub absorption: Spectrum,
+    /// e(λ): emission density in 1/nm, ∫e = 1, zero outside its samples.
+    pub emission: Spectrum,
+}
+
+impl Fluorophore {
+    /// k = c·Q, the only scale a reradiation matrix determines.
+    pub fn k(&self) -> f64 {
+        self.concentration * self.quantum_yield
+    }
+
+    /// λ̄e = ∫λ·e dλ, the mean emission wavelength (nm).
+    pub fn emission_mean_nm(&self) -> f64 {
+        self.emission.mean_wavelength_nm()
+    }
+
+    /// Shortest wavelength with a > 0 (nm), or None when a vanishes everywhere.
+    pub fn shortest_absorbed_nm(&self) -> Option<f64> {
+        let a = &self.absorption;
+        let first = a.value.iter().position(|&v| v > 0.0)?;
+        // Linear interpolation from a zero sample means absorption starts just after it;
+        // the sample itself is the infimum.
+        Some(if first > 0 {
+            a.wavelength_nm[first - 1]
+        } else {
+            a.wavelength_nm[0]
+        })
+    }
+}
+
+/// What the fit did and how well it matches the data (the `fit` block).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct FitReport {
+    /// The measurement file fitted.
+    pub source: String,
+    /// SHA-256 of the measurement file.
+    pub source_sha256: String,
+    /// Solver that produced the result (`init`, `lbfgs`, `gauss-newton`, …).
+    pub solver: String,
+    /// Whether the solver met its convergence criterion (false also when it hit the
+    /// iteration limit).
+    pub converged: bool,
+    /// Solver iterations.
+    pub iterations: u64,
+    /// Wall time of the fit (seconds).
+    pub seconds: f64,
+    /// Cells within this distance of the diagonal were excluded as crosstalk.
+    pub guard_nm: f64,
+    /// The convention that picked c within its feasible interval.
+    pub gauge: String,
+    /// ‖M − fit‖ / ‖M‖ over the fluorescent cells used by the fit (outside the guard band).
+    pub rel_residual_fluorescence: f64,
+    /// RMSE of the diagonal (reflectance factor units).
+    pub rmse_diagonal: f64,
+    /// ΔE2000 of a flat patch, measured matrix vs fitted model, per light.
+    pub delta_e2000: BTreeMap<String, f64>,
+    /// Problems found: the fit is still written, but these say where not to trust it.
+    #[serde(default)]
+    pub warnings: Vec<String>,
+    /// Quantities the data could not determine (e.g. reflectance for a solution EEM).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub undetermined: Vec<String>,
+    /// Noise level estimated from the anti-Stokes side (reflectance-factor units).
+    #[serde(default)]
+    pub noise_sigma: f64,
+    /// Sum of |M| in the excluded guard-band cells, relative to the fluorescent signal.
+    #[serde(default)]
+    pub guard_signal_fraction: f64,
+    /// Objective value per solver iteration (for convergence plots).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub cost_history: Vec<f64>,
+}
+
+/// Conservation margins of a material (the `conservation` block).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct Conservation {
+    /// max over λ of ρ(λ) = (1 − Σc·a)·r + Σc·Q·a; must be ≤ 1.
+    pub max_energy_albedo: f64,
+    /// max over fluorophores and absorbed λ of Q·λ̄e/λ; must be ≤ 1.
+    pub max_photon_ratio: f64,
+}
+
+impl Material {
+    /// A material from its parts, with conservation margins computed.
+    pub fn new(
+        name: impl Into<String>,
+        reflectance: Spectrum,
+        fluorophores: Vec<Fluorophore>,
+    ) -> Self {
+        let mut m = Material {
+            schema: SCHEMA.to_string(),
+            name: name.into(),
+            reflectance,
+            fluorophores,
+            fit: None,
+            conservation: None,
+        };
+        m.conservation = Some(m.conservation_margins());
+        m
+    }
+
+    /// Total fraction absorbed by fluorophores at `nm`: Σ c·a(λ).
+    pub fn absorbed(&self, nm: f64) -> f64 {
+        self.fluorophores
+            .iter()
+            .map(|f| f.concentration * f.absorption.eval_zero_outside(nm))
+            .sum()
+    }
+
+    /// d(λ) = (1 − Σc·a(λ))·r(λ): the ordinary (diagonal) reflectance.
+    pub fn diagonal(&self, nm: f64) -> f64 {
+        (1.0 - self.absorbed(nm)) * self.reflectance.eval_clamped(nm)
+    }
+
+    /// ρ(λ): total energy albedo for excitation at `nm`.
+    pub fn energy_albedo(&self, nm: f64) -> f64 {
+        self.diagonal(nm)
+            + self
+                .fluorophores
+                .iter()
+                .map(|f| f.k() * f.absorption.eval_zero_outside(nm) * f.emission.integral())
+                .sum::<f64>()
+    }
+
+    /// Off-diagonal reradiation density k·a(λi)·e(λo), summed over fluorophores (1/nm).
+    pub fn fluorescence(&self, excitation_nm: f64, emission_nm: f64) -> f64 {
+        self.fluorophores
+            .iter()
+            .map(|f| {
+                f.k()
+                    * f.absorption.eval_zero_outside(excitation_nm)
+                    * f.emission.eval_zero_outside(emission_nm)
+            })
+            .sum()
+    }
+
+    /// All wavelengths at which some spectrum of the material is sampled, sorted.
+    pub fn sample_wavelengths(&self) -> Vec<f64> {
+        let mut all: Vec<f64> = self.reflectance.wavelength_nm.clone();
+        for f in &self.fluorophores {
+            all.extend(&f.absorption.wavelength_nm);
+            all.extend(&f.emission.wavelength_nm);
+        }
+        all.sort_by(f64::total_cmp);
+        all.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+        all
+    }
+
+    /// Computes the conservation margins. The albedo is piecewise linear-times-linear
+    /// between samples, so it is evaluated at every sample and at midpoints.
+    pub fn conservation_margins(&self) -> Conservation {
+        let samples = self.sample_wavelengths();
+        let mut points = samples.clone();
+        points.extend(samples.windows(2).map(|w| 0.5 * (w[0] + w[1])));
+        let max_energy_albedo = points
+            .iter()
+            .map(|&l| self.energy_albedo(l))
+            .fold(0.0, f64::max);
+        let max_photon_ratio = self
+            .fluorophores
+            .iter()
+            .filter_map(|f| {
+                let shortest = f.shortest_absorbed_nm()?;
+                let mean = f.emission_mean_nm();
+                mean.is_finite().then(|| f.quantum_yield * mean / shortest)
+            })
+            .fold(0.0, f64::max);
+        Conservation {
+            max_energy_albedo,
+            max_photon_ratio,
+        }
+    }
+
+    /// Checks every constraint of the model: spectra well formed, a, r, c, Q in [0, 1],
+    /// max a = 1, ∫e = 1, energy and photon conservation. The error names the first
+    /// violated one and the value that breaks it.
+    pub fn validate(&self) -> Result<()> {
+        if self.schema != SCHEMA {
+            return Err(Error::invalid(
+                "schema",
+                format!("is \"{}\"; fluorite reads \"{SCHEMA}\"", self.schema),
+            ));
+        }
+        self.reflectance.validate("reflectance")?;
+        check_unit_range(&self.reflectance, "reflectance")?;
+        for (n, f) in self.fluorophores.iter().enumerate() {
+            let p = format!("fluorophores[{n}]");
+            for (value, what) in [
+                (f.concentration, "concentration"),
+                (f.quantum_yield, "quantum_yield"),
+            ] {
+                if !(0.0..=1.0).contains(&value) {
+                    return Err(Error::invalid(
+                        format!("{p}.{what}"),
+                        format!("is {value}; it must lie in [0, 1]"),
+                    ));
+                }
+            }
+            f.absorption.validate(&format!("{p}.absorption"))?;
+            f.emission.validate(&format!("{p}.emission"))?;
+            check_unit_range(&f.absorption, &format!("{p}.absorption"))?;
+            let peak = f.absorption.max();
+            if (peak - 1.0).abs() > NORMALISATION_TOLERANCE {
+                return Err(Error::invalid(
+                    format!("{p}.absorption"),
+                    format!(
+                        "peaks at {peak}; absorption is normalised to max a = 1 (fold the scale into concentration)"
+                    ),
+                ));
+            }
+            if let Some(i) = f.emission.value.iter().position(|&v| v < 0.0) {
+                return Err(Error::invalid(
+                    format!("{p}.emission.value[{i}]"),
+                    format!(
+                        "is {} at {} nm; emission must be non-negative",
+                        f.emission.value[i], f.emission.wavelength_nm[i]
+                    ),
+                ));
+            }
+            let area = f.emission.integral();
+            if (area - 1.0).abs() > NORMALISATION_TOLERANCE {
+                return Err(Error::invalid(
+                    format!("{p}.emission"),
+                    format!(
+                        "integrates to {area} (trapezoid rule); emission is a density with ∫e dλ = 1 in 1/nm"
+                    ),
+                ));
+            }
+            if let Some([lo, hi]) = f.concentration_range
+                && !(lo <= hi + BOUND_TOLERANCE
+                    && lo >= -BOUND_TOLERANCE
+                    && hi <= 1.0 + BOUND_TOLERANCE)
+            {
+                return Err(Error::invalid(
+                    format!("{p}.concentration_range"),
+                    format!("is [{lo}, {hi}]; it must be an interval within [0, 1]"),
+                ));
+            }
+        }
+        let total_peak = self
+            .sample_wavelengths()
+            .iter()
+            .map(|&l| self.absorbed(l))
+            .fold(0.0, f64::max);
+        if total_peak > 1.0 + BOUND_TOLERANCE {
+            return Err(Error::invalid(
+                "fluorophores",
+                format!(
+                    "absorb Σc·a = {total_peak} > 1 at some wavelength; the components cannot absorb more than all the light"
+                ),
+            ));
+        }
+        let margins = self.conservation_margins();
+        if margins.max_energy_albedo > 1.0 + BOUND_TOLERANCE {
+            return Err(Error::invalid(
+                "energy",
+                format!(
+                    "albedo ρ(λ) reaches {}; a material may not reflect and emit more energy than it receives",
+                    margins.max_energy_albedo
+                ),
+            ));
+        }
+        if margins.max_photon_ratio > 1.0 + BOUND_TOLERANCE {
+            return Err(Error::invalid(
+                "photons",
+                format!(
+                    "Q·λ̄e/λ reaches {}; a fluorophore may not emit more photons than it absorbs (lower the quantum yield)",
+                    margins.max_photon_ratio
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Reads and validates a material file.
+    pub fn load(path: &Path) -> Result<Material> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let material: Material = serde_json::from_str(&text).map_err(|e| {
+            Error::parse(
+                path,
+                e.line(),
+                e.column(),
+                format!("not a fluorite material: {e}"),
+            )
+        })?;
+        material.validate().map_err(|e| match e {
+            Error::Invalid { parameter, message } => {
+                Error::parse(path, 0, 0, format!("{parameter} {message}"))
+            }
+            other => other,
+        })?;
+        Ok(material)
+    }
+
+    /// The material as pretty JSON, with conservation margins refreshed.
+    pub fn to_json(&self) -> String {
+        let mut m = self.clone();
+        m.conservation = Some(self.conservation_margins());
+        let mut s = serde_json::to_string_pretty(&m).expect("material serialises");
+        s.push('\n');
+        s
+    }
+
+    /// Writes the material atomically (temporary file, then rename).
+    pub fn save(&self, path: &Path) -> Result<()> {
+        crate::export::write_atomic(path, self.to_json().as_bytes())
+    }
+}
+
+fn check_unit_range(s: &Spectrum, what: &str) -> Result<()> {
+    if let Some(i) = s.value.iter().position(|v| !(0.0..=1.0).contains(v)) {
+        return Err(Error::invalid(
+            format!("{what}.value[{i}]"),
+            format!(
+                "is {} at {} nm; it must lie in [0, 1]",
+                s.value[i], s.wavelength_nm[i]
+            ),
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,175 @@
+//! A measured (or model-predicted) bispectral reradiation matrix on its own grids.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::spectrum::{bin_widths, check_grid, find_wavelength};
+
+/// How the matrix's values are expressed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Units {
+    /// Radiance factor per emission bin (what a BFC-450 writes): off the diagonal,
+    /// M = k·a(λi)·e(λo)·Δλo.
+    #[default]
+    PerBin,
+    /// Spectral density per nm of emission: off the diagonal, M = k·a(λi)·e(λo).
+    PerNm,
+}
+
+/// A reradiation (Donaldson) matrix: for monochromatic excitation at `excitation_nm[i]`,
+/// the radiance factor observed at emission `emission_nm[j]`, stored at
+/// `values[i * emission_nm.len() + j]`. NaN marks a missing (unmeasured) cell.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Measurement {
+    /// A short name for outputs (the file stem).
+    pub name: String,
+    /// The file it was read from, if any.
+    pub source: Option<PathBuf>,
+    /// SHA-256 of the file's bytes, hex, if read from a file.
+    pub source_sha256: Option<String>,
+    /// Excitation wavelengths in nm, strictly increasing.
+    pub excitation_nm: Vec<f64>,
+    /// Emission wavelengths in nm, strictly increasing.
+    pub emission_nm: Vec<f64>,
+    /// Row-major values, excitation rows × emission columns; NaN = missing.
+    pub values: Vec<f64>,
+    /// How the values are expressed.
+    pub units: Units,
+    /// True when the data carry a diagonal (reflectance). Solution EEMs do not: their
+    /// near-diagonal cells are Rayleigh scatter, masked by the instrument.
+    pub has_diagonal: bool,
+    /// True when the values are on an arbitrary scale (counts), so absolute quantities
+    /// (k, c, Q, reflectance) are undetermined.
+    pub arbitrary_scale: bool,
+    /// Things the reader decided that the user should know (inferred orientation, …).
+    pub notes: Vec<String>,
+}
+
+impl Measurement {
+    /// Builds a matrix, checking grids, shape and values. `name` is used in errors.
+    pub fn new(
+        name: impl Into<String>,
+        excitation_nm: Vec<f64>,
+        emission_nm: Vec<f64>,
+        values: Vec<f64>,
+        units: Units,
+    ) -> Result<Self> {
+        let m = Measurement {
+            name: name.into(),
+            source: None,
+            source_sha256: None,
+            excitation_nm,
+            emission_nm,
+            values,
+            units,
+            has_diagonal: true,
+            arbitrary_scale: false,
+            notes: Vec::new(),
+        };
+        m.validate()?;
+        Ok(m)
+    }
+
+    /// Checks the invariants: grids valid, shape right, no infinities, a usable cell.
+    pub fn validate(&self) -> Result<()> {
+        let what = |s: &str| format!("{}: {s}", self.name);
+        if self.excitation_nm.is_empty() || self.emission_nm.is_empty() {
+            return Err(Error::invalid(
+                what("grid"),
+                "has no excitation or no emission wavelengths",
+            ));
+        }
+        check_grid(&self.excitation_nm, &what("excitation_nm"))?;
+        check_grid(&self.emission_nm, &what("emission_nm"))?;
+        if self.values.len() != self.excitation_nm.len() * self.emission_nm.len() {
+            return Err(Error::invalid(
+                what("values"),
+                format!(
+                    "holds {} cells, expected {} excitation × {} emission",
+                    self.values.len(),
+                    self.excitation_nm.len(),
+                    self.emission_nm.len()
+                ),
+            ));
+        }
+        if let Some(k) = self.values.iter().position(|v| v.is_infinite()) {
+            let (i, j) = (k / self.emission_nm.len(), k % self.emission_nm.len());
+            return Err(Error::invalid(
+                what("values"),
+                format!(
+                    "cell at excitation {} nm, emission {} nm is infinite; use NaN or leave it empty for a missing cell",
+                    self.excitation_nm[i], self.emission_nm[j]
+                ),
+            ));
+        }
+        if self.values.iter().all(|v| v.is_nan()) {
+            return Err(Error::invalid(
+                what("values"),
+                "no cell holds a measured value",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Number of excitation rows.
+    pub fn n_excitation(&self) -> usize {
+        self.excitation_nm.len()
+    }
+
+    /// Number of emission columns.
+    pub fn n_emission(&self) -> usize {
+        self.emission_nm.len()
+    }
+
+    /// Value at excitation row `i`, emission column `j` (NaN when missing).
+    pub fn get(&self, i: usize, j: usize) -> f64 {
+        self.values[i * self.emission_nm.len() + j]
+    }
+
+    /// Mutable access to a cell.
+    pub fn get_mut(&mut self, i: usize, j: usize) -> &mut f64 {
+        let n = self.emission_nm.len();
+        &mut self.values[i * n + j]
+    }
+
+    /// The diagonal cells: `(excitation row, emission column)` pairs at shared wavelengths,
+    /// in increasing wavelength. Empty when the data carry no diagonal.
+    pub fn diagonal(&self) -> Vec<(usize, usize)> {
+        if !self.has_diagonal {
+            return Vec::new();
+        }
+        self.emission_nm
+            .iter()
+            .enumerate()
+            .filter_map(|(j, &l)| find_wavelength(&self.excitation_nm, l).map(|i| (i, j)))
+            .collect()
+    }
+
+    /// Emission bin widths (nm) by the trapezoid rule, see [`crate::spectrum::bin_widths`].
+    pub fn emission_bin_widths(&self) -> Vec<f64> {
+        bin_widths(&self.emission_nm)
+    }
+
+    /// The same matrix expressed per emission bin (values multiplied by the bin width
+    /// when stored per nm). The diagonal is a plain reflectance factor in both units and
+    /// is left alone.
+    pub fn to_per_bin(&self) -> Measurement {
+        let mut out = self.clone();
+        if self.units == Units::PerNm {
+            let widths = self.emission_bin_widths();
+            let diag = self.diagonal();
+            for i in 0..self.n_excitation() {
+                for (j, w) in widths.iter().enumerate() {
+                    if !diag.contains(&(i, j)) {
+                        *out.get_mut(i, j) *= w;
+                    }
+                }
+            }
+            out.units = Units::PerBin;
+        }
+        out
+    }
+}

@@ -1,0 +1,48 @@
+//! The model on a measurement grid (model.md §2): what matrix a material predicts.
+
+use crate::material::Material;
+use crate::measurement::{Measurement, Units};
+use crate::spectrum::{bin_widths, find_wavelength};
+
+/// The reradiation matrix `material` predicts on the given grids:
+/// M[λi, λo] = [λi = λo]·d(λi) + Σ k·a(λi)·e(λo)·Δλo (per bin) or without Δλo (per nm).
+/// `with_diagonal` adds d on the cells where both grids share a wavelength.
+pub fn predict(
+    material: &Material,
+    name: &str,
+    excitation_nm: &[f64],
+    emission_nm: &[f64],
+    units: Units,
+    with_diagonal: bool,
+) -> Measurement {
+    let widths = match units {
+        Units::PerBin => bin_widths(emission_nm),
+        Units::PerNm => vec![1.0; emission_nm.len()],
+    };
+    let mut values = Vec::with_capacity(excitation_nm.len() * emission_nm.len());
+    for &li in excitation_nm {
+        for (&lo, w) in emission_nm.iter().zip(&widths) {
+            values.push(material.fluorescence(li, lo) * w);
+        }
+    }
+    let mut m = Measurement {
+        name: name.to_string(),
+        source: None,
+        source_sha256: None,
+        excitation_nm: excitation_nm.to_vec(),
+        emission_nm: emission_nm.to_vec(),
+        values,
+        units,
+        has_diagonal: with_diagonal,
+        arbitrary_scale: false,
+        notes: Vec::new(),
+    };
+    if with_diagonal {
+        for (j, &lo) in emission_nm.iter().enumerate() {
+            if let Some(i) = find_wavelength(excitation_nm, lo) {
+                *m.get_mut(i, j) += material.diagonal(lo);
+            }
+        }
+    }
+    m
+}
