@@ -19,6 +19,21 @@ pub enum Units {
     PerNm,
 }
 
+/// What a cell of a reradiation matrix holds, for fitting and plotting.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CellKind {
+    /// No measured value.
+    Missing,
+    /// λo = λi: reflectance (plus the fluorescence emitted at the same wavelength).
+    Diagonal,
+    /// 0 < |λo − λi| ≤ guard: instrument bandwidth crosstalk, excluded from fits.
+    Guard,
+    /// λo > λi + guard: the Stokes side, where fluorescence appears.
+    Stokes,
+    /// λo < λi − guard: the anti-Stokes side, only noise in real surfaces.
+    AntiStokes,
+}
+
 /// A reradiation (Donaldson) matrix: for monochromatic excitation at `excitation_nm[i]`,
 /// the radiance factor observed at emission `emission_nm[j]`, stored at
 /// `values[i * emission_nm.len() + j]`. NaN marks a missing (unmeasured) cell.
@@ -146,6 +161,43 @@ impl Measurement {
             .enumerate()
             .filter_map(|(j, &l)| find_wavelength(&self.excitation_nm, l).map(|i| (i, j)))
             .collect()
+    }
+
+    /// Classifies cell (`i`, `j`) for a guard band of `guard_nm` around the diagonal.
+    /// Without a diagonal (solution EEMs) no cell is `Diagonal`, but the guard band
+    /// still excludes the scatter next to λo = λi.
+    pub fn cell_kind(&self, i: usize, j: usize, guard_nm: f64) -> CellKind {
+        if self.get(i, j).is_nan() {
+            return CellKind::Missing;
+        }
+        let offset = self.emission_nm[j] - self.excitation_nm[i];
+        if offset.abs() <= 1e-6 {
+            if self.has_diagonal {
+                CellKind::Diagonal
+            } else {
+                CellKind::Guard
+            }
+        } else if offset.abs() <= guard_nm + 1e-6 {
+            CellKind::Guard
+        } else if offset > 0.0 {
+            CellKind::Stokes
+        } else {
+            CellKind::AntiStokes
+        }
+    }
+
+    /// The default guard band: one grid step, the larger of the two grids' typical
+    /// (median) spacings.
+    pub fn default_guard_nm(&self) -> f64 {
+        let median_step = |g: &[f64]| {
+            let mut steps: Vec<f64> = g.windows(2).map(|w| w[1] - w[0]).collect();
+            if steps.is_empty() {
+                return 0.0;
+            }
+            steps.sort_by(f64::total_cmp);
+            steps[steps.len() / 2]
+        };
+        median_step(&self.excitation_nm).max(median_step(&self.emission_nm))
     }
 
     /// Emission bin widths (nm) by the trapezoid rule, see [`crate::spectrum::bin_widths`].
