@@ -369,3 +369,39 @@ fn check_unit_range(s: &Spectrum, what: &str) -> Result<()> {
     }
     Ok(())
 }
+
+/// Schema tag of a shapes-only fit (solution EEMs: no diagonal, often arbitrary scale).
+pub const SHAPES_SCHEMA: &str = "fluorite-fluorophore/1";
+
+/// What a matrix without a diagonal determines: the absorption and emission shapes and,
+/// when the data are calibrated, k = c·Q. Written instead of a [`Material`] so that no
+/// reflectance, concentration or yield is invented; `undetermined` names what is missing.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FluorophoreShapes {
+    /// Always [`SHAPES_SCHEMA`].
+    pub schema: String,
+    /// A short name (the measurement's file stem).
+    pub name: String,
+    /// a(λ), max 1.
+    pub absorption: Spectrum,
+    /// e(λ), ∫e = 1 (1/nm).
+    pub emission: Spectrum,
+    /// k = c·Q when the data are calibrated; absent on an arbitrary scale.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k: Option<f64>,
+    /// k in the data's own (arbitrary) units.
+    pub k_data_units: f64,
+    /// The quantities the data cannot determine, in words.
+    pub undetermined: Vec<String>,
+    /// The fit's report.
+    pub fit: FitReport,
+}
+
+impl FluorophoreShapes {
+    /// Pretty JSON.
+    pub fn to_json(&self) -> String {
+        let mut s = serde_json::to_string_pretty(self).expect("shapes serialise");
+        s.push('\n');
+        s
+    }
+}

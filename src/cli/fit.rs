@@ -1,12 +1,270 @@
-//! `fluorite fit` (in progress).
+//! `fluorite fit`: read matrices, fit, write material JSON, print a summary per file.
 
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+use anyhow::Context;
+use fluorite::colour::Light;
+use fluorite::export::write_atomic;
+use fluorite::fit::{FitOptions, FitOutcome, Solver, fit};
+use fluorite::formats::{Format, ReadOptions, RowsAre, read};
+use fluorite::measurement::Measurement;
+use rayon::prelude::*;
+
 /// Arguments of `fluorite fit`.
-#[derive(clap::Args)]
-pub struct FitArgs {}
+#[derive(clap::Args, Debug, Clone)]
+pub struct FitArgs {
+    /// Measured matrices (wide CSV, long CSV, BFC-450, WebFluor).
+    #[arg(required = true)]
+    pub inputs: Vec<PathBuf>,
+    /// Output file for one input, or a folder (existing, or ending in `/`) for several.
+    /// Default: `fits/<input stem>.json`.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Input format (default: detected from the content).
+    #[arg(long, value_enum)]
+    pub format: Option<Format>,
+    /// What the rows of a wide matrix are (default: the corner label, else inferred).
+    #[arg(long, value_enum)]
+    pub rows: Option<RowsAre>,
+    /// Treat zeros as missing cells (default: on for WebFluor, off otherwise).
+    #[arg(long)]
+    pub zero_is_missing: Option<bool>,
+    /// Values are spectral densities per nm instead of radiance factors per emission bin.
+    #[arg(long)]
+    pub per_nm: bool,
+    /// Refinement solver.
+    #[arg(long, value_enum, default_value = "lbfgs")]
+    pub solver: Solver,
+    /// Exclude cells within this many nm of the diagonal (crosstalk). Default: one grid step.
+    #[arg(long)]
+    pub guard: Option<f64>,
+    /// Pin the energy quantum yield Q from outside knowledge (c = k/Q).
+    #[arg(long, conflicts_with = "concentration")]
+    pub quantum_yield: Option<f64>,
+    /// Pin the concentration c from outside knowledge (Q = k/c).
+    #[arg(long)]
+    pub concentration: Option<f64>,
+    /// Iteration limit of the refinement.
+    #[arg(long, default_value_t = 500)]
+    pub max_iterations: u64,
+    /// Relative tolerance of the refinement.
+    #[arg(long, default_value_t = 1e-9)]
+    pub tolerance: f64,
+    /// Lights for the ΔE2000 report: built-in names or CSV files, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "d65,a,f11,uv")]
+    pub lights: Vec<String>,
+    /// Exit with code 1 when a fit did not converge or carries warnings.
+    #[arg(long)]
+    pub strict: bool,
+    /// Also plot each fit against its data (next to the JSON).
+    #[arg(long)]
+    pub plot: bool,
+    /// Also render a preview of each fitted material (next to the JSON).
+    #[arg(long)]
+    pub render: bool,
+    /// Print nothing but errors.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// Where each input's result goes.
+fn output_paths(args: &FitArgs) -> anyhow::Result<Vec<PathBuf>> {
+    let stem = |p: &Path| {
+        p.file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "material".into())
+    };
+    let into_folder = |dir: &Path| -> Vec<PathBuf> {
+        args.inputs
+            .iter()
+            .map(|p| dir.join(format!("{}.json", stem(p))))
+            .collect()
+    };
+    let paths = match &args.output {
+        None => into_folder(Path::new("fits")),
+        Some(out) => {
+            let is_folder = out.is_dir() || out.as_os_str().to_string_lossy().ends_with('/');
+            if is_folder {
+                into_folder(out)
+            } else if args.inputs.len() == 1 {
+                vec![out.clone()]
+            } else {
+                anyhow::bail!(
+                    "-o {}: several inputs need an output folder (an existing one, or a path ending in '/')",
+                    out.display()
+                );
+            }
+        }
+    };
+    let mut seen = std::collections::HashSet::new();
+    for (p, input) in paths.iter().zip(&args.inputs) {
+        if !seen.insert(p.clone()) {
+            anyhow::bail!(
+                "two inputs would write {} (second: {}); rename one or fit them separately",
+                p.display(),
+                input.display()
+            );
+        }
+    }
+    Ok(paths)
+}
 
 /// Runs `fluorite fit`.
-pub fn run(_args: FitArgs) -> anyhow::Result<ExitCode> {
-    anyhow::bail!("fit is not available yet")
+pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
+    let lights = args
+        .lights
+        .iter()
+        .map(|l| Light::parse(l))
+        .collect::<Result<Vec<_>, _>>()
+        .context("--lights")?;
+    let options = FitOptions {
+        solver: args.solver,
+        guard_nm: args.guard,
+        quantum_yield: args.quantum_yield,
+        concentration: args.concentration,
+        max_iterations: args.max_iterations,
+        tolerance: args.tolerance,
+        lights,
+    };
+    let read_options = ReadOptions {
+        format: args.format,
+        rows: args.rows,
+        zero_is_missing: args.zero_is_missing,
+        per_nm: args.per_nm,
+    };
+    let outputs = output_paths(&args)?;
+    for out in &outputs {
+        if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create output folder {}", dir.display()))?;
+        }
+    }
+    // Files are independent: fit them in parallel, report in input order.
+    let results: Vec<anyhow::Result<(Measurement, FitOutcome)>> = args
+        .inputs
+        .par_iter()
+        .zip(&outputs)
+        .map(|(input, out)| {
+            let m = read(input, &read_options)?;
+            let outcome = fit(&m, &options)?;
+            write_atomic(out, outcome.to_json().as_bytes())?;
+            Ok((m, outcome))
+        })
+        .collect();
+    let mut failed = 0;
+    let mut flagged = 0;
+    for ((input, out), result) in args.inputs.iter().zip(&outputs).zip(results) {
+        match result {
+            Err(e) => {
+                failed += 1;
+                eprintln!("fluorite: error: {}", format!("{e:#}").replace('\n', " "));
+            }
+            Ok((m, outcome)) => {
+                let report = outcome.report();
+                if !report.converged || !report.warnings.is_empty() {
+                    flagged += 1;
+                }
+                if !args.quiet {
+                    print!("{}", summary(input, out, &m, &outcome));
+                }
+                if let FitOutcome::Material(_) = outcome {
+                    if args.plot {
+                        crate::cli::plot::plot_fit(out, input)
+                            .with_context(|| format!("plotting {}", out.display()))?;
+                    }
+                    if args.render {
+                        crate::cli::render::preview(out)
+                            .with_context(|| format!("rendering {}", out.display()))?;
+                    }
+                }
+            }
+        }
+    }
+    Ok(if failed > 0 {
+        ExitCode::from(2)
+    } else if args.strict && flagged > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
+/// The per-file summary printed after a fit.
+fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let report = outcome.report();
+    let _ = writeln!(s, "{} → {}", input.display(), out.display());
+    for note in &m.notes {
+        let _ = writeln!(s, "  note: {note}");
+    }
+    match outcome {
+        FitOutcome::Material(material) => match material.fluorophores.first() {
+            Some(f) => {
+                let [c_lo, c_hi] = f
+                    .concentration_range
+                    .unwrap_or([f.concentration, f.concentration]);
+                let _ = writeln!(
+                    s,
+                    "  k = c·Q = {:.4}   c = {:.4} (feasible {:.4}–{:.4})   Q = {:.4}   λ̄e = {:.1} nm   photon yield Φ ≤ {:.3}",
+                    f.k(),
+                    f.concentration,
+                    c_lo,
+                    c_hi,
+                    f.quantum_yield,
+                    f.emission_mean_nm(),
+                    f.quantum_yield * f.emission_mean_nm()
+                        / f.shortest_absorbed_nm().unwrap_or(f64::NAN)
+                );
+                let _ = writeln!(s, "  gauge: {}", report.gauge);
+            }
+            None => {
+                let _ = writeln!(s, "  plain reflector: c = 0 (no fluorescence)");
+            }
+        },
+        FitOutcome::Shapes(shapes) => {
+            let _ = writeln!(
+                s,
+                "  absorption and emission shapes only; k = {:.4e} in data units",
+                shapes.k_data_units
+            );
+            for u in &shapes.undetermined {
+                let _ = writeln!(s, "  undetermined: {u}");
+            }
+        }
+    }
+    let _ = writeln!(
+        s,
+        "  residual: fluorescent cells {:.1} % (relative), diagonal RMSE {:.4}; noise σ ≈ {:.4}; guard band ({} nm) held {:.1} % of the fluorescent signal (excluded)",
+        100.0 * report.rel_residual_fluorescence,
+        report.rmse_diagonal,
+        report.noise_sigma,
+        report.guard_nm,
+        100.0 * report.guard_signal_fraction
+    );
+    if !report.delta_e2000.is_empty() {
+        let de: Vec<String> = report
+            .delta_e2000
+            .iter()
+            .map(|(l, v)| format!("{l} {v:.2}"))
+            .collect();
+        let _ = writeln!(s, "  ΔE2000: {}", de.join("   "));
+    }
+    let _ = writeln!(
+        s,
+        "  solver {}: {} after {} iterations, {:.2} ms",
+        report.solver,
+        if report.converged {
+            "converged"
+        } else {
+            "NOT converged"
+        },
+        report.iterations,
+        1e3 * report.seconds
+    );
+    for w in &report.warnings {
+        let _ = writeln!(s, "  warning: {w}");
+    }
+    s
 }

@@ -1,0 +1,131 @@
+//! The cells a fit uses, gathered once from a measurement.
+
+use crate::measurement::{CellKind, Measurement, Units};
+use crate::spectrum::bin_widths;
+
+/// One matrix cell used by the fit.
+#[derive(Debug, Clone, Copy)]
+pub struct Cell {
+    /// Excitation row.
+    pub row: usize,
+    /// Emission column.
+    pub column: usize,
+    /// Measured value (per bin or per nm, as the measurement).
+    pub value: f64,
+}
+
+/// Everything the objective needs from a measurement, precomputed.
+#[derive(Debug, Clone)]
+pub struct FitData {
+    /// Excitation grid (nm).
+    pub excitation_nm: Vec<f64>,
+    /// Emission grid (nm).
+    pub emission_nm: Vec<f64>,
+    /// Off-diagonal cells outside the guard band (Stokes and anti-Stokes), measured.
+    pub off_diagonal: Vec<Cell>,
+    /// Diagonal cells with a measured value.
+    pub diagonal: Vec<Cell>,
+    /// Diagonal positions `(row, column)` whether measured or not.
+    pub diagonal_positions: Vec<(usize, usize)>,
+    /// Cells in the guard band (excluded), measured.
+    pub guard: Vec<Cell>,
+    /// Stokes-side cells (λo > λi + guard): where fluorescence is judged.
+    pub stokes: Vec<Cell>,
+    /// Anti-Stokes cells (λo < λi − guard): noise in real surfaces.
+    pub anti_stokes: Vec<Cell>,
+    /// Trapezoid emission bin widths (nm).
+    pub emission_bin_widths: Vec<f64>,
+    /// Factor turning the fitted emission column values v_j into e_j·Δλ_j: the bin width
+    /// for per-nm data (v = e), 1 for per-bin data (v = e·Δλ).
+    pub emission_weight: Vec<f64>,
+    /// Guard band used (nm).
+    pub guard_nm: f64,
+}
+
+impl FitData {
+    /// Gathers the cells of `m` for a guard band of `guard_nm` around the diagonal.
+    pub fn new(m: &Measurement, guard_nm: f64) -> Self {
+        let mut data = FitData {
+            excitation_nm: m.excitation_nm.clone(),
+            emission_nm: m.emission_nm.clone(),
+            off_diagonal: Vec::new(),
+            diagonal: Vec::new(),
+            diagonal_positions: m.diagonal(),
+            guard: Vec::new(),
+            stokes: Vec::new(),
+            anti_stokes: Vec::new(),
+            emission_bin_widths: bin_widths(&m.emission_nm),
+            emission_weight: Vec::new(),
+            guard_nm,
+        };
+        data.emission_weight = match m.units {
+            Units::PerBin => vec![1.0; m.n_emission()],
+            Units::PerNm => data.emission_bin_widths.clone(),
+        };
+        for row in 0..m.n_excitation() {
+            for column in 0..m.n_emission() {
+                let cell = Cell {
+                    row,
+                    column,
+                    value: m.get(row, column),
+                };
+                match m.cell_kind(row, column, guard_nm) {
+                    CellKind::Missing => {}
+                    CellKind::Diagonal => data.diagonal.push(cell),
+                    CellKind::Guard => data.guard.push(cell),
+                    CellKind::Stokes => {
+                        data.off_diagonal.push(cell);
+                        data.stokes.push(cell);
+                    }
+                    CellKind::AntiStokes => {
+                        data.off_diagonal.push(cell);
+                        data.anti_stokes.push(cell);
+                    }
+                }
+            }
+        }
+        data
+    }
+
+    /// Number of excitation samples.
+    pub fn n_excitation(&self) -> usize {
+        self.excitation_nm.len()
+    }
+
+    /// Number of emission samples.
+    pub fn n_emission(&self) -> usize {
+        self.emission_nm.len()
+    }
+
+    /// Robust noise level: 1.4826 × the median absolute deviation of the anti-Stokes
+    /// cells, which hold only noise on real surfaces. Falls back to all off-diagonal
+    /// cells' residual-free spread when there is no anti-Stokes side.
+    pub fn noise_sigma(&self) -> f64 {
+        let cells = if self.anti_stokes.len() >= 10 {
+            &self.anti_stokes
+        } else {
+            &self.off_diagonal
+        };
+        robust_sigma(cells.iter().map(|c| c.value))
+    }
+}
+
+/// 1.4826 × median absolute deviation from the median (σ for Gaussian noise).
+pub fn robust_sigma(values: impl Iterator<Item = f64>) -> f64 {
+    let mut v: Vec<f64> = values.filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return 0.0;
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        }
+    };
+    let m = median(&mut v);
+    let mut dev: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
+    1.4826 * median(&mut dev)
+}

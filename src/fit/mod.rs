@@ -1,0 +1,779 @@
+//! Fitting the diffuse fluorescent BBRRDF to a reradiation matrix.
+//!
+//! 1. [`init`]: a closed-form start, the masked non-negative rank-1 factorisation of the
+//!    off-diagonal cells outside the guard band, and the diagonal minus the fluorescent
+//!    term.
+//! 2. [`solve`]: refinement with argmin (L-BFGS or Gauss-Newton) of the objective in
+//!    [`objective`], over a pluggable [`representation`] of the spectra. Every point the
+//!    solver visits is a valid material (conservation is built into the parameterisation
+//!    and the closed-form diagonal), so the result is feasible without clamping.
+//! 3. The gauge: c and Q are not separately identifiable; the fit reports k = c·Q and the
+//!    feasible interval of c, and picks the smallest c unless Q or c is pinned.
+//! 4. [`assess`]: residuals, ΔE2000 under the standard lights, and warnings.
+
+pub mod assess;
+pub mod data;
+pub mod init;
+pub mod objective;
+pub mod representation;
+pub mod solve;
+
+use std::time::Instant;
+
+use crate::colour::Light;
+use crate::error::{Error, Result};
+use crate::material::{FitReport, Fluorophore, FluorophoreShapes, Material, SHAPES_SCHEMA};
+use crate::measurement::Measurement;
+use crate::spectrum::Spectrum;
+
+use data::FitData;
+use objective::{DiagonalRegime, Objective};
+use representation::{GridSpectra, Representation, Tabulated};
+
+/// The refinement method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Solver {
+    /// The closed-form estimate alone (no refinement).
+    Init,
+    /// L-BFGS with a More-Thuente line search (the default).
+    Lbfgs,
+    /// Gauss-Newton with a backtracking line search.
+    GaussNewton,
+}
+
+impl Solver {
+    /// The name recorded in the material.
+    pub fn name(self) -> &'static str {
+        match self {
+            Solver::Init => "init",
+            Solver::Lbfgs => "lbfgs",
+            Solver::GaussNewton => "gauss-newton",
+        }
+    }
+}
+
+/// How to fit.
+#[derive(Debug, Clone)]
+pub struct FitOptions {
+    /// Refinement method.
+    pub solver: Solver,
+    /// Cells within this many nm of the diagonal are excluded as crosstalk (default: one
+    /// grid step).
+    pub guard_nm: Option<f64>,
+    /// Pin the energy quantum yield Q (outside knowledge); c = k/Q.
+    pub quantum_yield: Option<f64>,
+    /// Pin the concentration c; Q = k/c.
+    pub concentration: Option<f64>,
+    /// Iteration limit of the refinement.
+    pub max_iterations: u64,
+    /// Relative tolerance of the refinement: stop when an iteration improves the cost by
+    /// less than this fraction of the starting cost, or the gradient norm falls below
+    /// this fraction of the data's norm.
+    pub tolerance: f64,
+    /// Lights for the ΔE2000 report.
+    pub lights: Vec<Light>,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            solver: Solver::Lbfgs,
+            guard_nm: None,
+            quantum_yield: None,
+            concentration: None,
+            max_iterations: 500,
+            tolerance: 1e-9,
+            lights: Light::standard(),
+        }
+    }
+}
+
+/// What a fit produces.
+#[derive(Debug, Clone)]
+pub enum FitOutcome {
+    /// A complete material (the data had a calibrated diagonal).
+    Material(Box<Material>),
+    /// Absorption and emission shapes only (solution EEMs): the rest is undetermined.
+    Shapes(Box<FluorophoreShapes>),
+}
+
+impl FitOutcome {
+    /// The fit report of either outcome.
+    pub fn report(&self) -> &FitReport {
+        match self {
+            FitOutcome::Material(m) => m.fit.as_ref().expect("fitted materials carry a report"),
+            FitOutcome::Shapes(s) => &s.fit,
+        }
+    }
+
+    /// The JSON to write.
+    pub fn to_json(&self) -> String {
+        match self {
+            FitOutcome::Material(m) => m.to_json(),
+            FitOutcome::Shapes(s) => s.to_json(),
+        }
+    }
+}
+
+/// How many noise-matrix singular values a rank-1 fit must beat to count as signal:
+/// pure noise of level σ on an m×n grid lets a rank-1 fit explain about σ²(√m + √n)².
+const SIGNIFICANCE_FACTOR: f64 = 4.0;
+/// Residual RMS above this many noise σ is flagged.
+const RESIDUAL_NOISE_FACTOR: f64 = 3.0;
+/// Rows whose fitted cells hold less than this share of the emission are unobservable.
+const OBSERVABILITY_THRESHOLD: f64 = 0.05;
+
+/// The largest κ a start may have (see [`start_spectra`]).
+const START_KAPPA_CAP: f64 = 0.98;
+
+/// Fits the model to `m`.
+pub fn fit(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
+    let started = Instant::now();
+    validate_options(options)?;
+    m.validate()?;
+    let guard_nm = options.guard_nm.unwrap_or_else(|| m.default_guard_nm());
+    // Arbitrary-scale data (counts) are brought to order one so that κ ≤ 1 can hold;
+    // the scale is reported back in data units.
+    let data_scale = if m.arbitrary_scale {
+        m.values
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold(0.0f64, |a, v| a.max(v.abs()))
+            .max(f64::MIN_POSITIVE)
+    } else {
+        1.0
+    };
+    let scaled;
+    let m_fit = if data_scale != 1.0 {
+        scaled = Measurement {
+            values: m.values.iter().map(|v| v / data_scale).collect(),
+            ..m.clone()
+        };
+        &scaled
+    } else {
+        m
+    };
+    let data = FitData::new(m_fit, guard_nm);
+    if data.off_diagonal.is_empty() {
+        return Err(Error::Fit(format!(
+            "{}: no measured cell lies outside the diagonal and its {guard_nm} nm guard band; fluorescence cannot be fitted (lower --guard or supply a matrix with off-diagonal cells)",
+            m.name
+        )));
+    }
+    let noise_sigma = data.noise_sigma();
+    let representation = Tabulated {
+        n_excitation: data.n_excitation(),
+        n_emission: data.n_emission(),
+    };
+    let objective = Objective { data: &data };
+    let mut warnings = Vec::new();
+
+    // 1. Closed-form start.
+    let start = init::rank_one(&data, 1000);
+    let total_energy: f64 = data.off_diagonal.iter().map(|c| c.value * c.value).sum();
+    let explained = total_energy
+        - 2.0
+            * start
+                .cost_history
+                .last()
+                .copied()
+                .unwrap_or(0.5 * total_energy);
+    let n_rows = data.n_excitation() as f64;
+    let n_cols = data.n_emission() as f64;
+    let noise_floor =
+        SIGNIFICANCE_FACTOR * noise_sigma.powi(2) * (n_rows.sqrt() + n_cols.sqrt()).powi(2);
+    let fluorescent =
+        explained > noise_floor.max(1e-24 * total_energy.max(1e-300)) && explained > 0.0;
+
+    if !fluorescent {
+        if !m.has_diagonal {
+            return Err(Error::Fit(format!(
+                "{}: the matrix holds no signal above its noise (σ ≈ {noise_sigma:.3e}) and has no diagonal; there is nothing to fit",
+                m.name
+            )));
+        }
+        warnings.push(format!(
+            "no fluorescent signal above the noise (a rank-1 fit explains {explained:.3e}, pure noise of σ = {noise_sigma:.2e} would explain up to {noise_floor:.3e}): fitted as a plain reflector with c = 0"
+        ));
+        return Ok(plain_reflector(
+            m,
+            &data,
+            options,
+            started,
+            noise_sigma,
+            warnings,
+        ));
+    }
+
+    let start_spectra = start_spectra(&objective, &start, &mut warnings);
+    let theta0 = representation.encode(&start_spectra);
+
+    // 2. Refinement.
+    let energy_scale = total_energy + data.diagonal.iter().map(|c| c.value * c.value).sum::<f64>();
+    // Stop when the gradient is negligible against the data, or when an iteration
+    // improves the cost by less than `tolerance` of the starting cost.
+    let start_cost = objective.cost_gradient(&start_spectra).0;
+    let stopping = solve::Stopping {
+        max_iterations: options.max_iterations,
+        gradient_tolerance: options.tolerance * energy_scale.sqrt().max(1e-300),
+        cost_tolerance: options.tolerance * start_cost.max(1e-300),
+    };
+    let refined = match options.solver {
+        Solver::Init => solve::Refined {
+            theta: theta0.clone(),
+            iterations: start.sweeps as u64,
+            converged: start.converged,
+            termination: if start.converged {
+                "alternating least squares converged".into()
+            } else {
+                "alternating least squares sweep limit".into()
+            },
+            cost_history: start.cost_history.clone(),
+        },
+        Solver::Lbfgs => solve::lbfgs(
+            Objective { data: &data },
+            &representation,
+            &theta0,
+            stopping,
+        )
+        .map_err(Error::Fit)?,
+        Solver::GaussNewton => solve::gauss_newton(
+            Objective { data: &data },
+            &representation,
+            &theta0,
+            stopping,
+        )
+        .map_err(Error::Fit)?,
+    };
+    let mut cost_history = if options.solver == Solver::Init {
+        refined.cost_history.clone()
+    } else {
+        let mut h = vec![start_cost];
+        h.extend(&refined.cost_history);
+        h
+    };
+    cost_history.retain(|c| c.is_finite());
+    if !refined.converged {
+        warnings.push(format!(
+            "{} stopped before converging ({}) after {} iterations; raise --max-iterations or try another --solver",
+            options.solver.name(),
+            refined.termination,
+            refined.iterations
+        ));
+    }
+    let spectra = representation.spectra(&refined.theta);
+
+    // 3. Material and gauge.
+    let report = FitReport {
+        source: m
+            .source
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| m.name.clone()),
+        source_sha256: m.source_sha256.clone().unwrap_or_default(),
+        solver: options.solver.name().to_string(),
+        converged: refined.converged,
+        iterations: refined.iterations,
+        seconds: 0.0,
+        guard_nm,
+        gauge: String::new(),
+        noise_sigma: noise_sigma * data_scale,
+        guard_signal_fraction: guard_fraction(&data),
+        cost_history,
+        ..FitReport::default()
+    };
+    let unobservable =
+        assess::unobservable_absorption(&data, &spectra.emission, OBSERVABILITY_THRESHOLD);
+    if unobservable.iter().any(|&u| u) {
+        warnings.push(format!(
+            "absorption is barely constrained at {}: little of the emission falls in those rows' measured cells",
+            assess::ranges(&data.excitation_nm, &unobservable)
+        ));
+    }
+    if !m.has_diagonal || m.arbitrary_scale {
+        return Ok(shapes(
+            m, &data, &objective, &spectra, report, data_scale, warnings, started,
+        ));
+    }
+    let mut material = build_material(
+        m,
+        &data,
+        &objective,
+        &spectra,
+        options,
+        report,
+        &mut warnings,
+    )?;
+
+    // 4. Assessment.
+    let accuracy = assess::accuracy(&material, m, &data, &options.lights);
+    // The noise estimate of exact (synthetic) data is rounding error; below a floor
+    // relative to the signal a residual is not worth a warning.
+    let signal_floor = 1e-9
+        * m.values
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold(0.0f64, |a, v| a.max(v.abs()));
+    if accuracy.rms_off_diagonal > (RESIDUAL_NOISE_FACTOR * noise_sigma).max(signal_floor) {
+        warnings.push(format!(
+            "off-diagonal residual RMS {:.2e} is {:.1}× the noise level σ = {:.2e} (anti-Stokes side): the matrix holds structure one fluorophore with a constant yield does not explain",
+            accuracy.rms_off_diagonal,
+            accuracy.rms_off_diagonal / noise_sigma,
+            noise_sigma
+        ));
+    }
+    let fit = material.fit.as_mut().expect("report set above");
+    fit.rel_residual_fluorescence = accuracy.rel_residual_fluorescence;
+    fit.rmse_diagonal = accuracy.rmse_diagonal;
+    fit.delta_e2000 = accuracy.delta_e2000;
+    fit.warnings = warnings;
+    fit.seconds = started.elapsed().as_secs_f64();
+    material.conservation = Some(material.conservation_margins());
+    material.validate().map_err(|e| {
+        Error::Fit(format!(
+            "{}: the fitted material violates a constraint ({e}); this is a bug, please report it",
+            m.name
+        ))
+    })?;
+    Ok(FitOutcome::Material(Box::new(material)))
+}
+
+fn validate_options(options: &FitOptions) -> Result<()> {
+    if let Some(g) = options.guard_nm
+        && (!g.is_finite() || g < 0.0)
+    {
+        return Err(Error::invalid(
+            "--guard",
+            format!("is {g}; give a distance in nm ≥ 0"),
+        ));
+    }
+    for (value, name) in [
+        (options.quantum_yield, "--quantum-yield"),
+        (options.concentration, "--concentration"),
+    ] {
+        if let Some(v) = value
+            && !(v > 0.0 && v <= 1.0)
+        {
+            return Err(Error::invalid(
+                name,
+                format!("is {v}; it must lie in (0, 1]"),
+            ));
+        }
+    }
+    if options.quantum_yield.is_some() && options.concentration.is_some() {
+        return Err(Error::invalid(
+            "--quantum-yield/--concentration",
+            "both given; k = c·Q is fixed by the data, so pin only one of them",
+        ));
+    }
+    if options.max_iterations == 0 {
+        return Err(Error::invalid("--max-iterations", "is 0; give at least 1"));
+    }
+    if !(options.tolerance > 0.0 && options.tolerance < 1.0) {
+        return Err(Error::invalid(
+            "--tolerance",
+            format!("is {}; give a value in (0, 1)", options.tolerance),
+        ));
+    }
+    Ok(())
+}
+
+/// Grid spectra from the rank-1 start, projected onto the feasible set (κ ≤ 1).
+fn start_spectra(
+    objective: &Objective<'_>,
+    start: &init::RankOne,
+    warnings: &mut Vec<String>,
+) -> GridSpectra {
+    let peak = start.row.iter().cloned().fold(0.0, f64::max);
+    let absorption: Vec<f64> = start
+        .row
+        .iter()
+        .map(|u| if peak > 0.0 { u / peak } else { 0.0 })
+        .collect();
+    let normaliser: f64 = start
+        .column
+        .iter()
+        .zip(&objective.data.emission_weight)
+        .map(|(v, w)| v * w)
+        .sum();
+    let emission: Vec<f64> = start
+        .column
+        .iter()
+        .map(|v| {
+            if normaliser > 0.0 {
+                v / normaliser
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let mut sp = GridSpectra {
+        kappa: 0.0,
+        absorption,
+        emission,
+    };
+    let d = objective.derived(&sp);
+    // F = u·v = peak·normaliser · a·(v/normaliser) = s·a·v with s = κ/(γ·S), S = 1.
+    let kappa = peak * normaliser * d.photon_factor;
+    if kappa > 1.0 {
+        warnings.push(format!(
+            "the unconstrained rank-1 estimate needs c ≥ {kappa:.3} > 1 (k·λ̄e/λmin): conservation caps the fluorescence, the fit scales it down"
+        ));
+    }
+    // Start strictly inside: with κ = sin²t the bound κ = 1 is a stationary point
+    // (dκ/dt = 0), where a start exactly on it would stay although the optimum lies inside.
+    sp.kappa = kappa.min(START_KAPPA_CAP);
+    sp
+}
+
+fn guard_fraction(data: &FitData) -> f64 {
+    let guard: f64 = data.guard.iter().map(|c| c.value.abs()).sum();
+    let stokes: f64 = data.stokes.iter().map(|c| c.value.abs()).sum();
+    if stokes > 0.0 { guard / stokes } else { 0.0 }
+}
+
+/// Turns grid spectra into a material: normalises a and e, computes the diagonal, the
+/// feasible interval of c and the split of k into c and Q.
+fn build_material(
+    m: &Measurement,
+    data: &FitData,
+    objective: &Objective<'_>,
+    sp: &GridSpectra,
+    options: &FitOptions,
+    mut report: FitReport,
+    warnings: &mut Vec<String>,
+) -> Result<Material> {
+    let derived = objective.derived(sp);
+    let peak = sp.absorption.iter().cloned().fold(0.0, f64::max);
+    let absorption: Vec<f64> = sp.absorption.iter().map(|a| a / peak).collect();
+    let emission: Vec<f64> = sp
+        .emission
+        .iter()
+        .zip(&data.emission_weight)
+        .zip(&data.emission_bin_widths)
+        .map(|((v, ew), w)| v * ew / (w * derived.normaliser))
+        .collect();
+    // F = s·a·v = (s·peak·S)·a'·(v/S): k = s·peak·S; the smallest feasible c is k·γ.
+    let k = derived.scale * peak * derived.normaliser;
+    let c_min = (sp.kappa * peak).min(1.0);
+
+    // The diagonal, projected onto its feasible interval; unmeasured samples interpolated.
+    let fitted = objective.diagonal(sp, &derived);
+    let mut diagonal = vec![f64::NAN; data.diagonal_positions.len()];
+    let mut regimes = vec![DiagonalRegime::Free; data.diagonal_positions.len()];
+    for (cell, (d, regime)) in data.diagonal.iter().zip(&fitted) {
+        if let Some(p) = data
+            .diagonal_positions
+            .iter()
+            .position(|&(i, j)| i == cell.row && j == cell.column)
+        {
+            diagonal[p] = *d;
+            regimes[p] = *regime;
+        }
+    }
+    let wavelengths: Vec<f64> = data
+        .diagonal_positions
+        .iter()
+        .map(|&(_, j)| data.emission_nm[j])
+        .collect();
+    let cap: Vec<f64> = data
+        .diagonal_positions
+        .iter()
+        .map(|&(i, _)| 1.0 - c_min * absorption[i])
+        .collect();
+    fill_missing(&mut diagonal, &wavelengths, &cap, &m.name)?;
+    if diagonal.iter().any(|d| d.is_nan()) {
+        return Err(Error::Fit(format!(
+            "{}: the matrix has no measured diagonal cell",
+            m.name
+        )));
+    }
+    flag_clamped(data, &regimes, &wavelengths, warnings);
+
+    // Feasible interval of c: c ≥ k·γ (photons, Q ≤ 1), c ≤ 1, c ≤ (1 − d)/a (r ≤ 1).
+    let mut c_max: f64 = 1.0;
+    for (p, &(i, _)) in data.diagonal_positions.iter().enumerate() {
+        if absorption[i] > 0.0 {
+            c_max = c_max.min((1.0 - diagonal[p]) / absorption[i]);
+        }
+    }
+    let c_max = c_max.max(c_min);
+    let photon_limit_q = 1.0 / derived.photon_factor;
+    let (concentration, gauge) = match (options.quantum_yield, options.concentration) {
+        (Some(q), _) => {
+            if q > photon_limit_q * (1.0 + 1e-12) {
+                return Err(Error::invalid(
+                    "--quantum-yield",
+                    format!(
+                        "{q} breaks photon conservation for this fit: with mean emission {:.1} nm and absorption down to {:.0} nm the energy yield is at most {photon_limit_q:.4}",
+                        derived.emission_mean_nm, derived.shortest_absorbed_nm
+                    ),
+                ));
+            }
+            let c = k / q;
+            if c > c_max * (1.0 + 1e-12) {
+                return Err(Error::invalid(
+                    "--quantum-yield",
+                    format!(
+                        "{q} needs c = k/Q = {c:.4}, above the largest feasible c = {c_max:.4} (r ≤ 1 and c ≤ 1); the yield must be at least {:.4}",
+                        k / c_max
+                    ),
+                ));
+            }
+            (
+                c.clamp(c_min, c_max),
+                format!("quantum yield pinned at {q} by the user: c = k/Q"),
+            )
+        }
+        (None, Some(c)) => {
+            if c < c_min * (1.0 - 1e-12) {
+                return Err(Error::invalid(
+                    "--concentration",
+                    format!(
+                        "{c} is below the smallest feasible c = {c_min:.4}: it would need Q = k/c = {:.4}, beyond the photon limit {photon_limit_q:.4}",
+                        k / c
+                    ),
+                ));
+            }
+            if c > c_max * (1.0 + 1e-12) {
+                return Err(Error::invalid(
+                    "--concentration",
+                    format!(
+                        "{c} is above the largest feasible c = {c_max:.4}: the reflectance r = d/(1 − c·a) would exceed 1"
+                    ),
+                ));
+            }
+            (
+                c.clamp(c_min, c_max),
+                format!("concentration pinned at {c} by the user: Q = k/c"),
+            )
+        }
+        (None, None) => (
+            c_min,
+            format!(
+                "smallest feasible c (c = k·max(1, λ̄e/λmin) = {c_min:.4}, so Q = {:.4} sits at its {} limit); any c in [{c_min:.4}, {c_max:.4}] gives the same matrix — pin one with --quantum-yield or --concentration",
+                if c_min > 0.0 { k / c_min } else { 0.0 },
+                if derived.photon_limited {
+                    "photon"
+                } else {
+                    "energy"
+                }
+            ),
+        ),
+    };
+    if c_min >= 1.0 - 1e-9 {
+        warnings.push(
+            "conservation bound active: the smallest feasible concentration is 1, so the fluorescence sits at the photon/energy limit".to_string(),
+        );
+    }
+    let quantum_yield = if concentration > 0.0 {
+        (k / concentration).min(1.0)
+    } else {
+        0.0
+    };
+    let reflectance: Vec<f64> = data
+        .diagonal_positions
+        .iter()
+        .zip(&diagonal)
+        .map(|(&(i, _), d)| {
+            let transmitted = 1.0 - concentration * absorption[i];
+            if transmitted > 0.0 {
+                (d / transmitted).clamp(0.0, 1.0)
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    report.gauge = gauge;
+    let fluorophore = Fluorophore {
+        concentration,
+        quantum_yield,
+        concentration_range: Some([c_min, c_max]),
+        absorption: Spectrum::new(data.excitation_nm.clone(), absorption, "absorption")?,
+        emission: Spectrum::new(data.emission_nm.clone(), emission, "emission")?,
+    };
+    let mut material = Material::new(
+        m.name.clone(),
+        Spectrum::new(wavelengths, reflectance, "reflectance")?,
+        vec![fluorophore],
+    );
+    material.fit = Some(report);
+    Ok(material)
+}
+
+/// Fills unmeasured diagonal samples by linear interpolation (ends held), within their cap.
+fn fill_missing(diagonal: &mut [f64], wavelengths: &[f64], cap: &[f64], name: &str) -> Result<()> {
+    let known: Vec<usize> = (0..diagonal.len())
+        .filter(|&p| diagonal[p].is_finite())
+        .collect();
+    if known.is_empty() {
+        return Err(Error::Fit(format!(
+            "{name}: the diagonal (reflectance) is not measured at any wavelength; supply the diagonal or fit as an EEM"
+        )));
+    }
+    let s = Spectrum {
+        wavelength_nm: known.iter().map(|&p| wavelengths[p]).collect(),
+        value: known.iter().map(|&p| diagonal[p]).collect(),
+    };
+    for p in 0..diagonal.len() {
+        if diagonal[p].is_nan() {
+            diagonal[p] = s.eval_clamped(wavelengths[p]).clamp(0.0, cap[p].max(0.0));
+        }
+    }
+    Ok(())
+}
+
+fn flag_clamped(
+    data: &FitData,
+    regimes: &[DiagonalRegime],
+    wavelengths: &[f64],
+    warnings: &mut Vec<String>,
+) {
+    let _ = data;
+    let at_cap: Vec<bool> = regimes
+        .iter()
+        .map(|r| *r == DiagonalRegime::AtCap)
+        .collect();
+    if at_cap.iter().any(|&x| x) {
+        warnings.push(format!(
+            "reflectance at its conservation cap at {}: the measured diagonal plus the fluorescence would need r > 1 or more photons out than in",
+            assess::ranges(wavelengths, &at_cap)
+        ));
+    }
+    let at_zero: Vec<bool> = regimes
+        .iter()
+        .map(|r| *r == DiagonalRegime::AtZero)
+        .collect();
+    if at_zero.iter().filter(|&&x| x).count() > 0 {
+        warnings.push(format!(
+            "reflectance at zero at {}: the measured diagonal is below the fitted fluorescence there (or negative noise)",
+            assess::ranges(wavelengths, &at_zero)
+        ));
+    }
+}
+
+fn plain_reflector(
+    m: &Measurement,
+    data: &FitData,
+    options: &FitOptions,
+    started: Instant,
+    noise_sigma: f64,
+    warnings: Vec<String>,
+) -> FitOutcome {
+    let wavelengths: Vec<f64> = data
+        .diagonal_positions
+        .iter()
+        .map(|&(_, j)| data.emission_nm[j])
+        .collect();
+    let mut values = vec![f64::NAN; wavelengths.len()];
+    for c in &data.diagonal {
+        if let Some(p) = data
+            .diagonal_positions
+            .iter()
+            .position(|&(i, j)| i == c.row && j == c.column)
+        {
+            values[p] = c.value.clamp(0.0, 1.0);
+        }
+    }
+    let cap = vec![1.0; values.len()];
+    // A diagonal with no measured cell has no reflectance either; report zeros then.
+    if fill_missing(&mut values, &wavelengths, &cap, &m.name).is_err() {
+        values.iter_mut().for_each(|v| *v = 0.0);
+    }
+    let mut material = Material::new(
+        m.name.clone(),
+        Spectrum {
+            wavelength_nm: wavelengths,
+            value: values,
+        },
+        Vec::new(),
+    );
+    let report = FitReport {
+        source: m
+            .source
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| m.name.clone()),
+        source_sha256: m.source_sha256.clone().unwrap_or_default(),
+        solver: "none (plain reflector)".into(),
+        converged: true,
+        guard_nm: data.guard_nm,
+        gauge: "no fluorescence: c = 0".into(),
+        noise_sigma,
+        guard_signal_fraction: guard_fraction(data),
+        ..FitReport::default()
+    };
+    material.fit = Some(report);
+    let accuracy = assess::accuracy(&material, m, data, &options.lights);
+    let fit = material.fit.as_mut().expect("set above");
+    fit.rel_residual_fluorescence = accuracy.rel_residual_fluorescence;
+    fit.rmse_diagonal = accuracy.rmse_diagonal;
+    fit.delta_e2000 = accuracy.delta_e2000;
+    fit.warnings = warnings;
+    fit.seconds = started.elapsed().as_secs_f64();
+    FitOutcome::Material(Box::new(material))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn shapes(
+    m: &Measurement,
+    data: &FitData,
+    objective: &Objective<'_>,
+    sp: &GridSpectra,
+    mut report: FitReport,
+    data_scale: f64,
+    warnings: Vec<String>,
+    started: Instant,
+) -> FitOutcome {
+    let derived = objective.derived(sp);
+    let peak = sp
+        .absorption
+        .iter()
+        .cloned()
+        .fold(0.0, f64::max)
+        .max(f64::MIN_POSITIVE);
+    let absorption: Vec<f64> = sp.absorption.iter().map(|a| a / peak).collect();
+    let emission: Vec<f64> = sp
+        .emission
+        .iter()
+        .zip(&data.emission_weight)
+        .zip(&data.emission_bin_widths)
+        .map(|((v, ew), w)| v * ew / (w * derived.normaliser))
+        .collect();
+    let k = derived.scale * peak * derived.normaliser;
+    // Residual of the off-diagonal cells, the only accuracy figure without a diagonal.
+    let (mut num, mut den) = (0.0, 0.0);
+    for c in &data.off_diagonal {
+        let f = derived.scale * sp.absorption[c.row] * sp.emission[c.column];
+        num += (c.value - f).powi(2);
+        den += c.value * c.value;
+    }
+    report.rel_residual_fluorescence = if den > 0.0 { (num / den).sqrt() } else { 0.0 };
+    report.gauge = "none: c, Q and r are undetermined without a diagonal".into();
+    let mut undetermined = vec![
+        "reflectance r(λ): the matrix has no diagonal".to_string(),
+        "concentration c and quantum yield Q separately (only k = c·Q is identified)".to_string(),
+    ];
+    if m.arbitrary_scale {
+        undetermined.push("k = c·Q: the data are on an arbitrary scale (counts)".into());
+    }
+    report.undetermined = undetermined.clone();
+    report.warnings = warnings;
+    report.seconds = started.elapsed().as_secs_f64();
+    FitOutcome::Shapes(Box::new(FluorophoreShapes {
+        schema: SHAPES_SCHEMA.into(),
+        name: m.name.clone(),
+        absorption: Spectrum {
+            wavelength_nm: data.excitation_nm.clone(),
+            value: absorption,
+        },
+        emission: Spectrum {
+            wavelength_nm: data.emission_nm.clone(),
+            value: emission,
+        },
+        k: (!m.arbitrary_scale).then_some(k),
+        k_data_units: k * data_scale,
+        undetermined,
+        fit: report,
+    }))
+}

@@ -1,0 +1,248 @@
+//! Refinement with argmin: L-BFGS (More-Thuente line search) on the objective's
+//! gradient, or Gauss-Newton (with line search) on its residuals and Jacobian.
+
+use std::cell::RefCell;
+use std::sync::{Arc, Mutex};
+
+use argmin::core::observers::{Observe, ObserverMode};
+use argmin::core::{
+    CostFunction, Executor, Gradient, Jacobian, KV, Operator, State, TerminationReason,
+    TerminationStatus,
+};
+use argmin::solver::gaussnewton::GaussNewtonLS;
+use argmin::solver::linesearch::{
+    BacktrackingLineSearch, MoreThuenteLineSearch, condition::ArmijoCondition,
+};
+use argmin::solver::quasinewton::LBFGS;
+use nalgebra::{DMatrix, DVector};
+
+use super::objective::Objective;
+use super::representation::Representation;
+
+/// What a refinement run produced.
+#[derive(Debug, Clone)]
+pub struct Refined {
+    /// Best parameters found.
+    pub theta: Vec<f64>,
+    /// Iterations performed.
+    pub iterations: u64,
+    /// Whether the solver met its convergence test (not the iteration limit).
+    pub converged: bool,
+    /// Why the solver stopped, in words.
+    pub termination: String,
+    /// Objective ½‖r‖² after each iteration.
+    pub cost_history: Vec<f64>,
+}
+
+/// Stopping rules for the iterative solvers.
+#[derive(Debug, Clone, Copy)]
+pub struct Stopping {
+    /// Iteration limit.
+    pub max_iterations: u64,
+    /// Gradient-norm tolerance (L-BFGS), relative to the data's scale.
+    pub gradient_tolerance: f64,
+    /// Cost-change tolerance, relative to the data's scale.
+    pub cost_tolerance: f64,
+}
+
+struct Problem<'a> {
+    objective: Objective<'a>,
+    representation: &'a dyn Representation,
+    /// The last (θ, cost, θ-gradient): the line search asks for the cost and the gradient
+    /// of the same point separately, and one pass computes both.
+    cache: RefCell<Option<(Vec<f64>, f64, Vec<f64>)>>,
+    /// Prior rows √μ·(θ − θ₀) for Gauss-Newton: they make JᵀJ invertible along the
+    /// model's flat directions (the κ·a scale, samples at a bound) without moving the
+    /// optimum more than μ/curvature.
+    prior: Option<(f64, Vec<f64>)>,
+}
+
+impl Problem<'_> {
+    fn evaluate(&self, theta: &[f64]) -> (f64, Vec<f64>) {
+        if let Some((t, c, g)) = self.cache.borrow().as_ref()
+            && t.as_slice() == theta
+        {
+            return (*c, g.clone());
+        }
+        let sp = self.representation.spectra(theta);
+        let (cost, gk, ga, gv) = self.objective.cost_gradient(&sp);
+        let gradient = self.representation.pull_back(theta, gk, &ga, &gv);
+        *self.cache.borrow_mut() = Some((theta.to_vec(), cost, gradient.clone()));
+        (cost, gradient)
+    }
+}
+
+impl CostFunction for Problem<'_> {
+    type Param = DVector<f64>;
+    type Output = f64;
+    fn cost(&self, theta: &Self::Param) -> Result<f64, argmin::core::Error> {
+        Ok(self.evaluate(theta.as_slice()).0)
+    }
+}
+
+impl Gradient for Problem<'_> {
+    type Param = DVector<f64>;
+    type Gradient = DVector<f64>;
+    fn gradient(&self, theta: &Self::Param) -> Result<Self::Gradient, argmin::core::Error> {
+        Ok(DVector::from_vec(self.evaluate(theta.as_slice()).1))
+    }
+}
+
+impl Operator for Problem<'_> {
+    type Param = DVector<f64>;
+    type Output = DVector<f64>;
+    fn apply(&self, theta: &Self::Param) -> Result<Self::Output, argmin::core::Error> {
+        let sp = self.representation.spectra(theta.as_slice());
+        let mut r = self.objective.residuals(&sp);
+        if let Some((mu, theta0)) = &self.prior {
+            r.extend(theta.iter().zip(theta0).map(|(t, t0)| mu.sqrt() * (t - t0)));
+        }
+        Ok(DVector::from_vec(r))
+    }
+}
+
+impl Jacobian for Problem<'_> {
+    type Param = DVector<f64>;
+    type Jacobian = DMatrix<f64>;
+    fn jacobian(&self, theta: &Self::Param) -> Result<Self::Jacobian, argmin::core::Error> {
+        let sp = self.representation.spectra(theta.as_slice());
+        let jz = self.objective.jacobian(&sp);
+        let mut j = jz * self.representation.jacobian(theta.as_slice());
+        if let Some((mu, _)) = &self.prior {
+            let (rows, n) = (j.nrows(), j.ncols());
+            j = j.resize_vertically(rows + n, 0.0);
+            for k in 0..n {
+                j[(rows + k, k)] = mu.sqrt();
+            }
+        }
+        Ok(j)
+    }
+}
+
+/// Records the cost after every iteration.
+#[derive(Clone, Default)]
+struct CostRecorder(Arc<Mutex<Vec<f64>>>);
+
+impl<I: State<Float = f64>> Observe<I> for CostRecorder {
+    fn observe_iter(&mut self, state: &I, _kv: &KV) -> Result<(), argmin::core::Error> {
+        if let Ok(mut h) = self.0.lock() {
+            h.push(state.get_cost());
+        }
+        Ok(())
+    }
+}
+
+fn finish<I: State<Float = f64, Param = DVector<f64>>>(
+    state: &I,
+    history: CostRecorder,
+    fallback: &[f64],
+) -> Refined {
+    let theta = state
+        .get_best_param()
+        .map(|p| p.as_slice().to_vec())
+        .unwrap_or_else(|| fallback.to_vec());
+    let status = state.get_termination_status();
+    let converged = matches!(
+        status,
+        TerminationStatus::Terminated(TerminationReason::SolverConverged)
+    );
+    let termination = match status {
+        TerminationStatus::Terminated(reason) => reason.text().to_string(),
+        TerminationStatus::NotTerminated => "not terminated".to_string(),
+    };
+    let cost_history = history.0.lock().map(|h| h.clone()).unwrap_or_default();
+    Refined {
+        theta,
+        iterations: state.get_iter(),
+        converged,
+        termination,
+        cost_history,
+    }
+}
+
+/// Correction pairs L-BFGS keeps.
+const LBFGS_MEMORY: usize = 20;
+
+/// Refines `theta0` with L-BFGS and a More-Thuente line search.
+pub fn lbfgs(
+    objective: Objective<'_>,
+    representation: &dyn Representation,
+    theta0: &[f64],
+    stopping: Stopping,
+) -> Result<Refined, String> {
+    let problem = Problem {
+        objective,
+        representation,
+        cache: RefCell::new(None),
+        prior: None,
+    };
+    let solver = LBFGS::new(MoreThuenteLineSearch::new(), LBFGS_MEMORY)
+        .with_tolerance_grad(stopping.gradient_tolerance)
+        .and_then(|s| s.with_tolerance_cost(stopping.cost_tolerance))
+        .map_err(|e| e.to_string())?;
+    let recorder = CostRecorder::default();
+    let result = Executor::new(problem, solver)
+        .configure(|state| {
+            state
+                .param(DVector::from_column_slice(theta0))
+                .max_iters(stopping.max_iterations)
+        })
+        .add_observer(recorder.clone(), ObserverMode::Always)
+        .run()
+        .map_err(|e| format!("L-BFGS: {e}"))?;
+    Ok(finish(&result.state, recorder, theta0))
+}
+
+/// Refines `theta0` with Gauss-Newton and a backtracking (Armijo) line search.
+pub fn gauss_newton(
+    objective: Objective<'_>,
+    representation: &dyn Representation,
+    theta0: &[f64],
+    stopping: Stopping,
+) -> Result<Refined, String> {
+    // μ relative to the curvature scale at the start.
+    let probe = Problem {
+        objective: Objective {
+            data: objective.data,
+        },
+        representation,
+        cache: RefCell::new(None),
+        prior: None,
+    };
+    let j0 = probe
+        .jacobian(&DVector::from_column_slice(theta0))
+        .map_err(|e| e.to_string())?;
+    let curvature = j0
+        .column_iter()
+        .map(|c| c.norm_squared())
+        .fold(0.0, f64::max)
+        .max(1e-300);
+    let problem = Problem {
+        objective,
+        representation,
+        cache: RefCell::new(None),
+        prior: Some((1e-10 * curvature, theta0.to_vec())),
+    };
+    let linesearch =
+        BacktrackingLineSearch::new(ArmijoCondition::new(1e-4).map_err(|e| e.to_string())?);
+    let solver = GaussNewtonLS::new(linesearch)
+        .with_tolerance(stopping.cost_tolerance)
+        .map_err(|e| e.to_string())?;
+    let recorder = CostRecorder::default();
+    let result = Executor::new(problem, solver)
+        .configure(|state| {
+            state
+                .param(DVector::from_column_slice(theta0))
+                .max_iters(stopping.max_iterations)
+        })
+        .add_observer(recorder.clone(), ObserverMode::Always)
+        .run()
+        .map_err(|e| format!("Gauss-Newton: {e}"))?;
+    let mut refined = finish(&result.state, recorder, theta0);
+    // GN reports ‖r‖ as its cost; keep the history in the same units as L-BFGS (½‖r‖²).
+    refined
+        .cost_history
+        .iter_mut()
+        .for_each(|c| *c = 0.5 * *c * *c);
+    Ok(refined)
+}
