@@ -6,11 +6,16 @@ use fluorite::fit::{FitOptions, FitOutcome, fit};
 use fluorite::formats::{ReadOptions, read};
 
 fn shared(sub: &str) -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(sub);
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(sub);
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!("skipped: {} is absent (CI always has ../shared)", dir.display());
+        eprintln!(
+            "skipped: {} is absent (CI always has ../shared)",
+            dir.display()
+        );
         None
     }
 }
@@ -20,7 +25,10 @@ fn files(dir: &Path, extensions: &[&str]) -> Vec<PathBuf> {
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| {
-            let ext = p.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
+            let ext = p
+                .extension()
+                .map(|e| e.to_string_lossy().to_lowercase())
+                .unwrap_or_default();
             extensions.contains(&ext.as_str()) && !p.to_string_lossy().contains("_meta")
         })
         .collect();
@@ -32,9 +40,14 @@ fn files(dir: &Path, extensions: &[&str]) -> Vec<PathBuf> {
 /// within ΔE2000 1.5 under D65, A and F11 (mean ≤ 0.7); the `uv` figure is reported.
 #[test]
 fn every_measured_surface_fits_within_colour_tolerance() {
-    let Some(dir) = shared("measured") else { return };
+    let Some(dir) = shared("measured") else {
+        return;
+    };
     let inputs = files(&dir, &["bfc", "csv"]);
-    assert!(inputs.len() >= 6, "expected the six measured files, found {inputs:?}");
+    assert!(
+        inputs.len() >= 6,
+        "expected the six measured files, found {inputs:?}"
+    );
     let mut all = Vec::new();
     for path in inputs {
         let m = read(&path, &ReadOptions::default()).unwrap();
@@ -43,8 +56,18 @@ fn every_measured_surface_fits_within_colour_tolerance() {
         };
         material.validate().unwrap();
         let report = material.fit.as_ref().unwrap();
-        assert!(report.converged, "{}: {:?}", path.display(), report.warnings);
-        assert_eq!(material.fluorophores.len(), 1, "{}: a fluorescent surface", path.display());
+        assert!(
+            report.converged,
+            "{}: {:?}",
+            path.display(),
+            report.warnings
+        );
+        assert_eq!(
+            material.fluorophores.len(),
+            1,
+            "{}: a fluorescent surface",
+            path.display()
+        );
         let c = material.conservation.unwrap();
         assert!(c.max_energy_albedo <= 1.0 + 1e-9 && c.max_photon_ratio <= 1.0 + 1e-9);
         for light in ["d65", "a", "f11"] {
@@ -54,7 +77,11 @@ fn every_measured_surface_fits_within_colour_tolerance() {
         }
         assert!(report.delta_e2000["uv"].is_finite());
         // The fluorescent part is mostly explained (model.md §5: 8–50 % is not).
-        assert!(report.rel_residual_fluorescence < 0.5, "{}", report.rel_residual_fluorescence);
+        assert!(
+            report.rel_residual_fluorescence < 0.5,
+            "{}",
+            report.rel_residual_fluorescence
+        );
     }
     let mean = all.iter().sum::<f64>() / all.len() as f64;
     assert!(mean <= 0.7, "mean ΔE2000 over D65, A, F11 = {mean}");
@@ -71,14 +98,33 @@ fn solution_eems_give_shapes_and_name_what_is_undetermined() {
         let FitOutcome::Shapes(shapes) = outcome else {
             panic!("{}: expected shapes only", path.display())
         };
-        assert!(shapes.k.is_none(), "arbitrary units: k is not a physical number");
+        assert!(
+            shapes.k.is_none(),
+            "arbitrary units: k is not a physical number"
+        );
         let text = shapes.undetermined.join("; ");
-        assert!(text.contains("reflectance") && text.contains("arbitrary scale"), "{text}");
+        assert!(
+            text.contains("reflectance") && text.contains("arbitrary scale"),
+            "{text}"
+        );
         assert!((shapes.absorption.max() - 1.0).abs() < 1e-12);
         assert!((shapes.emission.integral() - 1.0).abs() < 1e-9);
         // Absorption peaks where these fluorophores absorb (UV to blue).
-        let peak = shapes.absorption.wavelength_nm[shapes.absorption.value.iter().position(|&v| v == 1.0).unwrap()];
-        assert!((250.0..=480.0).contains(&peak), "{}: absorption peak at {peak} nm", path.display());
-        assert!(shapes.fit.rel_residual_fluorescence < 0.3, "{}", shapes.fit.rel_residual_fluorescence);
+        let peak = shapes.absorption.wavelength_nm[shapes
+            .absorption
+            .value
+            .iter()
+            .position(|&v| v == 1.0)
+            .unwrap()];
+        assert!(
+            (250.0..=480.0).contains(&peak),
+            "{}: absorption peak at {peak} nm",
+            path.display()
+        );
+        assert!(
+            shapes.fit.rel_residual_fluorescence < 0.3,
+            "{}",
+            shapes.fit.rel_residual_fluorescence
+        );
     }
 }

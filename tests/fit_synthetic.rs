@@ -85,7 +85,13 @@ fn noisy_recovery_within_propagated_noise() {
         let guard = m.default_guard_nm();
         let off = |i: usize, j: usize| (m.emission_nm[j] - m.excitation_nm[i]).abs() > guard + 1e-6;
         // se(a_i): the row's sensitivity to a_i.
-        for (i, (a_fit, a_true)) in f.absorption.value.iter().zip(&t.absorption.value).enumerate() {
+        for (i, (a_fit, a_true)) in f
+            .absorption
+            .value
+            .iter()
+            .zip(&t.absorption.value)
+            .enumerate()
+        {
             let sens: f64 = (0..m.n_emission())
                 .filter(|&j| off(i, j))
                 .map(|j| (t.k() * t.emission.value[j] * widths[j]).powi(2))
@@ -93,7 +99,11 @@ fn noisy_recovery_within_propagated_noise() {
             let se = sigma / sens.sqrt();
             // The normalisation max a = 1 couples every sample to the peak's error.
             let tol = 5.0 * se * (1.0 + a_true) + 1e-9;
-            assert!((a_fit - a_true).abs() <= tol, "{preset}: a({}) = {a_fit} vs {a_true} ± {tol}", m.excitation_nm[i]);
+            assert!(
+                (a_fit - a_true).abs() <= tol,
+                "{preset}: a({}) = {a_fit} vs {a_true} ± {tol}",
+                m.excitation_nm[i]
+            );
         }
         for (j, (e_fit, e_true)) in f.emission.value.iter().zip(&t.emission.value).enumerate() {
             let sens: f64 = (0..m.n_excitation())
@@ -102,7 +112,11 @@ fn noisy_recovery_within_propagated_noise() {
                 .sum();
             let se = sigma / sens.sqrt();
             let tol = 5.0 * se + 5.0 * se * e_true / t.emission.max();
-            assert!((e_fit - e_true).abs() <= tol, "{preset}: e({}) = {e_fit} vs {e_true} ± {tol}", m.emission_nm[j]);
+            assert!(
+                (e_fit - e_true).abs() <= tol,
+                "{preset}: e({}) = {e_fit} vs {e_true} ± {tol}",
+                m.emission_nm[j]
+            );
         }
         let signal: f64 = (0..m.n_excitation())
             .flat_map(|i| (0..m.n_emission()).map(move |j| (i, j)))
@@ -110,11 +124,19 @@ fn noisy_recovery_within_propagated_noise() {
             .map(|(i, j)| (t.k() * t.absorption.value[i] * t.emission.value[j] * widths[j]).powi(2))
             .sum();
         let k_tol = 5.0 * sigma / signal.sqrt() * t.k() * 3.0;
-        assert!((f.k() - t.k()).abs() <= k_tol, "{preset}: k = {} vs {} ± {k_tol}", f.k(), t.k());
+        assert!(
+            (f.k() - t.k()).abs() <= k_tol,
+            "{preset}: k = {} vs {} ± {k_tol}",
+            f.k(),
+            t.k()
+        );
         // The diagonal: one cell each, plus the fluorescent term's error on it.
         for &l in &truth.reflectance.wavelength_nm {
             let (d_fit, d_true) = (material.diagonal(l), truth.diagonal(l));
-            assert!((d_fit - d_true).abs() <= 5.0 * sigma + 0.01 * d_true, "{preset}: d({l}) = {d_fit} vs {d_true}");
+            assert!(
+                (d_fit - d_true).abs() <= 5.0 * sigma + 0.01 * d_true,
+                "{preset}: d({l}) = {d_fit} vs {d_true}"
+            );
         }
         let report = material.fit.as_ref().unwrap();
         assert!(report.converged, "{preset}: {:?}", report.warnings);
@@ -140,7 +162,11 @@ fn colour_of_fit_matches_truth_at_measured_noise() {
                 let (xyz_fit, white) = material_xyz(&material, &light);
                 let (xyz_true, _) = material_xyz(&truth, &light);
                 let de = delta_e2000(xyz_to_lab(xyz_fit, white), xyz_to_lab(xyz_true, white));
-                assert!(de < 1.0, "{preset} seed {seed}: ΔE2000 fit vs truth under {} = {de}", light.name);
+                assert!(
+                    de < 1.0,
+                    "{preset} seed {seed}: ΔE2000 fit vs truth under {} = {de}",
+                    light.name
+                );
             }
         }
     }
@@ -153,8 +179,20 @@ fn a_plain_reflector_is_recognised() {
     let material = fitted(fit(&m, &FitOptions::default()).unwrap());
     assert!(material.fluorophores.is_empty(), "no fluorophore expected");
     let report = material.fit.as_ref().unwrap();
-    assert!(report.warnings.iter().any(|w| w.contains("no fluorescent signal")), "{:?}", report.warnings);
-    for (l, r) in truth.reflectance.wavelength_nm.iter().zip(&truth.reflectance.value) {
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("no fluorescent signal")),
+        "{:?}",
+        report.warnings
+    );
+    for (l, r) in truth
+        .reflectance
+        .wavelength_nm
+        .iter()
+        .zip(&truth.reflectance.value)
+    {
         assert!((material.reflectance.eval_clamped(*l) - r).abs() < 5.0 * spec.noise_sigma);
     }
 }
@@ -166,22 +204,42 @@ fn pinned_quantum_yield_splits_k_or_is_refused() {
     let (m, truth) = spec.generate().unwrap();
     let t = &truth.fluorophores[0];
     // The true Q is feasible and gives back the true c.
-    let options = FitOptions { quantum_yield: Some(t.quantum_yield), ..FitOptions::default() };
+    let options = FitOptions {
+        quantum_yield: Some(t.quantum_yield),
+        ..FitOptions::default()
+    };
     let material = fitted(fit(&m, &options).unwrap());
     let f = &material.fluorophores[0];
     assert!((f.concentration - t.concentration).abs() < 1e-6 * t.concentration);
     assert!(material.fit.as_ref().unwrap().gauge.contains("pinned"));
-    for (r_fit, r_true) in material.reflectance.value.iter().zip(&truth.reflectance.value) {
+    for (r_fit, r_true) in material
+        .reflectance
+        .value
+        .iter()
+        .zip(&truth.reflectance.value)
+    {
         assert!((r_fit - r_true).abs() < 1e-6, "{r_fit} vs {r_true}");
     }
     // Q = 1 breaks photon conservation for a dye absorbing at 300 nm and emitting at 530.
-    let options = FitOptions { quantum_yield: Some(1.0), ..FitOptions::default() };
+    let options = FitOptions {
+        quantum_yield: Some(1.0),
+        ..FitOptions::default()
+    };
     let err = fit(&m, &options).unwrap_err().to_string();
-    assert!(err.contains("--quantum-yield") && err.contains("photon"), "{err}");
+    assert!(
+        err.contains("--quantum-yield") && err.contains("photon"),
+        "{err}"
+    );
     // A tiny concentration would need Q > 1.
-    let options = FitOptions { concentration: Some(0.01), ..FitOptions::default() };
+    let options = FitOptions {
+        concentration: Some(0.01),
+        ..FitOptions::default()
+    };
     let err = fit(&m, &options).unwrap_err().to_string();
-    assert!(err.contains("--concentration") && err.contains("smallest feasible"), "{err}");
+    assert!(
+        err.contains("--concentration") && err.contains("smallest feasible"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -195,7 +253,10 @@ fn the_smallest_feasible_concentration_is_the_default_gauge() {
     assert_eq!(f.concentration, lo);
     // The true c lies in the reported interval, and the photon law is exactly met at lo.
     let c_true = truth.fluorophores[0].concentration;
-    assert!(lo <= c_true + 1e-9 && c_true <= hi + 1e-9, "{lo} ≤ {c_true} ≤ {hi}");
+    assert!(
+        lo <= c_true + 1e-9 && c_true <= hi + 1e-9,
+        "{lo} ≤ {c_true} ≤ {hi}"
+    );
     let photon = f.quantum_yield * f.emission_mean_nm() / f.shortest_absorbed_nm().unwrap();
     assert!((photon - 1.0).abs() < 1e-9, "photon ratio {photon}");
     material.validate().unwrap();
@@ -210,11 +271,21 @@ fn the_iteration_limit_is_reported_not_hidden() {
     spec.yield_fraction_of_limit = 1.0;
     spec.seed = 3;
     let (m, _) = spec.generate().unwrap();
-    let options = FitOptions { max_iterations: 1, ..FitOptions::default() };
+    let options = FitOptions {
+        max_iterations: 1,
+        ..FitOptions::default()
+    };
     let outcome = fit(&m, &options).unwrap();
     let report = outcome.report();
     assert!(!report.converged);
-    assert!(report.warnings.iter().any(|w| w.contains("stopped before converging")), "{:?}", report.warnings);
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("stopped before converging")),
+        "{:?}",
+        report.warnings
+    );
     // Given room, the same fit converges and the material is valid.
     let material = fitted(fit(&m, &FitOptions::default()).unwrap());
     assert!(material.fit.as_ref().unwrap().converged);

@@ -63,6 +63,9 @@ pub struct FitArgs {
     /// Also render a preview of each fitted material (next to the JSON).
     #[arg(long)]
     pub render: bool,
+    /// After the summaries, print a Markdown table of accuracy and speed over all inputs.
+    #[arg(long)]
+    pub table: bool,
     /// Print nothing but errors.
     #[arg(short, long)]
     pub quiet: bool,
@@ -154,6 +157,7 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         .collect();
     let mut failed = 0;
     let mut flagged = 0;
+    let mut rows = Vec::new();
     for ((input, out), result) in args.inputs.iter().zip(&outputs).zip(results) {
         match result {
             Err(e) => {
@@ -168,6 +172,7 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                 if !args.quiet {
                     print!("{}", summary(input, out, &m, &outcome));
                 }
+                rows.push(table_row(&m, &outcome));
                 if let FitOutcome::Material(_) = outcome {
                     if args.plot {
                         crate::cli::plot::plot_fit(out, input)
@@ -179,6 +184,15 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                     }
                 }
             }
+        }
+    }
+    if args.table {
+        println!(
+            "\n| material | k = c·Q | c (feasible) | fluorescence residual | diagonal RMSE | ΔE D65 | ΔE A | ΔE F11 | ΔE UV | iterations | time (ms) |"
+        );
+        println!("|---|---|---|---|---|---|---|---|---|---|---|");
+        for row in rows {
+            println!("{row}");
         }
     }
     Ok(if failed > 0 {
@@ -207,7 +221,7 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
                     .unwrap_or([f.concentration, f.concentration]);
                 let _ = writeln!(
                     s,
-                    "  k = c·Q = {:.4}   c = {:.4} (feasible {:.4}–{:.4})   Q = {:.4}   λ̄e = {:.1} nm   photon yield Φ ≤ {:.3}",
+                    "  k = c·Q = {:.4}   c = {:.4} (feasible {:.4}–{:.4})   Q = {:.4}   λ̄e = {:.1} nm   photon yield Φ(λmin) = {:.3}",
                     f.k(),
                     f.concentration,
                     c_lo,
@@ -234,11 +248,15 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
             }
         }
     }
+    let diagonal = if m.has_diagonal {
+        format!(", diagonal RMSE {:.4}", report.rmse_diagonal)
+    } else {
+        String::new()
+    };
     let _ = writeln!(
         s,
-        "  residual: fluorescent cells {:.1} % (relative), diagonal RMSE {:.4}; noise σ ≈ {:.4}; guard band ({} nm) held {:.1} % of the fluorescent signal (excluded)",
+        "  residual: fluorescent cells {:.1} % (relative){diagonal}; noise σ ≈ {:.3e}; guard band ({} nm) held {:.1} % of the fluorescent signal (excluded)",
         100.0 * report.rel_residual_fluorescence,
-        report.rmse_diagonal,
         report.noise_sigma,
         report.guard_nm,
         100.0 * report.guard_signal_fraction
@@ -267,4 +285,44 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
         let _ = writeln!(s, "  warning: {w}");
     }
     s
+}
+
+/// One Markdown table row for `--table`.
+fn table_row(m: &Measurement, outcome: &FitOutcome) -> String {
+    let report = outcome.report();
+    let de = |l: &str| {
+        report
+            .delta_e2000
+            .get(l)
+            .map(|v| format!("{v:.2}"))
+            .unwrap_or_else(|| "–".into())
+    };
+    let (k, c) = match outcome {
+        FitOutcome::Material(material) => match material.fluorophores.first() {
+            Some(f) => {
+                let [lo, hi] = f.concentration_range.unwrap_or([f.concentration; 2]);
+                (
+                    format!("{:.3}", f.k()),
+                    format!("{:.3} ({lo:.3}–{hi:.3})", f.concentration),
+                )
+            }
+            None => ("0".into(), "0 (plain reflector)".into()),
+        },
+        FitOutcome::Shapes(s) => (
+            format!("{:.3e} (data units)", s.k_data_units),
+            "undetermined".into(),
+        ),
+    };
+    format!(
+        "| {} | {k} | {c} | {:.1} % | {:.4} | {} | {} | {} | {} | {} | {:.2} |",
+        m.name,
+        100.0 * report.rel_residual_fluorescence,
+        report.rmse_diagonal,
+        de("d65"),
+        de("a"),
+        de("f11"),
+        de("uv"),
+        report.iterations,
+        1e3 * report.seconds
+    )
 }

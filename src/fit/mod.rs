@@ -132,14 +132,11 @@ pub fn fit(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
     validate_options(options)?;
     m.validate()?;
     let guard_nm = options.guard_nm.unwrap_or_else(|| m.default_guard_nm());
-    // Arbitrary-scale data (counts) are brought to order one so that κ ≤ 1 can hold;
-    // the scale is reported back in data units.
+    // Arbitrary-scale data (counts) are brought to a scale where the rank-1 start has
+    // κ = ½, so that the bound κ ≤ 1 (meaningless in counts) never binds; the scale is
+    // reported back in data units.
     let data_scale = if m.arbitrary_scale {
-        m.values
-            .iter()
-            .filter(|v| v.is_finite())
-            .fold(0.0f64, |a, v| a.max(v.abs()))
-            .max(f64::MIN_POSITIVE)
+        arbitrary_data_scale(m, guard_nm)
     } else {
         1.0
     };
@@ -205,7 +202,7 @@ pub fn fit(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
         ));
     }
 
-    let start_spectra = start_spectra(&objective, &start, &mut warnings);
+    let start_spectra = start_spectra(&objective, &start, &mut warnings).spectra;
     let theta0 = representation.encode(&start_spectra);
 
     // 2. Refinement.
@@ -338,6 +335,18 @@ pub fn fit(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
     Ok(FitOutcome::Material(Box::new(material)))
 }
 
+/// The factor dividing arbitrary-scale data so that the rank-1 start has κ = ½.
+fn arbitrary_data_scale(m: &Measurement, guard_nm: f64) -> f64 {
+    let data = FitData::new(m, guard_nm);
+    let start = init::rank_one(&data, 1000);
+    let kappa = start_spectra(&Objective { data: &data }, &start, &mut Vec::new()).kappa_unbounded;
+    if kappa.is_finite() && kappa > 0.0 {
+        kappa / 0.5
+    } else {
+        1.0
+    }
+}
+
 fn validate_options(options: &FitOptions) -> Result<()> {
     if let Some(g) = options.guard_nm
         && (!g.is_finite() || g < 0.0)
@@ -378,12 +387,19 @@ fn validate_options(options: &FitOptions) -> Result<()> {
     Ok(())
 }
 
+/// The start: grid spectra projected onto the feasible set (κ ≤ 1), and the κ the
+/// unconstrained rank-1 estimate would need.
+struct Start {
+    spectra: GridSpectra,
+    kappa_unbounded: f64,
+}
+
 /// Grid spectra from the rank-1 start, projected onto the feasible set (κ ≤ 1).
 fn start_spectra(
     objective: &Objective<'_>,
     start: &init::RankOne,
     warnings: &mut Vec<String>,
-) -> GridSpectra {
+) -> Start {
     let peak = start.row.iter().cloned().fold(0.0, f64::max);
     let absorption: Vec<f64> = start
         .row
@@ -423,7 +439,10 @@ fn start_spectra(
     // Start strictly inside: with κ = sin²t the bound κ = 1 is a stationary point
     // (dκ/dt = 0), where a start exactly on it would stay although the optimum lies inside.
     sp.kappa = kappa.min(START_KAPPA_CAP);
-    sp
+    Start {
+        spectra: sp,
+        kappa_unbounded: kappa,
+    }
 }
 
 fn guard_fraction(data: &FitData) -> f64 {

@@ -1,0 +1,69 @@
+//! Fit speed: one 49 × 41 BFC-450 matrix, closed-form start plus refinement.
+//!
+//! `cargo bench --bench fit`. Reads ../shared/data/measured when present (the acceptance
+//! figure is HERPICER.BFC, whose conservation bound binds, and TEXTYELL.BFC, whose does
+//! not); falls back to a synthetic BFC-like matrix otherwise.
+
+use std::hint::black_box;
+use std::path::Path;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use fluorite::fit::{FitOptions, Solver, fit};
+use fluorite::formats::{ReadOptions, read};
+use fluorite::measurement::Measurement;
+use fluorite::synth::SynthSpec;
+
+fn inputs() -> Vec<Measurement> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/measured");
+    let real: Vec<Measurement> = ["HERPICER.BFC", "TEXTYELL.BFC"]
+        .iter()
+        .filter_map(|f| read(&dir.join(f), &ReadOptions::default()).ok())
+        .collect();
+    if !real.is_empty() {
+        return real;
+    }
+    eprintln!("../shared/data/measured absent: benchmarking a synthetic BFC-like matrix");
+    vec![
+        SynthSpec::preset("red-pigment")
+            .unwrap()
+            .generate()
+            .unwrap()
+            .0,
+    ]
+}
+
+fn bench_fit(c: &mut Criterion) {
+    let mut group = c.benchmark_group("fit");
+    for m in inputs() {
+        for solver in [Solver::Init, Solver::Lbfgs, Solver::GaussNewton] {
+            // The fit alone (no ΔE report): what the 2 ms budget covers.
+            let options = FitOptions {
+                solver,
+                lights: Vec::new(),
+                ..FitOptions::default()
+            };
+            if solver == Solver::GaussNewton {
+                group.sample_size(10);
+            } else {
+                group.sample_size(50);
+            }
+            group.bench_function(format!("{}/{}", m.name, solver.name()), |b| {
+                b.iter(|| fit(black_box(&m), &options).unwrap())
+            });
+        }
+        // With the ΔE2000 report under the four standard lights.
+        let options = FitOptions::default();
+        group.bench_function(format!("{}/lbfgs+report", m.name), |b| {
+            b.iter(|| fit(black_box(&m), &options).unwrap())
+        });
+    }
+    group.finish();
+}
+
+criterion_group! {
+    name = benches;
+    // No plots: criterion's plotters backend would need a system font.
+    config = Criterion::default().without_plots();
+    targets = bench_fit
+}
+criterion_main!(benches);

@@ -1,0 +1,46 @@
+//! WebFluor-style excitation-emission matrices of fluorophores in solution: whitespace
+//! separated; the first line lists the emission wavelengths; each further row starts with
+//! its excitation wavelength (rows often run from long to short wavelengths, and blank
+//! lines may separate them). A 0 means "not measured" (Rayleigh cut, second order), so
+//! zeros are missing by default. The values are counts: there is no diagonal and the
+//! scale is arbitrary.
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+
+use super::table::TableLayout;
+use super::text::{Delimiter, Line, check_increasing, check_unique};
+use super::{Parsed, ReadOptions, RowsAre};
+
+pub(super) fn read(path: &Path, lines: &[Line], options: &ReadOptions) -> Result<Parsed> {
+    let layout = TableLayout {
+        path,
+        delimiter: Delimiter::Whitespace,
+        terminator: None,
+        skip_comments: true,
+    };
+    let mut table = layout.read(lines)?;
+    if table.rows.is_empty() {
+        return Err(Error::parse(
+            path,
+            table.header_line,
+            0,
+            "has a line of emission wavelengths but no excitation rows; the file seems truncated",
+        ));
+    }
+    check_increasing(path, &table.columns, "emission wavelength", false)?;
+    check_unique(path, &table.rows, "excitation wavelength", true)?;
+    table.sort_rows();
+    let rows_are = options.rows.unwrap_or(RowsAre::Excitation);
+    let (excitation_nm, emission_nm, values) = table.to_excitation_major(rows_are);
+    Ok(Parsed {
+        excitation_nm,
+        emission_nm,
+        values,
+        has_diagonal: false,
+        arbitrary_scale: true,
+        zeros_missing_by_default: true,
+        notes: Vec::new(),
+    })
+}
