@@ -175,7 +175,7 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                 rows.push(table_row(&m, &outcome));
                 if let FitOutcome::Material(_) = outcome {
                     if args.plot {
-                        crate::cli::plot::plot_fit(out, input)
+                        crate::cli::plot::plot_fit_with(out, input, &read_options)
                             .with_context(|| format!("plotting {}", out.display()))?;
                     }
                     if args.render {

@@ -1,21 +1,127 @@
-//! `fluorite plot` (in progress).
+//! `fluorite plot`: draw the residual map, spectra, colour swatches and convergence of a
+//! fitted material, next to the material file (or into `-o DIR`).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+
+use anyhow::Context;
+
+use fluorite::Material;
+use fluorite::formats::{self, Format, ReadOptions, RowsAre};
+use fluorite::plot::{self, ImageFormat, PlotOptions};
 
 /// Arguments of `fluorite plot`.
 #[derive(clap::Args)]
 pub struct PlotArgs {
-    /// Material JSON to plot.
-    pub material: std::path::PathBuf,
+    /// Material JSON to plot (written by `fluorite fit`).
+    pub material: PathBuf,
+    /// The measured matrix the material was fitted to; adds the residual map, the colour
+    /// swatches and the data points on the spectra.
+    #[arg(long, value_name = "FILE")]
+    pub data: Option<PathBuf>,
+    /// Format of the data file (default: detected).
+    #[arg(long, value_enum, requires = "data")]
+    pub format: Option<Format>,
+    /// What the rows of a wide data matrix are (default: detected).
+    #[arg(long, value_enum, requires = "data")]
+    pub rows: Option<RowsAre>,
+    /// The data are spectral densities per nm rather than per emission bin.
+    #[arg(long, requires = "data")]
+    pub per_nm: bool,
+    /// Folder for the figures (created if missing; default: the material's folder).
+    #[arg(short = 'o', long = "output-dir", value_name = "DIR")]
+    pub output_dir: Option<PathBuf>,
+    /// Write SVG instead of PNG.
+    #[arg(long)]
+    pub svg: bool,
 }
 
 /// Runs `fluorite plot`.
-pub fn run(_args: PlotArgs) -> anyhow::Result<ExitCode> {
-    anyhow::bail!("plot is not available yet")
+pub fn run(args: PlotArgs) -> anyhow::Result<ExitCode> {
+    let read_options = ReadOptions {
+        format: args.format,
+        rows: args.rows,
+        per_nm: args.per_nm,
+        ..ReadOptions::default()
+    };
+    let format = if args.svg {
+        ImageFormat::Svg
+    } else {
+        ImageFormat::Png
+    };
+    plot_files(
+        &args.material,
+        args.data.as_deref(),
+        &read_options,
+        args.output_dir.as_deref(),
+        format,
+    )?;
+    Ok(ExitCode::SUCCESS)
 }
 
-/// Plots a freshly fitted material against its data (used by `fit --plot`).
-pub fn plot_fit(_material_path: &Path, _data_path: &Path) -> anyhow::Result<()> {
-    anyhow::bail!("plot is not available yet")
+/// Plots a freshly fitted material against its data (used by `fit --plot`), reading
+/// the data with the same options the fit used.
+pub fn plot_fit_with(
+    material_path: &Path,
+    data_path: &Path,
+    read_options: &ReadOptions,
+) -> anyhow::Result<()> {
+    plot_files(
+        material_path,
+        Some(data_path),
+        read_options,
+        None,
+        ImageFormat::Png,
+    )
+    .map(|_| ())
+}
+
+/// Loads, renders every figure in memory, then writes them all; prints each written path
+/// and what was skipped. Returns the written paths.
+fn plot_files(
+    material_path: &Path,
+    data_path: Option<&Path>,
+    read_options: &ReadOptions,
+    output_dir: Option<&Path>,
+    format: ImageFormat,
+) -> anyhow::Result<Vec<PathBuf>> {
+    let material = Material::load(material_path)?;
+    let data = data_path
+        .map(|p| formats::read(p, read_options))
+        .transpose()?;
+    let plots = plot::plot(
+        &material,
+        data.as_ref(),
+        &PlotOptions {
+            format,
+            guard_nm: None,
+        },
+    )?;
+    let dir = match output_dir {
+        Some(dir) => {
+            std::fs::create_dir_all(dir).with_context(|| {
+                format!(
+                    "{}: cannot create the output folder; choose another with -o DIR",
+                    dir.display()
+                )
+            })?;
+            dir.to_path_buf()
+        }
+        None => match material_path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        },
+    };
+    let stem = material_path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| material.name.clone());
+    let written = plot::write_plots(&plots, &dir, &stem)?;
+    for path in &written {
+        println!("wrote {}", path.display());
+    }
+    for reason in &plots.skipped {
+        eprintln!("fluorite: skipped {reason}");
+    }
+    Ok(written)
 }

@@ -464,6 +464,47 @@ impl PatchColorimeter {
         }
     }
 
+    /// A shared colorimeter for `light` on these grids, built once per process and reused:
+    /// fits of many files on the same instrument grid share the light's projection.
+    pub fn cached(
+        light: &Light,
+        excitation_nm: &[f64],
+        emission_nm: &[f64],
+    ) -> std::sync::Arc<PatchColorimeter> {
+        use std::collections::HashMap;
+        use std::hash::{Hash, Hasher};
+        use std::sync::{Arc, Mutex};
+        static CACHE: OnceLock<Mutex<HashMap<u64, Arc<PatchColorimeter>>>> = OnceLock::new();
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        light.name.hash(&mut hasher);
+        for v in light
+            .spectrum
+            .wavelength_nm
+            .iter()
+            .chain(&light.spectrum.value)
+            .chain([f64::NAN].iter())
+            .chain(excitation_nm)
+            .chain([f64::NAN].iter())
+            .chain(emission_nm)
+        {
+            v.to_bits().hash(&mut hasher);
+        }
+        let key = hasher.finish();
+        let cache = CACHE.get_or_init(|| Mutex::new(HashMap::new()));
+        if let Some(pc) = cache.lock().ok().and_then(|c| c.get(&key).cloned()) {
+            return pc;
+        }
+        let pc = Arc::new(PatchColorimeter::new(light, excitation_nm, emission_nm));
+        if let Ok(mut c) = cache.lock() {
+            // Bounded: a process sees few grids; drop all if something churns through many.
+            if c.len() > 256 {
+                c.clear();
+            }
+            c.insert(key, pc.clone());
+        }
+        pc
+    }
+
     /// XYZ (white Y = 100) of a patch whose diagonal reflectance is `diagonal[j]` at
     /// emission sample j and whose reradiation (per emission bin, off the diagonal) is
     /// `fluorescence(i, j)`. NaN cells count as zero.

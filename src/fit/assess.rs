@@ -74,7 +74,7 @@ pub fn accuracy(
             }
         }
         for light in lights {
-            let pc = PatchColorimeter::new(light, &m.excitation_nm, &m.emission_nm);
+            let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
             let lab_m = xyz_to_lab(pc.xyz(&measured), pc.white);
             let lab_f = xyz_to_lab(pc.xyz(&fitted_per_bin), pc.white);
             delta_e.insert(light.name.clone(), delta_e2000(lab_m, lab_f));

@@ -161,7 +161,7 @@ fn finish<I: State<Float = f64, Param = DVector<f64>>>(
 }
 
 /// Correction pairs L-BFGS keeps.
-const LBFGS_MEMORY: usize = 20;
+const LBFGS_MEMORY: usize = 10;
 
 /// Refines `theta0` with L-BFGS and a More-Thuente line search.
 pub fn lbfgs(

@@ -1,0 +1,399 @@
+//! Figures that show how well a fitted material matches its measurement (issue 4):
+//!
+//! 1. residual map — measured matrix, fitted matrix and their difference as heat maps
+//!    ([`heatmap`]);
+//! 2. spectra — fitted a(λ), e(λ), r(λ) with the measured diagonal and the data's own
+//!    excitation and emission profiles ([`spectra`]);
+//! 3. colour — measured and fitted patch colour under each standard light, with ΔE2000
+//!    ([`swatches`]);
+//! 4. convergence — solver cost per iteration ([`convergence`]).
+//!
+//! Every figure is rendered into memory first ([`plot`]); only when all of them succeeded
+//! are they written ([`write_plots`]), each through a temporary file renamed into place,
+//! so a failed run leaves no partial output.
+
+pub mod colormap;
+mod common;
+pub mod convergence;
+pub mod font;
+pub mod heatmap;
+pub mod spectra;
+pub mod swatches;
+mod text;
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::material::Material;
+use crate::measurement::{CellKind, Measurement};
+use crate::model;
+
+/// Image file format of the figures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ImageFormat {
+    /// 8-bit RGB PNG.
+    #[default]
+    Png,
+    /// SVG (text references the "sans-serif" family).
+    Svg,
+}
+
+impl ImageFormat {
+    /// File extension without the dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            ImageFormat::Png => "png",
+            ImageFormat::Svg => "svg",
+        }
+    }
+}
+
+/// The four figures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FigureKind {
+    /// Measured, fitted and residual heat maps (needs data).
+    Residuals,
+    /// Fitted spectra, with data profiles when data are given.
+    Spectra,
+    /// Patch colours under the standard lights (needs data).
+    Colour,
+    /// Cost per solver iteration (needs a cost history in the fit block).
+    Convergence,
+}
+
+impl FigureKind {
+    /// The suffix in output file names: `<stem>-<suffix>.png`.
+    pub fn suffix(self) -> &'static str {
+        match self {
+            FigureKind::Residuals => "residuals",
+            FigureKind::Spectra => "spectra",
+            FigureKind::Colour => "colour",
+            FigureKind::Convergence => "convergence",
+        }
+    }
+
+    /// Size of the figure in pixels (width, height).
+    pub fn size(self) -> (u32, u32) {
+        match self {
+            FigureKind::Residuals => heatmap::SIZE,
+            FigureKind::Spectra => spectra::SIZE,
+            FigureKind::Colour => swatches::SIZE,
+            FigureKind::Convergence => convergence::SIZE,
+        }
+    }
+}
+
+/// Where a figure drew the elements whose colour is known, so callers (tests) can probe
+/// pixels.
+#[derive(Debug, Clone, Default)]
+pub struct Layout {
+    /// Heat-map panels, in drawing order (measured, fitted, residual).
+    pub heatmaps: Vec<heatmap::HeatmapPanel>,
+    /// Swatch pairs, one per light.
+    pub swatches: Vec<swatches::SwatchPanel>,
+}
+
+/// One rendered figure, held in memory until written.
+#[derive(Debug, Clone)]
+pub struct Figure {
+    /// Which figure.
+    pub kind: FigureKind,
+    /// PNG or SVG.
+    pub format: ImageFormat,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// The encoded file.
+    pub bytes: Vec<u8>,
+    /// Positions of the colour-known elements.
+    pub layout: Layout,
+}
+
+impl Figure {
+    /// The figure's file name for material file stem `stem`: `<stem>-<kind>.<ext>`.
+    pub fn file_name(&self, stem: &str) -> String {
+        format!("{stem}-{}.{}", self.kind.suffix(), self.format.extension())
+    }
+}
+
+/// How to plot.
+#[derive(Debug, Clone, Default)]
+pub struct PlotOptions {
+    /// PNG (default) or SVG.
+    pub format: ImageFormat,
+    /// Guard band half-width in nm; default: the fit block's `guard_nm`, else one grid step.
+    pub guard_nm: Option<f64>,
+}
+
+/// The rendered figures and what could not be drawn (and why).
+#[derive(Debug, Clone)]
+pub struct Plots {
+    /// Rendered figures, in the order residuals, spectra, colour, convergence.
+    pub figures: Vec<Figure>,
+    /// One sentence per figure left out, saying what it needs.
+    pub skipped: Vec<String>,
+}
+
+/// A measurement next to what the material predicts on the same grids.
+#[derive(Debug, Clone)]
+pub struct Comparison {
+    /// The measured matrix.
+    pub measured: Measurement,
+    /// `model::predict` on the measured grids, units and diagonal.
+    pub fitted: Measurement,
+    /// Guard band half-width (nm) used to classify cells.
+    pub guard_nm: f64,
+    /// Factor applied to the prediction: 1, except for data on an arbitrary scale (counts),
+    /// where the least-squares factor over the Stokes cells brings the model to the data's
+    /// units.
+    pub fitted_scale: f64,
+}
+
+impl Comparison {
+    /// Predicts `material` on `measured`'s grids. The grids must match the material's
+    /// (see [`check_grids`]).
+    pub fn new(material: &Material, measured: &Measurement, guard_nm: f64) -> Self {
+        let mut fitted = model::predict(
+            material,
+            &measured.name,
+            &measured.excitation_nm,
+            &measured.emission_nm,
+            measured.units,
+            measured.has_diagonal,
+        );
+        let mut fitted_scale = 1.0;
+        if measured.arbitrary_scale {
+            let (mut cross, mut square) = (0.0, 0.0);
+            for i in 0..measured.n_excitation() {
+                for j in 0..measured.n_emission() {
+                    if measured.cell_kind(i, j, guard_nm) == CellKind::Stokes {
+                        cross += measured.get(i, j) * fitted.get(i, j);
+                        square += fitted.get(i, j).powi(2);
+                    }
+                }
+            }
+            if square > 0.0 && (cross / square).is_finite() {
+                fitted_scale = cross / square;
+                fitted.values.iter_mut().for_each(|v| *v *= fitted_scale);
+            }
+        }
+        Comparison {
+            measured: measured.clone(),
+            fitted,
+            guard_nm,
+            fitted_scale,
+        }
+    }
+
+    /// Kind of cell (`i`, `j`) in the measurement.
+    pub fn kind(&self, i: usize, j: usize) -> CellKind {
+        self.measured.cell_kind(i, j, self.guard_nm)
+    }
+
+    /// Measured minus fitted at (`i`, `j`); NaN where the measurement is missing.
+    pub fn residual(&self, i: usize, j: usize) -> f64 {
+        self.measured.get(i, j) - self.fitted.get(i, j)
+    }
+
+    /// ‖measured − fitted‖ / ‖measured‖ over the Stokes cells (where fluorescence is
+    /// fitted); NaN when there are none.
+    pub fn relative_residual_stokes(&self) -> f64 {
+        let (mut num, mut den) = (0.0, 0.0);
+        for i in 0..self.measured.n_excitation() {
+            for j in 0..self.measured.n_emission() {
+                if self.kind(i, j) == CellKind::Stokes {
+                    num += self.residual(i, j).powi(2);
+                    den += self.measured.get(i, j).powi(2);
+                }
+            }
+        }
+        (num / den).sqrt()
+    }
+}
+
+/// Checks that `data` lies on the grids the material was fitted on: every fluorophore's
+/// absorption samples equal the excitation grid and its emission samples the emission
+/// grid.
+pub fn check_grids(material: &Material, data: &Measurement) -> Result<()> {
+    let same = |a: &[f64], b: &[f64]| {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-6)
+    };
+    let describe = |g: &[f64]| match (g.first(), g.last()) {
+        (Some(first), Some(last)) => format!("{first}–{last} nm, {} samples", g.len()),
+        _ => "no samples".to_string(),
+    };
+    let file = data
+        .source
+        .as_ref()
+        .map(|p| p.display().to_string())
+        .unwrap_or_else(|| data.name.clone());
+    let hint = match material.fit.as_ref().map(|f| f.source.as_str()) {
+        Some(source) if !source.is_empty() => format!(
+            "; plot the material against the file it was fitted to ({source}), or refit it to this file"
+        ),
+        _ => "; plot the material against the file it was fitted to, or refit it to this file"
+            .to_string(),
+    };
+    for (n, f) in material.fluorophores.iter().enumerate() {
+        for (grid, what, spectrum, role) in [
+            (
+                &data.excitation_nm,
+                "excitation",
+                &f.absorption.wavelength_nm,
+                "absorption",
+            ),
+            (
+                &data.emission_nm,
+                "emission",
+                &f.emission.wavelength_nm,
+                "emission",
+            ),
+        ] {
+            if !same(grid, spectrum) {
+                return Err(Error::invalid(
+                    "--data",
+                    format!(
+                        "{file}: its {what} grid ({}) does not match material \"{}\" (fluorophores[{n}].{role} sampled at {}){hint}",
+                        describe(grid),
+                        material.name,
+                        describe(spectrum),
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Renders every figure that the inputs allow, all in memory. Without `data` only the
+/// spectra and convergence figures are drawn; `skipped` says what was left out and why.
+pub fn plot(
+    material: &Material,
+    data: Option<&Measurement>,
+    options: &PlotOptions,
+) -> Result<Plots> {
+    if let Some(g) = options.guard_nm
+        && !(g.is_finite() && g >= 0.0)
+    {
+        return Err(Error::invalid(
+            "--guard-nm",
+            format!("is {g}; give a non-negative width in nm"),
+        ));
+    }
+    let comparison = match data {
+        Some(m) => {
+            m.validate()?;
+            check_grids(material, m)?;
+            let guard = options
+                .guard_nm
+                .or(material.fit.as_ref().map(|f| f.guard_nm))
+                .filter(|g| g.is_finite() && *g >= 0.0)
+                .unwrap_or_else(|| m.default_guard_nm());
+            Some(Comparison::new(material, m, guard))
+        }
+        None => None,
+    };
+    let format = options.format;
+    let mut figures = Vec::new();
+    let mut skipped = Vec::new();
+    let mut push = |kind: FigureKind, (bytes, layout): (Vec<u8>, Layout)| {
+        let (width, height) = kind.size();
+        figures.push(Figure {
+            kind,
+            format,
+            width,
+            height,
+            bytes,
+            layout,
+        });
+    };
+
+    match &comparison {
+        Some(c) => push(FigureKind::Residuals, heatmap::render(material, c, format)?),
+        None => skipped.push("residual map: needs the measured matrix (--data FILE)".to_string()),
+    }
+    push(
+        FigureKind::Spectra,
+        spectra::render(material, comparison.as_ref(), format)?,
+    );
+    match &comparison {
+        Some(c) if c.measured.arbitrary_scale => skipped.push(
+            "colour swatches: the data are on an arbitrary scale, so they have no colour to compare"
+                .to_string(),
+        ),
+        Some(c) => push(FigureKind::Colour, swatches::render(material, c, format)?),
+        None => skipped.push(
+            "colour swatches: need the measured matrix (--data FILE)".to_string(),
+        ),
+    }
+    match material.fit.as_ref() {
+        Some(fit) if !fit.cost_history.is_empty() => push(
+            FigureKind::Convergence,
+            convergence::render(material, fit, format)?,
+        ),
+        Some(_) => {
+            skipped.push("convergence: the material's fit block holds no cost history".to_string())
+        }
+        None => skipped.push(
+            "convergence: the material has no fit block (it was not produced by fluorite fit)"
+                .to_string(),
+        ),
+    }
+    Ok(Plots { figures, skipped })
+}
+
+/// Writes the figures into `dir` as `<stem>-<kind>.<ext>` and returns the paths. All files
+/// are first written to temporary files in `dir`; only when every one of them is complete
+/// are they renamed into place, so an unwritable folder or a full disk leaves no output.
+pub fn write_plots(plots: &Plots, dir: &Path, stem: &str) -> Result<Vec<PathBuf>> {
+    if !dir.is_dir() {
+        return Err(Error::io(
+            dir,
+            std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                "output folder does not exist or is not a folder; create it or choose another with -o DIR",
+            ),
+        ));
+    }
+    // A folder in the way of a figure would fail its rename after others were written.
+    for figure in &plots.figures {
+        let path = dir.join(figure.file_name(stem));
+        if path.is_dir() {
+            return Err(Error::io(
+                &path,
+                std::io::Error::new(
+                    std::io::ErrorKind::AlreadyExists,
+                    "a folder of this name is in the way of the figure; remove it or choose another folder with -o DIR",
+                ),
+            ));
+        }
+    }
+    let mut staged = Vec::with_capacity(plots.figures.len());
+    for figure in &plots.figures {
+        let path = dir.join(figure.file_name(stem));
+        let mut tmp = tempfile::Builder::new()
+            .prefix(".fluorite-")
+            .tempfile_in(dir)
+            .map_err(|e| Error::io(&path, e))?;
+        tmp.write_all(&figure.bytes)
+            .map_err(|e| Error::io(&path, e))?;
+        // Temporary files are private (0600); figures are for sharing.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            tmp.as_file()
+                .set_permissions(std::fs::Permissions::from_mode(0o644))
+                .map_err(|e| Error::io(&path, e))?;
+        }
+        tmp.as_file().sync_all().map_err(|e| Error::io(&path, e))?;
+        staged.push((tmp, path));
+    }
+    let mut written = Vec::with_capacity(staged.len());
+    for (tmp, path) in staged {
+        tmp.persist(&path).map_err(|e| Error::io(&path, e.error))?;
+        written.push(path);
+    }
+    Ok(written)
+}
