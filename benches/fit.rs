@@ -60,10 +60,31 @@ fn bench_fit(c: &mut Criterion) {
     group.finish();
 }
 
+/// A 100-file batch, as `fluorite fit data/*.csv` runs it (rayon over files): on one
+/// thread and on two. The ratio shows whether the batch uses both cores.
+fn bench_batch(c: &mut Criterion) {
+    use rayon::prelude::*;
+    let inputs = inputs();
+    let batch: Vec<&Measurement> = inputs.iter().cycle().take(100).collect();
+    let options = FitOptions::default();
+    let mut group = c.benchmark_group("batch100");
+    group.sample_size(10);
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        group.bench_function(format!("{threads}-threads"), |b| {
+            b.iter(|| pool.install(|| batch.par_iter().map(|m| fit(m, &options).unwrap()).count()))
+        });
+    }
+    group.finish();
+}
+
 criterion_group! {
     name = benches;
     // No plots: criterion's plotters backend would need a system font.
     config = Criterion::default().without_plots();
-    targets = bench_fit
+    targets = bench_fit, bench_batch
 }
 criterion_main!(benches);

@@ -33,7 +33,23 @@ enum Command {
 
 /// Parses the command line and runs the chosen subcommand.
 pub fn run() -> anyhow::Result<ExitCode> {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if !e.use_stderr() => {
+            // --help and --version: print and succeed.
+            e.print()?;
+            return Ok(ExitCode::SUCCESS);
+        }
+        Err(e) => {
+            // Usage errors as one line, like every other error.
+            let text = e.render().to_string();
+            let first = text.lines().next().unwrap_or("invalid arguments");
+            anyhow::bail!(
+                "{} (see fluorite --help)",
+                first.trim_start_matches("error: ")
+            );
+        }
+    };
     match cli.command {
         Command::Fit(args) => fit::run(args),
         Command::Synth(args) => synth::run(args),
