@@ -82,7 +82,7 @@ impl Default for FitOptions {
             quantum_yield: None,
             concentration: None,
             max_iterations: 500,
-            tolerance: 1e-9,
+            tolerance: 1e-6,
             lights: Light::standard(),
         }
     }
