@@ -98,8 +98,8 @@ impl FitData {
     }
 
     /// Robust noise level: 1.4826 × the median absolute deviation of the anti-Stokes
-    /// cells, which hold only noise on real surfaces. Falls back to all off-diagonal
-    /// cells' residual-free spread when there is no anti-Stokes side.
+    /// cells, which hold only noise on real surfaces. Falls back to all off-diagonal cells
+    /// when fewer than ten anti-Stokes cells were measured.
     pub fn noise_sigma(&self) -> f64 {
         let cells = if self.anti_stokes.len() >= 10 {
             &self.anti_stokes

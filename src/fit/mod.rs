@@ -524,7 +524,7 @@ fn build_material(
             m.name
         )));
     }
-    flag_clamped(data, &regimes, &wavelengths, warnings);
+    flag_clamped(&regimes, &wavelengths, warnings);
 
     // Feasible interval of c: c ≥ k·γ (photons, Q ≤ 1), c ≤ 1, c ≤ (1 − d)/a (r ≤ 1).
     let mut c_max: f64 = 1.0;
@@ -659,13 +659,7 @@ fn fill_missing(diagonal: &mut [f64], wavelengths: &[f64], cap: &[f64], name: &s
     Ok(())
 }
 
-fn flag_clamped(
-    data: &FitData,
-    regimes: &[DiagonalRegime],
-    wavelengths: &[f64],
-    warnings: &mut Vec<String>,
-) {
-    let _ = data;
+fn flag_clamped(regimes: &[DiagonalRegime], wavelengths: &[f64], warnings: &mut Vec<String>) {
     let at_cap: Vec<bool> = regimes
         .iter()
         .map(|r| *r == DiagonalRegime::AtCap)
@@ -680,7 +674,7 @@ fn flag_clamped(
         .iter()
         .map(|r| *r == DiagonalRegime::AtZero)
         .collect();
-    if at_zero.iter().filter(|&&x| x).count() > 0 {
+    if at_zero.iter().any(|&x| x) {
         warnings.push(format!(
             "reflectance at zero at {}: the measured diagonal is below the fitted fluorescence there (or negative noise)",
             assess::ranges(wavelengths, &at_zero)

@@ -45,12 +45,15 @@ pub struct Stopping {
     pub cost_tolerance: f64,
 }
 
+/// A point θ with its cost and θ-gradient.
+type Evaluation = (Vec<f64>, f64, Vec<f64>);
+
 struct Problem<'a> {
     objective: Objective<'a>,
     representation: &'a dyn Representation,
     /// The last (θ, cost, θ-gradient): the line search asks for the cost and the gradient
     /// of the same point separately, and one pass computes both.
-    cache: RefCell<Option<(Vec<f64>, f64, Vec<f64>)>>,
+    cache: RefCell<Option<Evaluation>>,
     /// Prior rows √μ·(θ − θ₀) for Gauss-Newton: they make JᵀJ invertible along the
     /// model's flat directions (the κ·a scale, samples at a bound) without moving the
     /// optimum more than μ/curvature.
