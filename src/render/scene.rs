@@ -1,0 +1,314 @@
+//! Scenes: objects with surfaces and emission, one light spectrum shared by every emitter
+//! and the environment, a camera; and the two built-in scenes (preview, furnace).
+
+use glam::Vec3;
+
+use crate::colour::Light;
+use crate::error::{Error, Result};
+use crate::material::Material;
+
+use super::geometry::{Camera, Quad, Ray, Shape};
+use super::spectra::{LightSpectrum, SurfaceTables};
+
+/// Reflectance of the neutral grey ground of the preview scene.
+pub const GROUND_REFLECTANCE: f32 = 0.35;
+/// Radiance of the preview's dim environment, relative to the light's unit luminance: a
+/// white diffuser facing up would read Y = 0.15 from the environment alone.
+pub const PREVIEW_ENVIRONMENT: f32 = 0.15;
+/// Radiance of the furnace environment (the light at unit luminance).
+pub const FURNACE_ENVIRONMENT: f32 = 1.0;
+/// Radius of the material's sphere.
+pub const SPHERE_RADIUS: f32 = 1.0;
+/// Horizontal distance of each sphere's centre from the middle in `--compare` renders.
+pub const COMPARE_OFFSET: f32 = 1.15;
+
+/// Which built-in scene to render.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SceneKind {
+    /// The material on a sphere resting on a grey ground, lit by a large area light and a
+    /// dim environment of the same spectrum.
+    #[default]
+    Preview,
+    /// The material on a sphere alone in a uniform environment (for checks: its exact
+    /// radiance is known, model.md §6).
+    Furnace,
+}
+
+/// An object of a scene.
+#[derive(Debug, Clone, Copy)]
+pub struct Object {
+    /// Its shape.
+    pub shape: Shape,
+    /// Index of its surface in the scene's surfaces; None for a black (non-reflecting)
+    /// object such as the area light's housing.
+    pub surface: Option<usize>,
+    /// Emitted radiance as a multiple of the scene's light spectrum (0 for none). Quads
+    /// emit from their front only; spheres and planes from both sides.
+    pub emission: f32,
+}
+
+/// The nearest hit of a ray.
+#[derive(Debug, Clone, Copy)]
+pub struct Hit {
+    /// Index of the object hit.
+    pub object: usize,
+    /// Distance along the ray.
+    pub t: f32,
+}
+
+/// A scene the path tracer renders.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    objects: Vec<Object>,
+    surfaces: Vec<SurfaceTables>,
+    /// Objects that are emitting quads: the targets of next-event estimation.
+    lights: Vec<usize>,
+    light: LightSpectrum,
+    environment: f32,
+    camera: Camera,
+}
+
+impl Scene {
+    /// An empty, black scene lit by nothing yet; emitters use `light`'s spectrum.
+    pub fn new(light: LightSpectrum, camera: Camera) -> Scene {
+        Scene {
+            objects: Vec::new(),
+            surfaces: Vec::new(),
+            lights: Vec::new(),
+            light,
+            environment: 0.0,
+            camera,
+        }
+    }
+
+    /// Adds a surface; returns its index for [`Object::surface`].
+    pub fn add_surface(&mut self, surface: SurfaceTables) -> usize {
+        self.surfaces.push(surface);
+        self.surfaces.len() - 1
+    }
+
+    /// Adds an object; returns its index.
+    pub fn add_object(&mut self, object: Object) -> Result<usize> {
+        if let Some(s) = object.surface
+            && s >= self.surfaces.len()
+        {
+            return Err(Error::invalid(
+                "object.surface",
+                format!(
+                    "is {s} but the scene has {} surfaces; add the surface first",
+                    self.surfaces.len()
+                ),
+            ));
+        }
+        if !(object.emission >= 0.0 && object.emission.is_finite()) {
+            return Err(Error::invalid(
+                "object.emission",
+                format!(
+                    "is {}; emission must be a non-negative finite number",
+                    object.emission
+                ),
+            ));
+        }
+        self.objects.push(object);
+        let index = self.objects.len() - 1;
+        if object.emission > 0.0 && matches!(object.shape, Shape::Quad(_)) {
+            self.lights.push(index);
+        }
+        Ok(index)
+    }
+
+    /// Sets the uniform environment radiance (a multiple of the light spectrum).
+    pub fn set_environment(&mut self, radiance: f32) -> Result<()> {
+        if !(radiance >= 0.0 && radiance.is_finite()) {
+            return Err(Error::invalid(
+                "environment",
+                format!("is {radiance}; it must be a non-negative finite number"),
+            ));
+        }
+        self.environment = radiance;
+        Ok(())
+    }
+
+    /// Replaces the camera.
+    pub fn set_camera(&mut self, camera: Camera) {
+        self.camera = camera;
+    }
+
+    /// The objects.
+    pub fn objects(&self) -> &[Object] {
+        &self.objects
+    }
+
+    /// The surfaces.
+    pub fn surfaces(&self) -> &[SurfaceTables] {
+        &self.surfaces
+    }
+
+    /// Indices of the emitting quads (sampled by next-event estimation).
+    pub fn lights(&self) -> &[usize] {
+        &self.lights
+    }
+
+    /// The light spectrum shared by all emitters and the environment.
+    pub fn light(&self) -> &LightSpectrum {
+        &self.light
+    }
+
+    /// The environment radiance (multiple of the light spectrum).
+    pub fn environment(&self) -> f32 {
+        self.environment
+    }
+
+    /// The camera.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    /// The nearest hit closer than `t_max`.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        let mut limit = t_max;
+        for (object, o) in self.objects.iter().enumerate() {
+            if let Some(t) = o.shape.intersect(ray, limit) {
+                limit = t;
+                best = Some(Hit { object, t });
+            }
+        }
+        best
+    }
+
+    /// True when something other than object `skip` blocks the ray before `t_max`.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray, t_max: f32, skip: usize) -> bool {
+        self.objects
+            .iter()
+            .enumerate()
+            .any(|(i, o)| i != skip && o.shape.intersect(ray, t_max).is_some())
+    }
+
+    /// A built-in scene showing `material` under `light`. With `compare`, a twin sphere
+    /// with the same reflectance r and no fluorescence stands to the right of the
+    /// material's sphere. `aspect` is the image's width / height.
+    pub fn build(
+        kind: SceneKind,
+        material: &Material,
+        light: &Light,
+        compare: bool,
+        aspect: f32,
+    ) -> Result<Scene> {
+        if !(aspect > 0.0 && aspect.is_finite()) {
+            return Err(Error::invalid(
+                "aspect",
+                format!("is {aspect}; the image needs a positive width and height"),
+            ));
+        }
+        let light = LightSpectrum::new(light)?;
+        let surface = SurfaceTables::new(material)?;
+        let twin = if compare {
+            let plain = Material::new(
+                format!("{} without fluorescence", material.name),
+                material.reflectance.clone(),
+                Vec::new(),
+            );
+            Some(SurfaceTables::new(&plain)?)
+        } else {
+            None
+        };
+        let centre_y = match kind {
+            SceneKind::Preview => SPHERE_RADIUS,
+            SceneKind::Furnace => 0.0,
+        };
+        let x = if compare { -COMPARE_OFFSET } else { 0.0 };
+        let eye = match kind {
+            SceneKind::Preview => Vec3::new(0.0, 2.4, 8.0),
+            SceneKind::Furnace => Vec3::new(0.0, 0.0, 6.0),
+        };
+        let target = match kind {
+            SceneKind::Preview => Vec3::new(0.0, 0.85, 0.0),
+            SceneKind::Furnace => Vec3::ZERO,
+        };
+        // Half the width and height of what must be in frame, at the target.
+        let half_width = x.abs() + SPHERE_RADIUS + if compare { 0.9 } else { 1.4 };
+        let half_height: f32 = match kind {
+            SceneKind::Preview => 1.55,
+            SceneKind::Furnace => 1.3,
+        };
+        let distance = (target - eye).length();
+        let half_tan = (half_height.max(half_width / aspect)) / distance;
+        let vfov = 2.0 * half_tan.atan().to_degrees();
+        let camera = Camera::look_at(eye, target, vfov, aspect);
+
+        let mut scene = Scene::new(light, camera);
+        let material_surface = scene.add_surface(surface);
+        let sphere = |x: f32| Shape::Sphere {
+            centre: Vec3::new(x, centre_y, 0.0),
+            radius: SPHERE_RADIUS,
+        };
+        scene.add_object(Object {
+            shape: sphere(x),
+            surface: Some(material_surface),
+            emission: 0.0,
+        })?;
+        if let Some(twin) = twin {
+            let twin_surface = scene.add_surface(twin);
+            scene.add_object(Object {
+                shape: sphere(-x),
+                surface: Some(twin_surface),
+                emission: 0.0,
+            })?;
+        }
+        match kind {
+            SceneKind::Furnace => scene.set_environment(FURNACE_ENVIRONMENT)?,
+            SceneKind::Preview => {
+                let ground = scene.add_surface(SurfaceTables::grey("ground", GROUND_REFLECTANCE));
+                scene.add_object(Object {
+                    shape: Shape::Plane {
+                        point: Vec3::ZERO,
+                        normal: Vec3::Y,
+                    },
+                    surface: Some(ground),
+                    emission: 0.0,
+                })?;
+                let quad = Quad::facing(
+                    Vec3::new(-2.5, 5.5, 4.0),
+                    Vec3::new(0.0, SPHERE_RADIUS, 0.0) - Vec3::new(-2.5, 5.5, 4.0),
+                    4.0,
+                );
+                // Exposure rule: the light alone gives a white diffuser facing up at the
+                // top of the sphere Y = 1 − PREVIEW_ENVIRONMENT; the environment adds
+                // the rest (less the sliver of sky the light hides), so white reads ≈ 1.
+                let top = Vec3::new(0.0, 2.0 * SPHERE_RADIUS, 0.0);
+                let radiance = (1.0 - PREVIEW_ENVIRONMENT) * std::f32::consts::PI
+                    / projected_solid_angle(&quad, top, Vec3::Y);
+                scene.add_object(Object {
+                    shape: Shape::Quad(quad),
+                    surface: None,
+                    emission: radiance,
+                })?;
+                scene.set_environment(PREVIEW_ENVIRONMENT)?;
+            }
+        }
+        Ok(scene)
+    }
+}
+
+/// ∫ cos θ dω over the quad as seen from `point` with unit `normal` (the quad above the
+/// point's horizon): irradiance per unit radiance, by Lambert's formula for polygons.
+pub fn projected_solid_angle(quad: &Quad, point: Vec3, normal: Vec3) -> f32 {
+    let corners = [
+        quad.point(0.0, 0.0),
+        quad.point(1.0, 0.0),
+        quad.point(1.0, 1.0),
+        quad.point(0.0, 1.0),
+    ];
+    let dirs = corners.map(|c| (c - point).normalize());
+    let mut sum = 0.0;
+    for i in 0..4 {
+        let a = dirs[i];
+        let b = dirs[(i + 1) % 4];
+        let theta = a.dot(b).clamp(-1.0, 1.0).acos();
+        sum += theta * a.cross(b).normalize().dot(normal);
+    }
+    0.5 * sum.abs()
+}

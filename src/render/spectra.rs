@@ -1,0 +1,541 @@
+//! Spectra as the renderer uses them: tabulated once at 1 nm over the rendered range
+//! (300–780 nm) in f32, with the sampling tables a path needs at a fluorescent event
+//! (model.md §6) and for choosing the wavelengths a camera path carries.
+
+use glam::Vec4;
+
+use crate::colour::{Light, cie1931};
+use crate::error::{Error, Result};
+use crate::material::Material;
+
+/// Shortest wavelength the renderer carries (nm): UV excitation from here on can reach
+/// visible emission.
+pub const LAMBDA_MIN_NM: f32 = 300.0;
+/// Longest wavelength the renderer carries (nm).
+pub const LAMBDA_MAX_NM: f32 = 780.0;
+/// Entries of a 1 nm table over [`LAMBDA_MIN_NM`, `LAMBDA_MAX_NM`].
+pub const TABLE_LEN: usize = 481;
+const LAST_INTERVAL: usize = TABLE_LEN - 2;
+
+/// The wavelength of table entry `i` (nm).
+fn table_nm(i: usize) -> f64 {
+    LAMBDA_MIN_NM as f64 + i as f64
+}
+
+/// A spectrum tabulated at every whole nanometre from 300 to 780 nm and linear in
+/// between. Material spectra are linear between their samples, so for samples at whole
+/// nanometres the table reproduces them exactly.
+#[derive(Debug, Clone)]
+pub struct Table {
+    values: Vec<f32>,
+}
+
+/// Where four wavelengths fall in the 1 nm tables: computed once per wavelength change
+/// and shared by every table read at those wavelengths.
+#[derive(Debug, Clone, Copy)]
+pub struct Lookup {
+    index: [usize; 4],
+    frac: Vec4,
+}
+
+impl Lookup {
+    /// The table positions of four wavelengths (clamped to the table's range).
+    #[inline]
+    pub fn new(nm: Vec4) -> Lookup {
+        let x = (nm - Vec4::splat(LAMBDA_MIN_NM))
+            .clamp(Vec4::ZERO, Vec4::splat((TABLE_LEN - 1) as f32));
+        let whole = x.floor().min(Vec4::splat(LAST_INTERVAL as f32));
+        let i = whole.to_array();
+        Lookup {
+            // Through i32: a plain truncation, cheaper than f32 → usize's saturating cast.
+            index: i.map(|v| v as i32 as usize),
+            frac: x - whole,
+        }
+    }
+}
+
+impl Table {
+    /// Tabulates `f` at 300, 301, …, 780 nm.
+    pub fn from_fn(f: impl Fn(f64) -> f64) -> Table {
+        Table {
+            values: (0..TABLE_LEN).map(|i| f(table_nm(i)) as f32).collect(),
+        }
+    }
+
+    /// A constant spectrum.
+    pub fn constant(value: f32) -> Table {
+        Table {
+            values: vec![value; TABLE_LEN],
+        }
+    }
+
+    /// Value at `nm`, linear between entries (clamped to the table's range).
+    #[inline]
+    pub fn eval(&self, nm: f32) -> f32 {
+        let x = (nm - LAMBDA_MIN_NM).clamp(0.0, (TABLE_LEN - 1) as f32);
+        let i = (x as i32 as usize).min(LAST_INTERVAL);
+        let t = x - i as f32;
+        let v0 = self.values[i];
+        let v1 = self.values[i + 1];
+        v0 + t * (v1 - v0)
+    }
+
+    /// Values at four wavelengths at once.
+    #[inline]
+    pub fn eval4(&self, nm: Vec4) -> Vec4 {
+        self.gather(&Lookup::new(nm))
+    }
+
+    /// Values at the four wavelengths of a lookup.
+    #[inline]
+    pub fn gather(&self, at: &Lookup) -> Vec4 {
+        let v = &self.values;
+        let [a, b, c, d] = at.index;
+        let lo = Vec4::new(v[a], v[b], v[c], v[d]);
+        let hi = Vec4::new(v[a + 1], v[b + 1], v[c + 1], v[d + 1]);
+        lo + at.frac * (hi - lo)
+    }
+
+    /// ∫ value dλ over 300–780 nm (trapezoid rule, exact for the table's interpolant).
+    pub fn integral(&self) -> f64 {
+        self.values
+            .windows(2)
+            .map(|w| 0.5 * (w[0] as f64 + w[1] as f64))
+            .sum()
+    }
+
+    /// ∫ self·other dλ over 300–780 nm, exact for the product of the two piecewise-linear
+    /// interpolants.
+    pub fn integral_of_product(&self, other: &Table) -> f64 {
+        self.values
+            .windows(2)
+            .zip(other.values.windows(2))
+            .map(|(a, b)| {
+                let (a0, a1, b0, b1) = (a[0] as f64, a[1] as f64, b[0] as f64, b[1] as f64);
+                (2.0 * a0 * b0 + a0 * b1 + a1 * b0 + 2.0 * a1 * b1) / 6.0
+            })
+            .sum()
+    }
+
+    /// The tabulated values (entry i at 300 + i nm).
+    pub fn values(&self) -> &[f32] {
+        &self.values
+    }
+
+    fn max(&self) -> f32 {
+        self.values.iter().cloned().fold(0.0, f32::max)
+    }
+}
+
+/// Cumulative distribution over the 480 one-nanometre intervals of a table, for drawing
+/// wavelengths with a density proportional to the table (piecewise linear) or to a
+/// piecewise-constant weight.
+#[derive(Debug, Clone)]
+struct IntervalCdf {
+    /// cdf[i] = probability of the intervals before i; cdf[480] = 1.
+    cdf: Vec<f32>,
+    /// 1 / (cdf[i + 1] − cdf[i]), 0 for intervals without mass.
+    inverse_mass: Vec<f32>,
+    /// guide[g] = the interval holding u = g / GUIDE_CELLS: where the search for any u
+    /// in that cell starts (Chen's guide table, a constant expected number of steps).
+    guide: Vec<u16>,
+}
+
+const GUIDE_CELLS: usize = 4096;
+
+impl IntervalCdf {
+    /// From the masses of the 480 intervals; None when they sum to zero.
+    fn new(masses: impl Iterator<Item = f64>) -> Option<IntervalCdf> {
+        let mut cdf = Vec::with_capacity(TABLE_LEN);
+        let mut sum = 0.0;
+        cdf.push(0.0);
+        for m in masses {
+            sum += m.max(0.0);
+            cdf.push(sum);
+        }
+        if sum <= 0.0 || !sum.is_finite() {
+            return None;
+        }
+        let cdf: Vec<f32> = cdf.iter().map(|c| (c / sum) as f32).collect();
+        let guide = (0..GUIDE_CELLS)
+            .map(|g| {
+                let u = g as f32 / GUIDE_CELLS as f32;
+                (cdf.partition_point(|&c| c <= u).max(1) - 1).min(LAST_INTERVAL) as u16
+            })
+            .collect();
+        let inverse_mass = cdf
+            .windows(2)
+            .map(|w| {
+                if w[1] > w[0] {
+                    1.0 / (w[1] - w[0])
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        Some(IntervalCdf {
+            cdf,
+            inverse_mass,
+            guide,
+        })
+    }
+
+    /// The interval holding `u` in [0, 1) and where `u` falls inside its mass, in [0, 1).
+    #[inline]
+    fn locate(&self, u: f32) -> (usize, f32) {
+        let cell = ((u * GUIDE_CELLS as f32) as i32 as usize).min(GUIDE_CELLS - 1);
+        let mut i = self.guide[cell] as usize;
+        while i < LAST_INTERVAL && self.cdf[i + 1] <= u {
+            i += 1;
+        }
+        // An interval without mass (u exactly on a flat stretch of the CDF) gives v = 0.
+        let v = ((u - self.cdf[i]) * self.inverse_mass[i]).clamp(0.0, 0.999_999);
+        (i, v)
+    }
+
+    fn mass(&self, i: usize) -> f32 {
+        self.cdf[i + 1] - self.cdf[i]
+    }
+}
+
+/// One fluorophore as a camera path meets it: k, its absorption and emission, and a
+/// sampler for the excitation wavelength with density a(λ)/A.
+#[derive(Debug, Clone)]
+pub struct FluorophoreTables {
+    /// k = c·Q.
+    pub k: f32,
+    /// a(λ).
+    pub absorption: Table,
+    /// e(λ) (1/nm).
+    pub emission: Table,
+    /// A = ∫a dλ over the rendered range.
+    pub absorption_integral: f32,
+    /// k·A·e(λo): this fluorophore's share of the fluorescent albedo at λo.
+    pub albedo: Table,
+    cdf: Option<IntervalCdf>,
+}
+
+impl FluorophoreTables {
+    /// Draws an excitation wavelength with density exactly a(λ)/A for the table's
+    /// piecewise-linear a: an interval by its trapezoid mass, then a point inside it by
+    /// inverting the linear density's quadratic CDF. `u` is uniform in [0, 1).
+    #[inline]
+    pub fn sample_excitation(&self, u: f32) -> f32 {
+        let Some(cdf) = &self.cdf else {
+            return LAMBDA_MIN_NM;
+        };
+        let (i, v) = cdf.locate(u);
+        let a0 = self.absorption.values[i];
+        let a1 = self.absorption.values[i + 1];
+        // Solve a0·t + (a1 − a0)·t²/2 = v·(a0 + a1)/2 in the cancellation-free form.
+        let den = a0 + (a0 * a0 + v * (a1 * a1 - a0 * a0)).max(0.0).sqrt();
+        let t = if den > 0.0 { v * (a0 + a1) / den } else { v };
+        LAMBDA_MIN_NM + i as f32 + t.clamp(0.0, 1.0)
+    }
+}
+
+/// A surface's spectral behaviour for a camera path (model.md §6): the diagonal
+/// reflectance d(λ) = (1 − Σc·a)·r, the fluorescent albedo F(λo) = Σ k·A·e(λo), and the
+/// fluorophores to sample the excitation wavelength from.
+#[derive(Debug, Clone)]
+pub struct SurfaceTables {
+    /// A short name for messages.
+    pub name: String,
+    /// d(λ).
+    pub diagonal: Table,
+    /// F(λo) = Σ k·A·e(λo): the energy a camera path at λo gathers through fluorescence
+    /// per unit incident spectral radiance, were it constant.
+    pub fluorescent_albedo: Table,
+    /// The fluorophores (empty for a plain Lambertian reflector).
+    pub fluorophores: Vec<FluorophoreTables>,
+}
+
+impl SurfaceTables {
+    /// The tables of a material, checked first with [`Material::validate`].
+    pub fn new(material: &Material) -> Result<SurfaceTables> {
+        material.validate()?;
+        let diagonal = Table::from_fn(|nm| material.diagonal(nm));
+        let mut fluorophores = Vec::new();
+        for f in &material.fluorophores {
+            let absorption = Table::from_fn(|nm| f.absorption.eval_zero_outside(nm));
+            let emission = Table::from_fn(|nm| f.emission.eval_zero_outside(nm));
+            let absorption_integral = absorption.integral() as f32;
+            let k = f.k() as f32;
+            let albedo = Table {
+                values: emission
+                    .values
+                    .iter()
+                    .map(|e| k * absorption_integral * e)
+                    .collect(),
+            };
+            let cdf = IntervalCdf::new(
+                absorption
+                    .values
+                    .windows(2)
+                    .map(|w| 0.5 * (w[0] as f64 + w[1] as f64)),
+            );
+            fluorophores.push(FluorophoreTables {
+                k,
+                absorption,
+                emission,
+                absorption_integral,
+                albedo,
+                cdf,
+            });
+        }
+        // Fluorophores that absorb nothing in the rendered range or emit nothing there
+        // never fire; dropping them keeps the fast path for such surfaces.
+        fluorophores.retain(|f| f.cdf.is_some() && f.albedo.max() > 0.0);
+        let mut fluorescent_albedo = Table::constant(0.0);
+        for f in &fluorophores {
+            for (total, v) in fluorescent_albedo.values.iter_mut().zip(&f.albedo.values) {
+                *total += v;
+            }
+        }
+        Ok(SurfaceTables {
+            name: material.name.clone(),
+            diagonal,
+            fluorescent_albedo,
+            fluorophores,
+        })
+    }
+
+    /// A spectrally flat, non-fluorescent reflector (the neutral grey ground).
+    pub fn grey(name: &str, reflectance: f32) -> SurfaceTables {
+        SurfaceTables {
+            name: name.to_string(),
+            diagonal: Table::constant(reflectance),
+            fluorescent_albedo: Table::constant(0.0),
+            fluorophores: Vec::new(),
+        }
+    }
+
+    /// True when the surface has a fluorescent component in the rendered range.
+    pub fn is_fluorescent(&self) -> bool {
+        !self.fluorophores.is_empty()
+    }
+}
+
+/// How a light's spectrum was scaled to make renders under different lights comparable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LightNormalisation {
+    /// To unit luminance: ∫L·ȳ dλ = 1.
+    Luminance,
+    /// The light has (almost) no visible power, as a bare UV lamp: scaled to the radiant
+    /// power of D65 at unit luminance instead.
+    RadiantPower,
+}
+
+/// The spectrum every emitter of a scene shares (area light and environment), normalised
+/// by [`LightNormalisation`] and tabulated over the rendered range.
+#[derive(Debug, Clone)]
+pub struct LightSpectrum {
+    /// The light's name.
+    pub name: String,
+    /// Normalised relative spectral radiance.
+    pub radiance: Table,
+    /// The scale applied to the light's tabulated power.
+    pub scale: f64,
+    /// How the scale was chosen.
+    pub normalisation: LightNormalisation,
+    /// XYZ of the normalised light (its white, Y = 1 under luminance normalisation).
+    pub white_xyz: [f64; 3],
+}
+
+/// A light whose luminance per radiant power is below this fraction of D65's counts as
+/// having no visible power.
+const INVISIBLE_LIGHT_FRACTION: f64 = 1e-3;
+
+impl LightSpectrum {
+    /// Tabulates and normalises `light`. Fails when it has no power between 300 and
+    /// 780 nm.
+    pub fn new(light: &Light) -> Result<LightSpectrum> {
+        let raw = Table::from_fn(|nm| light.power(nm));
+        let observer = Observer::get();
+        let radiant = raw.integral();
+        if radiant <= 0.0 || !radiant.is_finite() {
+            return Err(Error::invalid(
+                "light",
+                format!(
+                    "\"{}\" has no power between {LAMBDA_MIN_NM} and {LAMBDA_MAX_NM} nm, the range the renderer carries; give a light with power there",
+                    light.name
+                ),
+            ));
+        }
+        let luminance = raw.integral_of_product(&observer.y);
+        let d65 = Table::from_fn(|nm| {
+            Light::builtin("d65")
+                .map(|l| l.power(nm))
+                .unwrap_or_default()
+        });
+        let d65_efficacy = d65.integral_of_product(&observer.y) / d65.integral();
+        let (scale, normalisation) =
+            if luminance / radiant > INVISIBLE_LIGHT_FRACTION * d65_efficacy {
+                (1.0 / luminance, LightNormalisation::Luminance)
+            } else {
+                (d65_efficacy / radiant, LightNormalisation::RadiantPower)
+            };
+        let radiance = Table {
+            values: raw
+                .values
+                .iter()
+                .map(|v| (*v as f64 * scale) as f32)
+                .collect(),
+        };
+        let white_xyz = [
+            radiance.integral_of_product(&observer.x),
+            radiance.integral_of_product(&observer.y),
+            radiance.integral_of_product(&observer.z),
+        ];
+        Ok(LightSpectrum {
+            name: light.name.clone(),
+            radiance,
+            scale,
+            normalisation,
+            white_xyz,
+        })
+    }
+}
+
+/// The CIE 1931 colour-matching functions over the rendered range, and the density with
+/// which camera paths draw their wavelengths: piecewise constant per nanometre,
+/// proportional to max(x̄, ȳ, z̄) plus a small floor, zero below 360 nm where the observer
+/// sees nothing. Fluorescence still reaches below 360 nm: excitation wavelengths are
+/// drawn from the absorption, not from this density.
+#[derive(Debug, Clone)]
+pub struct Observer {
+    /// x̄(λ).
+    pub x: Table,
+    /// ȳ(λ).
+    pub y: Table,
+    /// z̄(λ).
+    pub z: Table,
+    cdf: IntervalCdf,
+    /// Density of each 1 nm interval (1/nm).
+    density: Vec<f32>,
+    /// (x̄, ȳ, z̄, 0) per table entry, for one read per wavelength.
+    cmf: Vec<Vec4>,
+}
+
+impl Observer {
+    /// The shared observer tables (built once).
+    pub fn get() -> &'static Observer {
+        static OBSERVER: std::sync::OnceLock<Observer> = std::sync::OnceLock::new();
+        OBSERVER.get_or_init(|| {
+            let cie = cie1931();
+            let x = Table::from_fn(|nm| cie.x.eval_zero_outside(nm));
+            let y = Table::from_fn(|nm| cie.y.eval_zero_outside(nm));
+            let z = Table::from_fn(|nm| cie.z.eval_zero_outside(nm));
+            let peak = |i: usize| {
+                [&x, &y, &z]
+                    .iter()
+                    .map(|t| t.values[i])
+                    .fold(0.0f32, f32::max) as f64
+            };
+            let weights: Vec<f64> = (0..TABLE_LEN - 1)
+                .map(|i| {
+                    let m = peak(i).max(peak(i + 1));
+                    // A floor keeps the density positive wherever the observer responds.
+                    if m > 0.0 { m + 0.02 } else { 0.0 }
+                })
+                .collect();
+            let cdf = IntervalCdf::new(weights.iter().cloned()).expect("observer has mass");
+            let density = (0..TABLE_LEN - 1).map(|i| cdf.mass(i)).collect();
+            let cmf = (0..TABLE_LEN)
+                .map(|i| Vec4::new(x.values[i], y.values[i], z.values[i], 0.0))
+                .collect();
+            Observer {
+                x,
+                y,
+                z,
+                cdf,
+                density,
+                cmf,
+            }
+        })
+    }
+
+    /// Draws a wavelength for the camera from `u` in [0, 1); returns it and its density.
+    #[inline]
+    pub fn sample(&self, u: f32) -> (f32, f32) {
+        let (i, v) = self.cdf.locate(u);
+        (LAMBDA_MIN_NM + i as f32 + v, self.density[i])
+    }
+
+    /// x̄, ȳ, z̄ at `nm`.
+    #[inline]
+    pub fn xyz(&self, nm: f32) -> [f32; 3] {
+        let v = self.cmf4(nm);
+        [v.x, v.y, v.z]
+    }
+
+    /// (x̄, ȳ, z̄, 0) at `nm`.
+    #[inline]
+    pub fn cmf4(&self, nm: f32) -> Vec4 {
+        let x = (nm - LAMBDA_MIN_NM).clamp(0.0, (TABLE_LEN - 1) as f32);
+        let i = (x as i32 as usize).min(LAST_INTERVAL);
+        let t = x - i as f32;
+        let lo = self.cmf[i];
+        let hi = self.cmf[i + 1];
+        lo + t * (hi - lo)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn excitation_sampling_follows_absorption() {
+        // A triangle absorption 400–500 nm peaking at 430 nm: the sampled histogram in
+        // 10 nm bins must match the exact bin masses.
+        let a = Table::from_fn(|nm| {
+            if (400.0..=430.0).contains(&nm) {
+                (nm - 400.0) / 30.0
+            } else if (430.0..=500.0).contains(&nm) {
+                (500.0 - nm) / 70.0
+            } else {
+                0.0
+            }
+        });
+        let cdf = IntervalCdf::new(a.values.windows(2).map(|w| 0.5 * (w[0] + w[1]) as f64));
+        let f = FluorophoreTables {
+            k: 1.0,
+            absorption_integral: a.integral() as f32,
+            albedo: Table::constant(0.0),
+            emission: Table::constant(0.0),
+            absorption: a,
+            cdf,
+        };
+        let n = 200_000;
+        let mut hist = [0u32; 10];
+        for s in 0..n {
+            let u = (s as f32 + 0.5) / n as f32;
+            let nm = f.sample_excitation(u);
+            assert!((400.0..=500.0).contains(&nm), "{nm}");
+            hist[((nm - 400.0) / 10.0).min(9.0) as usize] += 1;
+        }
+        let total = 50.0; // area of the triangle
+        for (b, count) in hist.iter().enumerate() {
+            let lo = 400.0 + 10.0 * b as f64;
+            let mass = (0..100)
+                .map(|s| {
+                    let nm = lo + (s as f64 + 0.5) * 0.1;
+                    f.absorption.eval(nm as f32) as f64 * 0.1
+                })
+                .sum::<f64>()
+                / total;
+            let got = *count as f64 / n as f64;
+            assert!((got - mass).abs() < 2e-3, "bin {b}: {got} vs {mass}");
+        }
+    }
+
+    #[test]
+    fn observer_density_integrates_to_one() {
+        let o = Observer::get();
+        let total: f32 = o.density.iter().sum();
+        assert!((total - 1.0).abs() < 1e-4);
+        let (nm, p) = o.sample(0.5);
+        assert!((360.0..=780.0).contains(&nm) && p > 0.0);
+    }
+}
