@@ -144,7 +144,9 @@ pub struct LawResult {
     /// Pass, fail or not evaluated.
     pub status: Status,
     /// `bound − worst value` (negative when broken; for the normalisations −|value − 1|).
-    /// NaN (JSON null) when not evaluated or when the worst value is not a number.
+    /// For the structural laws: the smallest sample (`finite-non-negative`), the smallest
+    /// wavelength step in nm (`sorted-wavelengths`), 0 (`schema`). NaN (JSON null) when
+    /// not evaluated, when nothing was checked, or when the worst value is not a number.
     pub margin: f64,
     /// The tolerance the margin is compared with.
     pub tolerance: f64,
@@ -240,8 +242,14 @@ impl CheckReport {
                 Status::NotEvaluated => "n/a ",
             };
             let mut line = format!("  {status} {:<20} {:<40}", l.law.name(), l.statement);
-            if l.status != Status::NotEvaluated && !l.margin.is_nan() {
-                line.push_str(&format!(" margin {:+.3e}", l.margin));
+            // Structural laws have a verdict, not a meaningful margin.
+            let structural = matches!(
+                l.law,
+                Law::Schema | Law::FiniteNonNegative | Law::SortedWavelengths
+            );
+            if !structural && l.status != Status::NotEvaluated && !l.margin.is_nan() {
+                // `+ 0.0` turns −0 into 0 for printing.
+                line.push_str(&format!(" margin {:+.3e}", l.margin + 0.0));
                 if let Some(at) = &l.worst_at {
                     line.push_str(&format!(" worst {} = {:.6}", at, l.worst_value));
                 }
@@ -391,6 +399,12 @@ impl RawMaterial {
                 value: array("value")?,
             })
         };
+        if schema == crate::material::SHAPES_SCHEMA {
+            return Err(missing(
+                "it is a shapes-only fit (fluorite-fluorophore/1: absorption and emission without reflectance, c or Q)",
+                "build a material from its spectra with `fluorite import-spectra`",
+            ));
+        }
         let reflectance = spectrum(obj.get("reflectance"), "reflectance")?;
         let list = obj
             .get("fluorophores")
