@@ -276,10 +276,16 @@ pub fn import_spectra(options: &ImportOptions) -> Result<(Material, CheckReport)
                     format!("is {r}; a reflectance lies in [0, 1]"),
                 ));
             }
-            let lo = absorption.wavelength_nm[0].min(emission.wavelength_nm[0]);
-            let hi = absorption.wavelength_nm[absorption.len() - 1]
-                .max(emission.wavelength_nm[emission.len() - 1]);
-            let grid = if hi > lo { vec![lo, hi] } else { vec![lo] };
+            // Sampled where a and e are, so that the material's grids stay those of the
+            // source files (a uniform 1 nm grid for the dye files; BFC export needs one).
+            let mut grid: Vec<f64> = absorption
+                .wavelength_nm
+                .iter()
+                .chain(&emission.wavelength_nm)
+                .copied()
+                .collect();
+            grid.sort_by(f64::total_cmp);
+            grid.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
             Spectrum {
                 value: vec![*r; grid.len()],
                 wavelength_nm: grid,
