@@ -6,11 +6,13 @@
 //! [`Material`]; downstream modules ([`model`], [`colour`], [`export`], [`plot`],
 //! [`render`]) read only the material (and, for comparisons, the measurement).
 
+pub mod check;
 pub mod colour;
 pub mod error;
 pub mod export;
 pub mod fit;
 pub mod formats;
+pub mod import;
 pub mod material;
 pub mod measurement;
 pub mod model;

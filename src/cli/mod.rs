@@ -1,7 +1,10 @@
 //! Command-line interface: one file per subcommand, each parsing its arguments and
 //! calling the library.
 
+mod check;
+mod export;
 mod fit;
+mod import_spectra;
 mod plot;
 mod render;
 mod synth;
@@ -29,6 +32,13 @@ enum Command {
     Render(render::RenderArgs),
     /// Plot a fitted material: residual maps, spectra, colour swatches, convergence.
     Plot(plot::PlotArgs),
+    /// Check materials against energy and photon conservation and the model's ranges
+    /// (exit 0 valid, 1 violated, 2 unreadable).
+    Check(check::CheckArgs),
+    /// Export a material: csv, matrix, bfc, mitsuba or pbrt.
+    Export(export::ExportArgs),
+    /// Build a material from absorption and emission spectra, c and Q.
+    ImportSpectra(import_spectra::ImportSpectraArgs),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -55,5 +65,8 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Synth(args) => synth::run(args),
         Command::Render(args) => render::run(args),
         Command::Plot(args) => plot::run(args),
+        Command::Check(args) => check::run(args),
+        Command::Export(args) => export::run(args),
+        Command::ImportSpectra(args) => import_spectra::run(args),
     }
 }

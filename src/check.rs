@@ -1,0 +1,858 @@
+//! Checking any material against the model's laws (model.md §1 and §3).
+//!
+//! [`Material::load`] stops at the first broken constraint; a check must instead read
+//! materials that are broken (hand-written, exported by someone else) and name *every*
+//! violated law with its worst wavelength and margin. So the JSON is first read leniently
+//! into a [`RawMaterial`] (numbers that are not numbers become NaN, spectra may be unsorted
+//! or of unequal length), then every [`Law`] is evaluated independently.
+//!
+//! A law's *margin* is `bound − worst value` in the law's own units: positive when it
+//! holds, negative when broken. A law fails when its margin is below `−tolerance`.
+//! Laws whose inputs are malformed (non-finite, unsorted) are reported as not evaluated;
+//! the structural law that makes them unevaluable fails instead.
+
+use std::path::Path;
+
+use serde::Serialize;
+use serde_json::Value;
+
+use crate::error::{Error, Result};
+use crate::material::{BOUND_TOLERANCE, Material, NORMALISATION_TOLERANCE, SCHEMA};
+use crate::spectrum::{Spectrum, bin_widths};
+
+/// The laws a material must satisfy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Law {
+    /// The file declares the `fluorite-material/1` schema.
+    Schema,
+    /// Every spectrum has as many values as wavelengths, at least one sample, finite
+    /// non-negative values and positive wavelengths.
+    FiniteNonNegative,
+    /// Wavelengths strictly increase within every spectrum.
+    SortedWavelengths,
+    /// r(λ) ≤ 1.
+    ReflectanceRange,
+    /// a(λ) ≤ 1.
+    AbsorptionRange,
+    /// 0 ≤ c ≤ 1.
+    ConcentrationRange,
+    /// 0 ≤ Q ≤ 1.
+    QuantumYieldRange,
+    /// max a = 1.
+    AbsorptionPeak,
+    /// ∫e dλ = 1.
+    EmissionIntegral,
+    /// Σ c·a(λ) ≤ 1: the fluorophores together absorb at most all the light.
+    TotalAbsorption,
+    /// ρ(λ) = (1 − Σc·a)·r + Σc·Q·a·∫e ≤ 1.
+    Energy,
+    /// Q·λ̄e/λ ≤ 1 wherever a(λ) > 0.
+    Photons,
+}
+
+impl Law {
+    /// Every law, in report order.
+    pub const ALL: [Law; 12] = [
+        Law::Schema,
+        Law::FiniteNonNegative,
+        Law::SortedWavelengths,
+        Law::ReflectanceRange,
+        Law::AbsorptionRange,
+        Law::ConcentrationRange,
+        Law::QuantumYieldRange,
+        Law::AbsorptionPeak,
+        Law::EmissionIntegral,
+        Law::TotalAbsorption,
+        Law::Energy,
+        Law::Photons,
+    ];
+
+    /// The law's short name (as in the JSON report).
+    pub fn name(self) -> &'static str {
+        match self {
+            Law::Schema => "schema",
+            Law::FiniteNonNegative => "finite-non-negative",
+            Law::SortedWavelengths => "sorted-wavelengths",
+            Law::ReflectanceRange => "reflectance-range",
+            Law::AbsorptionRange => "absorption-range",
+            Law::ConcentrationRange => "concentration-range",
+            Law::QuantumYieldRange => "quantum-yield-range",
+            Law::AbsorptionPeak => "absorption-peak",
+            Law::EmissionIntegral => "emission-integral",
+            Law::TotalAbsorption => "total-absorption",
+            Law::Energy => "energy",
+            Law::Photons => "photons",
+        }
+    }
+
+    /// The law as a formula.
+    pub fn statement(self) -> &'static str {
+        match self {
+            Law::Schema => "schema = \"fluorite-material/1\"",
+            Law::FiniteNonNegative => {
+                "every sample finite and ≥ 0, wavelengths > 0, one value per wavelength"
+            }
+            Law::SortedWavelengths => "wavelengths strictly increasing",
+            Law::ReflectanceRange => "r(λ) ≤ 1",
+            Law::AbsorptionRange => "a(λ) ≤ 1",
+            Law::ConcentrationRange => "0 ≤ c ≤ 1",
+            Law::QuantumYieldRange => "0 ≤ Q ≤ 1",
+            Law::AbsorptionPeak => "max a = 1",
+            Law::EmissionIntegral => "∫e dλ = 1 (1/nm, trapezoid rule)",
+            Law::TotalAbsorption => "Σ c·a(λ) ≤ 1",
+            Law::Energy => "ρ(λ) = (1 − Σc·a)·r + Σc·Q·a·∫e ≤ 1",
+            Law::Photons => "Q·λ̄e/λ ≤ 1 wherever a(λ) > 0",
+        }
+    }
+
+    /// How far past its bound a value may lie before the law counts as broken.
+    pub fn tolerance(self) -> f64 {
+        match self {
+            Law::AbsorptionPeak | Law::EmissionIntegral => NORMALISATION_TOLERANCE,
+            _ => BOUND_TOLERANCE,
+        }
+    }
+}
+
+impl std::fmt::Display for Law {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Whether a law holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Status {
+    /// The law holds within its tolerance.
+    Pass,
+    /// The law is broken.
+    Fail,
+    /// The law could not be evaluated because its inputs are malformed (another law
+    /// fails for that).
+    NotEvaluated,
+}
+
+/// The outcome of one law.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LawResult {
+    /// Which law.
+    pub law: Law,
+    /// The law as a formula.
+    pub statement: String,
+    /// Pass, fail or not evaluated.
+    pub status: Status,
+    /// `bound − worst value` (negative when broken; for the normalisations −|value − 1|).
+    /// For the structural laws: the smallest sample (`finite-non-negative`), the smallest
+    /// wavelength step in nm (`sorted-wavelengths`), 0 (`schema`). NaN (JSON null) when
+    /// not evaluated, when nothing was checked, or when the worst value is not a number.
+    pub margin: f64,
+    /// The tolerance the margin is compared with.
+    pub tolerance: f64,
+    /// The worst value found.
+    pub worst_value: f64,
+    /// Where the worst value is (`fluorophores[0].absorption`), if anywhere.
+    pub worst_at: Option<String>,
+    /// The wavelength of the worst value (nm), when it has one.
+    pub worst_nm: Option<f64>,
+    /// One sentence per violation found (all of them, not just the worst).
+    pub violations: Vec<String>,
+}
+
+/// Per-fluorophore quantities a chemist would quote.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FluorophoreSummary {
+    /// k = c·Q.
+    pub k: f64,
+    /// λ̄e = ∫λ·e dλ / ∫e dλ (nm).
+    pub mean_emission_nm: f64,
+    /// Shortest and longest wavelength where a > 0 (nm).
+    pub absorbed_nm: Option<[f64; 2]>,
+    /// Range of the photon quantum yield Φ(λ) = Q·λ̄e/λ over the absorbed wavelengths.
+    pub photon_yield_range: Option<[f64; 2]>,
+}
+
+/// The full report of [`check`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CheckReport {
+    /// The material's name.
+    pub material: String,
+    /// The file checked, if any.
+    pub source: Option<String>,
+    /// True when no law fails.
+    pub valid: bool,
+    /// Every law, in [`Law::ALL`] order.
+    pub laws: Vec<LawResult>,
+    /// Per fluorophore: k, λ̄e and the photon quantum yield range.
+    pub fluorophores: Vec<FluorophoreSummary>,
+}
+
+impl CheckReport {
+    /// The laws that fail.
+    pub fn failed(&self) -> Vec<Law> {
+        self.laws
+            .iter()
+            .filter(|l| l.status == Status::Fail)
+            .map(|l| l.law)
+            .collect()
+    }
+
+    /// The result of one law.
+    pub fn law(&self, law: Law) -> &LawResult {
+        self.laws
+            .iter()
+            .find(|l| l.law == law)
+            .expect("every law is reported")
+    }
+
+    /// The report as pretty JSON (NaN margins as null).
+    pub fn to_json(&self) -> String {
+        let mut s = serde_json::to_string_pretty(self).expect("report serialises");
+        s.push('\n');
+        s
+    }
+
+    /// A human-readable report: one line per law, then the violations and the yields.
+    pub fn to_text(&self) -> String {
+        let mut out = format!(
+            "{}{}: {}\n",
+            self.material,
+            self.source
+                .as_ref()
+                .map(|s| format!(" ({s})"))
+                .unwrap_or_default(),
+            if self.valid {
+                "valid".to_string()
+            } else {
+                format!(
+                    "VIOLATES {}",
+                    self.failed()
+                        .iter()
+                        .map(|l| l.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            }
+        );
+        for l in &self.laws {
+            let status = match l.status {
+                Status::Pass => "ok  ",
+                Status::Fail => "FAIL",
+                Status::NotEvaluated => "n/a ",
+            };
+            let mut line = format!("  {status} {:<20} {:<40}", l.law.name(), l.statement);
+            // Structural laws have a verdict, not a meaningful margin.
+            let structural = matches!(
+                l.law,
+                Law::Schema | Law::FiniteNonNegative | Law::SortedWavelengths
+            );
+            if !structural && l.status != Status::NotEvaluated && !l.margin.is_nan() {
+                // `+ 0.0` turns −0 into 0 for printing.
+                line.push_str(&format!(" margin {:+.3e}", l.margin + 0.0));
+                if let Some(at) = &l.worst_at {
+                    line.push_str(&format!(" worst {} = {:.6}", at, l.worst_value));
+                }
+                if let Some(nm) = l.worst_nm {
+                    line.push_str(&format!(" at {nm} nm"));
+                }
+            }
+            out.push_str(line.trim_end());
+            out.push('\n');
+            if l.status == Status::Fail {
+                for v in &l.violations {
+                    out.push_str(&format!("         - {v}\n"));
+                }
+            }
+        }
+        for (n, f) in self.fluorophores.iter().enumerate() {
+            out.push_str(&format!(
+                "  fluorophores[{n}]: k = c·Q = {:.6}, λ̄e = {:.2} nm",
+                f.k, f.mean_emission_nm
+            ));
+            if let (Some([lo, hi]), Some([pl, ph])) = (f.absorbed_nm, f.photon_yield_range) {
+                out.push_str(&format!(
+                    ", photon quantum yield Φ(λ) = Q·λ̄e/λ from {pl:.4} (at {hi} nm) to {ph:.4} (at {lo} nm)"
+                ));
+            }
+            out.push('\n');
+        }
+        out
+    }
+}
+
+/// A spectrum as found in the file, without any invariant (NaN for non-numbers).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RawSpectrum {
+    /// Wavelengths as written.
+    pub wavelength_nm: Vec<f64>,
+    /// Values as written.
+    pub value: Vec<f64>,
+}
+
+/// A fluorophore as found in the file.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RawFluorophore {
+    /// c (NaN when not a number).
+    pub concentration: f64,
+    /// Q (NaN when not a number).
+    pub quantum_yield: f64,
+    /// a(λ).
+    pub absorption: RawSpectrum,
+    /// e(λ).
+    pub emission: RawSpectrum,
+}
+
+/// A material as found in the file: the shape of [`Material`] without its invariants.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RawMaterial {
+    /// The schema tag as written.
+    pub schema: String,
+    /// The name as written.
+    pub name: String,
+    /// r(λ).
+    pub reflectance: RawSpectrum,
+    /// The fluorophores.
+    pub fluorophores: Vec<RawFluorophore>,
+}
+
+impl From<&Spectrum> for RawSpectrum {
+    fn from(s: &Spectrum) -> Self {
+        RawSpectrum {
+            wavelength_nm: s.wavelength_nm.clone(),
+            value: s.value.clone(),
+        }
+    }
+}
+
+impl From<&Material> for RawMaterial {
+    fn from(m: &Material) -> Self {
+        RawMaterial {
+            schema: m.schema.clone(),
+            name: m.name.clone(),
+            reflectance: (&m.reflectance).into(),
+            fluorophores: m
+                .fluorophores
+                .iter()
+                .map(|f| RawFluorophore {
+                    concentration: f.concentration,
+                    quantum_yield: f.quantum_yield,
+                    absorption: (&f.absorption).into(),
+                    emission: (&f.emission).into(),
+                })
+                .collect(),
+        }
+    }
+}
+
+impl RawMaterial {
+    /// Reads a material leniently from JSON text. Fails only when the text is not JSON or
+    /// lacks the material's structure (`reflectance`, `fluorophores`, spectra with
+    /// `wavelength_nm` and `value` arrays, `concentration` and `quantum_yield`); values
+    /// that are not numbers (null, strings) are read as NaN and reported by the check.
+    pub fn from_json(text: &str, path: &Path) -> Result<RawMaterial> {
+        let root: Value = serde_json::from_str(text)
+            .map_err(|e| Error::parse(path, e.line(), e.column(), format!("not JSON: {e}")))?;
+        let missing = |what: &str, fix: &str| {
+            Error::parse(
+                path,
+                0,
+                0,
+                format!("not a fluorite material: {what}; {fix}"),
+            )
+        };
+        let obj = root.as_object().ok_or_else(|| {
+            missing(
+                "the top level is not an object",
+                "a material is a JSON object with reflectance and fluorophores",
+            )
+        })?;
+        let schema = obj
+            .get("schema")
+            .and_then(Value::as_str)
+            .unwrap_or("")
+            .to_string();
+        let name = obj
+            .get("name")
+            .and_then(Value::as_str)
+            .map(str::to_string)
+            .or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()))
+            .unwrap_or_else(|| "material".to_string());
+        let spectrum = |v: Option<&Value>, what: &str| -> Result<RawSpectrum> {
+            let v = v.and_then(Value::as_object).ok_or_else(|| {
+                missing(
+                    &format!("{what} is missing or not an object"),
+                    "give it as {\"wavelength_nm\": [...], \"value\": [...]}",
+                )
+            })?;
+            let array = |key: &str| -> Result<Vec<f64>> {
+                let a = v.get(key).and_then(Value::as_array).ok_or_else(|| {
+                    missing(
+                        &format!("{what}.{key} is missing or not an array"),
+                        "give an array of numbers",
+                    )
+                })?;
+                Ok(a.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect())
+            };
+            Ok(RawSpectrum {
+                wavelength_nm: array("wavelength_nm")?,
+                value: array("value")?,
+            })
+        };
+        if schema == crate::material::SHAPES_SCHEMA {
+            return Err(missing(
+                "it is a shapes-only fit (fluorite-fluorophore/1: absorption and emission without reflectance, c or Q)",
+                "build a material from its spectra with `fluorite import-spectra`",
+            ));
+        }
+        let reflectance = spectrum(obj.get("reflectance"), "reflectance")?;
+        let list = obj
+            .get("fluorophores")
+            .and_then(Value::as_array)
+            .ok_or_else(|| {
+                missing(
+                    "fluorophores is missing or not an array",
+                    "give [] for a plain reflector",
+                )
+            })?;
+        let mut fluorophores = Vec::new();
+        for (n, f) in list.iter().enumerate() {
+            let p = format!("fluorophores[{n}]");
+            let scalar = |key: &str| -> Result<f64> {
+                let v = f.get(key).ok_or_else(|| {
+                    missing(&format!("{p}.{key} is missing"), "give a number in [0, 1]")
+                })?;
+                Ok(v.as_f64().unwrap_or(f64::NAN))
+            };
+            fluorophores.push(RawFluorophore {
+                concentration: scalar("concentration")?,
+                quantum_yield: scalar("quantum_yield")?,
+                absorption: spectrum(f.get("absorption"), &format!("{p}.absorption"))?,
+                emission: spectrum(f.get("emission"), &format!("{p}.emission"))?,
+            });
+        }
+        Ok(RawMaterial {
+            schema,
+            name,
+            reflectance,
+            fluorophores,
+        })
+    }
+}
+
+/// Reads `path` leniently and checks it. Errors only when the file cannot be read or
+/// is not a material at all (the CLI's exit code 2).
+pub fn check_file(path: &Path) -> Result<CheckReport> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let raw = RawMaterial::from_json(&text, path)?;
+    let mut report = check(&raw);
+    report.source = Some(path.display().to_string());
+    Ok(report)
+}
+
+/// Checks a material held in memory.
+pub fn check_material(material: &Material) -> CheckReport {
+    check(&RawMaterial::from(material))
+}
+
+/// Tracks the worst observation of one law.
+struct Tracker {
+    law: Law,
+    evaluated: bool,
+    margin: f64,
+    worst_value: f64,
+    worst_at: Option<String>,
+    worst_nm: Option<f64>,
+    violations: Vec<String>,
+}
+
+impl Tracker {
+    fn new(law: Law) -> Self {
+        Tracker {
+            law,
+            evaluated: true,
+            margin: f64::INFINITY,
+            worst_value: f64::NAN,
+            worst_at: None,
+            worst_nm: None,
+            violations: Vec::new(),
+        }
+    }
+
+    /// Records a value with its margin; `message` is called when it breaks the law
+    /// (margin below −tolerance, or not a number).
+    fn observe(
+        &mut self,
+        margin: f64,
+        value: f64,
+        at: &str,
+        nm: Option<f64>,
+        message: impl FnOnce() -> String,
+    ) {
+        let broken = margin.is_nan() || margin < -self.law.tolerance();
+        self.observe_if(broken, margin, value, at, nm, message);
+    }
+
+    /// Records a value whose verdict the caller decides.
+    fn observe_if(
+        &mut self,
+        broken: bool,
+        margin: f64,
+        value: f64,
+        at: &str,
+        nm: Option<f64>,
+        message: impl FnOnce() -> String,
+    ) {
+        // A non-number is the worst there is; the first one found stays reported.
+        let worse = if margin.is_nan() {
+            !self.margin.is_nan()
+        } else {
+            !self.margin.is_nan() && margin < self.margin
+        };
+        if worse {
+            self.margin = margin;
+            self.worst_value = value;
+            self.worst_at = Some(at.to_string());
+            self.worst_nm = nm;
+        }
+        if broken {
+            self.violations.push(message());
+        }
+    }
+
+    fn result(self) -> LawResult {
+        let status = if !self.violations.is_empty() {
+            Status::Fail
+        } else if !self.evaluated {
+            Status::NotEvaluated
+        } else {
+            Status::Pass
+        };
+        // A law with nothing to observe (no fluorophore) holds with an infinite margin;
+        // JSON has no infinity, so report NaN (null).
+        let margin = if self.margin.is_infinite() || !self.evaluated && status != Status::Fail {
+            f64::NAN
+        } else {
+            self.margin
+        };
+        LawResult {
+            law: self.law,
+            statement: self.law.statement().to_string(),
+            status,
+            margin,
+            tolerance: self.law.tolerance(),
+            worst_value: self.worst_value,
+            worst_at: self.worst_at,
+            worst_nm: self.worst_nm,
+            violations: self.violations,
+        }
+    }
+}
+
+/// Whether a raw spectrum is well formed enough to evaluate derived laws on.
+fn usable(s: &RawSpectrum) -> bool {
+    !s.value.is_empty()
+        && s.value.len() == s.wavelength_nm.len()
+        && s.value.iter().all(|v| v.is_finite())
+        && s.wavelength_nm.iter().all(|l| l.is_finite() && *l > 0.0)
+        && s.wavelength_nm.windows(2).all(|w| w[1] > w[0])
+}
+
+fn to_spectrum(s: &RawSpectrum) -> Spectrum {
+    Spectrum {
+        wavelength_nm: s.wavelength_nm.clone(),
+        value: s.value.clone(),
+    }
+}
+
+/// Checks every law on `m` and reports each with its worst wavelength and margin.
+pub fn check(m: &RawMaterial) -> CheckReport {
+    let mut schema = Tracker::new(Law::Schema);
+    let ok = m.schema == SCHEMA;
+    schema.observe(
+        if ok { 0.0 } else { f64::NAN },
+        f64::NAN,
+        "schema",
+        None,
+        || format!("schema is \"{}\"; fluorite reads \"{SCHEMA}\"", m.schema),
+    );
+    if !ok {
+        schema.worst_at = Some("schema".into());
+    }
+
+    let mut spectra: Vec<(String, &RawSpectrum)> =
+        vec![("reflectance".to_string(), &m.reflectance)];
+    for (n, f) in m.fluorophores.iter().enumerate() {
+        spectra.push((format!("fluorophores[{n}].absorption"), &f.absorption));
+        spectra.push((format!("fluorophores[{n}].emission"), &f.emission));
+    }
+
+    // Structure: finite, non-negative, one value per wavelength; sorted wavelengths.
+    let mut finite = Tracker::new(Law::FiniteNonNegative);
+    let mut sorted = Tracker::new(Law::SortedWavelengths);
+    for (what, s) in &spectra {
+        if s.value.len() != s.wavelength_nm.len() || s.value.is_empty() {
+            finite.observe(f64::NAN, f64::NAN, what, None, || {
+                format!(
+                    "{what} has {} wavelengths and {} values; give one value per wavelength and at least one sample",
+                    s.wavelength_nm.len(),
+                    s.value.len()
+                )
+            });
+        }
+        for (i, &l) in s.wavelength_nm.iter().enumerate() {
+            let margin = if l.is_finite() { l } else { f64::NAN };
+            if !(l.is_finite() && l > 0.0) {
+                finite.observe_if(true, margin, l, &format!("{what}.wavelength_nm[{i}]"), None, || {
+                    format!("{what}.wavelength_nm[{i}] is {l}; wavelengths are positive finite numbers in nm")
+                });
+            }
+            if i > 0 {
+                let prev = s.wavelength_nm[i - 1];
+                let step = l - prev;
+                // NaN steps (non-numbers) count as unsorted.
+                let broken = step <= 0.0 || step.is_nan();
+                sorted.observe_if(broken, step, step, &format!("{what}.wavelength_nm[{i}]"), Some(l), || {
+                    format!("{what}.wavelength_nm[{i}] = {l} nm does not exceed the previous {prev} nm; sort the samples and remove repeats")
+                });
+            }
+        }
+        for (i, &v) in s.value.iter().enumerate() {
+            let nm = s.wavelength_nm.get(i).copied();
+            let margin = if v.is_finite() { v } else { f64::NAN };
+            finite.observe(margin, v, &format!("{what}.value[{i}]"), nm, || {
+                format!(
+                    "{what}.value[{i}] is {}{}; samples must be finite and ≥ 0",
+                    if v.is_nan() {
+                        "not a number".to_string()
+                    } else {
+                        v.to_string()
+                    },
+                    nm.map(|l| format!(" at {l} nm")).unwrap_or_default()
+                )
+            });
+        }
+    }
+    // Sorting margins are steps in nm, the finite law's margins are values: report
+    // the structural margins only when they mean something.
+    let structure_ok = spectra.iter().all(|(_, s)| usable(s));
+
+    // Upper bounds of r and a (their lower bound 0 is the non-negative law).
+    let upper = |law: Law, list: Vec<(String, &RawSpectrum)>| {
+        let mut t = Tracker::new(law);
+        for (what, s) in list {
+            for (i, &v) in s.value.iter().enumerate() {
+                if !v.is_finite() {
+                    continue;
+                }
+                let nm = s.wavelength_nm.get(i).copied();
+                t.observe(1.0 - v, v, &format!("{what}.value[{i}]"), nm, || {
+                    format!(
+                        "{what}.value[{i}] is {v}{}; it must be ≤ 1",
+                        nm.map(|l| format!(" at {l} nm")).unwrap_or_default()
+                    )
+                });
+            }
+        }
+        t
+    };
+    let reflectance_range = upper(
+        Law::ReflectanceRange,
+        vec![("reflectance".into(), &m.reflectance)],
+    );
+    let absorption_range = upper(
+        Law::AbsorptionRange,
+        m.fluorophores
+            .iter()
+            .enumerate()
+            .map(|(n, f)| (format!("fluorophores[{n}].absorption"), &f.absorption))
+            .collect(),
+    );
+    let scalar = |law: Law, key: &str, get: fn(&RawFluorophore) -> f64| {
+        let mut t = Tracker::new(law);
+        for (n, f) in m.fluorophores.iter().enumerate() {
+            let v = get(f);
+            let margin = if v.is_nan() { f64::NAN } else { v.min(1.0 - v) };
+            t.observe(margin, v, &format!("fluorophores[{n}].{key}"), None, || {
+                format!("fluorophores[{n}].{key} is {v}; it must lie in [0, 1]")
+            });
+        }
+        t
+    };
+    let concentration_range = scalar(Law::ConcentrationRange, "concentration", |f| {
+        f.concentration
+    });
+    let yield_range = scalar(Law::QuantumYieldRange, "quantum_yield", |f| f.quantum_yield);
+
+    // Normalisations.
+    let mut peak = Tracker::new(Law::AbsorptionPeak);
+    let mut integral = Tracker::new(Law::EmissionIntegral);
+    for (n, f) in m.fluorophores.iter().enumerate() {
+        let p = format!("fluorophores[{n}]");
+        if usable(&f.absorption) {
+            let (i, max) = f.absorption.value.iter().copied().enumerate().fold(
+                (0, f64::NEG_INFINITY),
+                |a, (i, v)| if v > a.1 { (i, v) } else { a },
+            );
+            peak.observe(
+                -(max - 1.0).abs(),
+                max,
+                &format!("{p}.absorption"),
+                Some(f.absorption.wavelength_nm[i]),
+                || format!("{p}.absorption peaks at {max} (at {} nm); normalise it to max a = 1 and fold the scale into the concentration", f.absorption.wavelength_nm[i]),
+            );
+        } else {
+            peak.evaluated = false;
+        }
+        if usable(&f.emission) {
+            let area: f64 = bin_widths(&f.emission.wavelength_nm)
+                .iter()
+                .zip(&f.emission.value)
+                .map(|(w, v)| w * v)
+                .sum();
+            integral.observe(
+                -(area - 1.0).abs(),
+                area,
+                &format!("{p}.emission"),
+                None,
+                || format!("{p}.emission integrates to {area} (trapezoid rule); emission is a density in 1/nm with ∫e dλ = 1: divide it by {area}"),
+            );
+        } else {
+            integral.evaluated = false;
+        }
+    }
+
+    // Laws on the whole material: need every spectrum usable.
+    let mut total = Tracker::new(Law::TotalAbsorption);
+    let mut energy = Tracker::new(Law::Energy);
+    let mut photons = Tracker::new(Law::Photons);
+    let mut summaries = Vec::new();
+    let scalars_ok = m
+        .fluorophores
+        .iter()
+        .all(|f| f.concentration.is_finite() && f.quantum_yield.is_finite());
+    if structure_ok && scalars_ok {
+        let material = Material {
+            schema: SCHEMA.to_string(),
+            name: m.name.clone(),
+            reflectance: to_spectrum(&m.reflectance),
+            fluorophores: m
+                .fluorophores
+                .iter()
+                .map(|f| crate::material::Fluorophore {
+                    concentration: f.concentration,
+                    quantum_yield: f.quantum_yield,
+                    concentration_range: None,
+                    absorption: to_spectrum(&f.absorption),
+                    emission: to_spectrum(&f.emission),
+                })
+                .collect(),
+            fit: None,
+            conservation: None,
+        };
+        let grid = material.sample_wavelengths();
+        for &l in &grid {
+            let absorbed = material.absorbed(l);
+            total.observe(1.0 - absorbed, absorbed, "fluorophores", Some(l), || {
+                format!(
+                    "the fluorophores absorb Σc·a = {absorbed} at {l} nm; lower the concentrations"
+                )
+            });
+        }
+        for (l, rho) in energy_extrema(&material, &grid) {
+            energy.observe(1.0 - rho, rho, "albedo", Some(l), || {
+                format!("albedo ρ = {rho} at {l} nm: the material reflects and emits more energy than it receives; lower r, c or Q")
+            });
+        }
+        for (n, f) in material.fluorophores.iter().enumerate() {
+            let mean = f.emission_mean_nm();
+            let absorbed = absorbed_range(&f.absorption);
+            let mut summary = FluorophoreSummary {
+                k: f.k(),
+                mean_emission_nm: mean,
+                absorbed_nm: absorbed,
+                photon_yield_range: None,
+            };
+            if let Some([lo, hi]) = absorbed
+                && mean.is_finite()
+            {
+                let q = f.quantum_yield;
+                let ratio = q * mean / lo;
+                summary.photon_yield_range = Some([q * mean / hi, ratio]);
+                photons.observe(1.0 - ratio, ratio, &format!("fluorophores[{n}]"), Some(lo), || {
+                    format!(
+                        "fluorophores[{n}] emits Q·λ̄e/λ = {ratio:.6} photons per absorbed photon at {lo} nm (Q = {q}, λ̄e = {mean:.2} nm); photon conservation allows Q ≤ {:.6}",
+                        lo / mean
+                    )
+                });
+            }
+            summaries.push(summary);
+        }
+    } else {
+        total.evaluated = false;
+        energy.evaluated = false;
+        photons.evaluated = false;
+    }
+
+    let laws = vec![
+        schema.result(),
+        finite.result(),
+        sorted.result(),
+        reflectance_range.result(),
+        absorption_range.result(),
+        concentration_range.result(),
+        yield_range.result(),
+        peak.result(),
+        integral.result(),
+        total.result(),
+        energy.result(),
+        photons.result(),
+    ];
+    let valid = laws.iter().all(|l| l.status != Status::Fail);
+    CheckReport {
+        material: m.name.clone(),
+        source: None,
+        valid,
+        laws,
+        fluorophores: summaries,
+    }
+}
+
+/// Shortest and longest wavelength where a > 0: a is linear between samples, so a
+/// zero sample next to a positive one bounds the absorbed interval (its infimum or
+/// supremum), as in [`crate::material::Fluorophore::shortest_absorbed_nm`].
+fn absorbed_range(a: &Spectrum) -> Option<[f64; 2]> {
+    let first = a.value.iter().position(|&v| v > 0.0)?;
+    let last = a.value.iter().rposition(|&v| v > 0.0)?;
+    let lo = a.wavelength_nm[first.saturating_sub(1)];
+    let hi = a.wavelength_nm[(last + 1).min(a.len() - 1)];
+    Some([lo, hi])
+}
+
+/// The local maxima of ρ(λ) on `grid` (every spectrum's samples): between samples every
+/// spectrum is linear, so ρ = (1 − Σc·a)·r + Σk·a·∫e is quadratic there, and its
+/// maximum is at an end or at the vertex. Returns (λ, ρ) for every sample and interior
+/// vertex, which include the global maximum exactly.
+fn energy_extrema(material: &Material, grid: &[f64]) -> Vec<(f64, f64)> {
+    let mut out: Vec<(f64, f64)> = grid
+        .iter()
+        .map(|&l| (l, material.energy_albedo(l)))
+        .collect();
+    for w in grid.windows(2) {
+        let (l0, l1) = (w[0], w[1]);
+        let f0 = material.energy_albedo(l0);
+        let f1 = material.energy_albedo(l1);
+        let fm = material.energy_albedo(0.5 * (l0 + l1));
+        // ρ(t) = f0 + b·t + c·t², t ∈ [0, 1].
+        let c = 2.0 * (f0 + f1) - 4.0 * fm;
+        let b = f1 - f0 - c;
+        if c < 0.0 {
+            let t = -b / (2.0 * c);
+            if t > 0.0 && t < 1.0 {
+                let l = l0 + t * (l1 - l0);
+                out.push((l, material.energy_albedo(l)));
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,101 @@
+//! `fluorite export`: write a material in the forms renderers and other tools read.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use fluorite::export::{ExportFormat, ExportOptions, export, parse_grid, write_files};
+use fluorite::{Error, Material, Units};
+
+/// Arguments of `fluorite export`.
+#[derive(clap::Args, Debug)]
+pub struct ExportArgs {
+    /// The material JSON to export.
+    pub material: PathBuf,
+    /// Target format: csv, matrix, bfc, mitsuba or pbrt.
+    #[arg(long)]
+    pub to: String,
+    /// Output: a file for csv, matrix and bfc (or a folder, given as an existing folder or
+    /// ending in `/`, to get NAME.csv, NAME.matrix.csv or NAME.BFC inside); a folder for
+    /// mitsuba and pbrt (created if missing).
+    #[arg(short, long)]
+    pub out: PathBuf,
+    /// Excitation and emission grid of the matrix (matrix, bfc, pbrt): start:end:step in
+    /// nm, or comma-separated segments (300:400:10,405:780:5). Default: the material's
+    /// own samples (for a fit, the measurement's grids).
+    #[arg(long)]
+    pub grid: Option<String>,
+    /// Excitation grid alone (overrides --grid for the rows).
+    #[arg(long)]
+    pub excitation_grid: Option<String>,
+    /// Emission grid alone (overrides --grid for the columns).
+    #[arg(long)]
+    pub emission_grid: Option<String>,
+    /// Write matrix values as densities per nm of emission instead of per emission bin
+    /// (read back with `fluorite fit --per-nm`).
+    #[arg(long)]
+    pub per_nm: bool,
+}
+
+/// Runs `fluorite export`.
+pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
+    let format = ExportFormat::parse(&args.to)?;
+    let grid =
+        |g: &Option<String>, name: &str| g.as_deref().map(|t| parse_grid(t, name)).transpose();
+    let both = grid(&args.grid, "--grid")?;
+    let excitation = grid(&args.excitation_grid, "--excitation-grid")?.or(both.clone());
+    let emission = grid(&args.emission_grid, "--emission-grid")?.or(both);
+    let has_matrix = matches!(
+        format,
+        ExportFormat::Matrix | ExportFormat::Bfc | ExportFormat::Pbrt
+    );
+    if !has_matrix && (excitation.is_some() || emission.is_some() || args.per_nm) {
+        return Err(Error::invalid(
+            "--grid/--per-nm",
+            format!(
+                "apply to the matrix formats (matrix, bfc, pbrt), not to {}",
+                args.to
+            ),
+        )
+        .into());
+    }
+    let material = Material::load(&args.material)?;
+    let options = ExportOptions {
+        format,
+        excitation_nm: excitation,
+        emission_nm: emission,
+        units: if args.per_nm {
+            Units::PerNm
+        } else {
+            Units::PerBin
+        },
+    };
+    // Everything is rendered before anything is written.
+    let files = export(&material, &options)?;
+    let names_a_folder = args.out.is_dir() || args.out.as_os_str().to_string_lossy().ends_with('/');
+    let targets: Vec<(PathBuf, Vec<u8>)> = if format.is_single_file() && !names_a_folder {
+        files
+            .into_iter()
+            .map(|f| (args.out.clone(), f.contents))
+            .collect()
+    } else {
+        create_folder(&args.out)?;
+        files
+            .into_iter()
+            .map(|f| (args.out.join(&f.name), f.contents))
+            .collect()
+    };
+    write_files(&targets)?;
+    for (path, _) in &targets {
+        println!("{}", path.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn create_folder(dir: &Path) -> fluorite::Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| {
+        Error::io(
+            dir,
+            std::io::Error::new(e.kind(), format!("cannot create the output folder: {e}")),
+        )
+    })
+}

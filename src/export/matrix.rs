@@ -1,0 +1,124 @@
+//! The model's reradiation matrix on any grid (model.md §2), as a wide CSV or BFC-450
+//! file that `fluorite fit` reads back.
+
+use crate::error::Result;
+use crate::formats::{RowsAre, write_bfc, write_wide_csv};
+use crate::material::Material;
+use crate::measurement::{Measurement, Units};
+use crate::model::predict;
+
+use super::{VERSION, one_line};
+
+/// The grids a matrix export uses by default: excitation at the absorption and
+/// reflectance samples, emission at the emission and reflectance samples (for a fitted
+/// material, the measurement's grids).
+pub fn default_grids(material: &Material) -> (Vec<f64>, Vec<f64>) {
+    let merge = |mut all: Vec<f64>| {
+        all.sort_by(f64::total_cmp);
+        all.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+        all
+    };
+    let mut ex = material.reflectance.wavelength_nm.clone();
+    let mut em = ex.clone();
+    for f in &material.fluorophores {
+        ex.extend(&f.absorption.wavelength_nm);
+        em.extend(&f.emission.wavelength_nm);
+    }
+    (merge(ex), merge(em))
+}
+
+/// The matrix `material` predicts on the grids, with the diagonal d = (1 − c·a)·r where
+/// both grids share a wavelength. The grids are checked (positive, strictly increasing).
+pub fn matrix(
+    material: &Material,
+    excitation_nm: &[f64],
+    emission_nm: &[f64],
+    units: Units,
+) -> Result<Measurement> {
+    crate::spectrum::check_grid(excitation_nm, "excitation grid")?;
+    crate::spectrum::check_grid(emission_nm, "emission grid")?;
+    if excitation_nm.is_empty() || emission_nm.is_empty() {
+        return Err(crate::Error::invalid(
+            "grid",
+            "is empty; give at least one excitation and one emission wavelength",
+        ));
+    }
+    let m = predict(
+        material,
+        &material.name,
+        excitation_nm,
+        emission_nm,
+        units,
+        true,
+    );
+    m.validate()?;
+    Ok(m)
+}
+
+fn quantity(units: Units) -> &'static str {
+    match units {
+        Units::PerBin => {
+            "bispectral radiance factor per emission bin (dimensionless; off the diagonal k·a(λi)·e(λo)·Δλo with trapezoid bin widths Δλo)"
+        }
+        Units::PerNm => {
+            "bispectral radiance factor density per nm of emission (1/nm; off the diagonal k·a(λi)·e(λo)); read back with `fluorite fit --per-nm`"
+        }
+    }
+}
+
+/// The wide CSV export (rows = excitation), with a `#` header fluorite's reader skips.
+pub(super) fn wide(
+    material: &Material,
+    excitation_nm: &[f64],
+    emission_nm: &[f64],
+    units: Units,
+) -> Result<String> {
+    let m = matrix(material, excitation_nm, emission_nm, units)?;
+    let mut out = format!(
+        "# fluorite {VERSION} export of material \"{}\": model reradiation matrix (Jung et al. 2018)\n",
+        one_line(&material.name)
+    );
+    out.push_str(&format!("# quantity: {}\n", quantity(units)));
+    out.push_str("# diagonal (λo = λi): reflectance factor d = (1 − c·a)·r (dimensionless) plus the fluorescence emitted at the same wavelength\n");
+    out.push_str("# rows: excitation wavelength λi (nm); columns: emission wavelength λo (nm)\n");
+    out.push_str(&write_wide_csv(&m, RowsAre::Excitation));
+    Ok(out)
+}
+
+/// The BFC-450 export (rows = emission, CRLF), its metadata lines stating the quantity.
+pub(super) fn bfc(
+    material: &Material,
+    excitation_nm: &[f64],
+    emission_nm: &[f64],
+    units: Units,
+) -> Result<String> {
+    let m = matrix(material, excitation_nm, emission_nm, units)?;
+    let text = write_bfc(&m)?;
+    // The BFC-450 header has six free metadata lines (`;<none>`); fill them with what the
+    // file holds.
+    let info = [
+        format!(";fluorite {VERSION} model reradiation matrix"),
+        format!(
+            ";quantity: {}",
+            match units {
+                Units::PerBin => "radiance factor per emission bin (dimensionless)",
+                Units::PerNm => "radiance factor density per nm of emission (1/nm)",
+            }
+        ),
+        ";diagonal: reflectance factor d = (1 - c*a)*r".to_string(),
+        ";rows: emission nm; columns: excitation nm".to_string(),
+    ];
+    let mut info = info.into_iter();
+    let mut out = String::with_capacity(text.len() + 512);
+    for line in text.split_inclusive("\r\n") {
+        if line == ";<none>\r\n"
+            && let Some(i) = info.next()
+        {
+            out.push_str(&i.replace(['\r', '\n'], " "));
+            out.push_str("\r\n");
+        } else {
+            out.push_str(line);
+        }
+    }
+    Ok(out)
+}

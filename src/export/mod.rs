@@ -1,0 +1,261 @@
+//! Writing results: atomic file output shared by every command that writes, and the
+//! export of materials to the forms renderers and other tools read.
+//!
+//! | format | files | content |
+//! |---|---|---|
+//! | [`ExportFormat::Csv`] | `NAME.csv` | wavelength, a, e, r columns; c and Q in the header |
+//! | [`ExportFormat::Matrix`] | `NAME.matrix.csv` | the model's reradiation matrix as a wide CSV fluorite reads |
+//! | [`ExportFormat::Bfc`] | `NAME.BFC` | the same matrix in the BFC-450 layout |
+//! | [`ExportFormat::Mitsuba`] | `NAME_*.spd`, `NAME.xml` | Mitsuba 3 spectra and a scene snippet |
+//! | [`ExportFormat::Pbrt`] | `NAME_*.spd`, `NAME_reradiation.csv`, `NAME.pbrt` | pbrt-v4 spectra, the matrix and a scene snippet |
+//!
+//! Every file states in its header the quantity and units it holds, the material's name
+//! and the fluorite version. Exports are rendered in memory first ([`export`]) and then
+//! written all-or-nothing ([`write_files`]), so a failure leaves no partial output.
+
+mod grid;
+mod matrix;
+mod renderers;
+mod spectra;
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::material::Material;
+use crate::measurement::Units;
+
+pub use grid::parse_grid;
+pub use matrix::{default_grids, matrix};
+
+/// Writes `bytes` to `path` atomically: into a temporary file in the same folder, then
+/// renamed over the target, so an interrupted or failed run never leaves a half-written
+/// file. The folder must exist.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = temporary_beside(path, bytes)?;
+    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    Ok(())
+}
+
+/// Writes `bytes` into a temporary file in `path`'s folder (deleted when dropped).
+fn temporary_beside(path: &Path, bytes: &[u8]) -> Result<tempfile::NamedTempFile> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(Error::io(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                format!(
+                    "output folder {} does not exist; create it first",
+                    dir.display()
+                ),
+            ),
+        ));
+    }
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".fluorite-")
+        .tempfile_in(dir)
+        .map_err(|e| Error::io(path, e))?;
+    tmp.write_all(bytes).map_err(|e| Error::io(path, e))?;
+    tmp.as_file().sync_all().map_err(|e| Error::io(path, e))?;
+    // Temporary files are private (0600); results are ordinary files others may read.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))
+            .map_err(|e| Error::io(path, e))?;
+    }
+    Ok(tmp)
+}
+
+/// Writes several files all-or-nothing as far as the file system allows: every file is
+/// first written to a temporary file beside its target; only when all are written are
+/// they renamed into place.
+pub fn write_files(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
+    let mut staged = Vec::with_capacity(files.len());
+    for (path, bytes) in files {
+        staged.push((path, temporary_beside(path, bytes)?));
+    }
+    for (path, tmp) in staged {
+        tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    }
+    Ok(())
+}
+
+/// The forms a material can be exported to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ExportFormat {
+    /// One CSV: wavelength with a, e, r columns; c and Q in the header.
+    Csv,
+    /// The model's reradiation matrix as a wide CSV (fluorite reads it back).
+    Matrix,
+    /// The model's reradiation matrix in the BFC-450 layout.
+    Bfc,
+    /// Mitsuba 3 `.spd` spectra and a scene snippet.
+    Mitsuba,
+    /// pbrt-v4 spectra, the reradiation matrix and a scene snippet.
+    Pbrt,
+}
+
+impl ExportFormat {
+    /// Whether the format is a single file (`-o` may name it) or a set (`-o` is a folder).
+    pub fn is_single_file(self) -> bool {
+        matches!(
+            self,
+            ExportFormat::Csv | ExportFormat::Matrix | ExportFormat::Bfc
+        )
+    }
+
+    /// Parses a format name (`csv`, `matrix`, `bfc`, `mitsuba`, `pbrt`).
+    pub fn parse(name: &str) -> Result<ExportFormat> {
+        match name.to_ascii_lowercase().as_str() {
+            "csv" => Ok(ExportFormat::Csv),
+            "matrix" => Ok(ExportFormat::Matrix),
+            "bfc" => Ok(ExportFormat::Bfc),
+            "mitsuba" => Ok(ExportFormat::Mitsuba),
+            "pbrt" => Ok(ExportFormat::Pbrt),
+            _ => Err(Error::invalid(
+                "--to",
+                format!(
+                    "\"{name}\" is not a known format; choose csv, matrix, bfc, mitsuba or pbrt"
+                ),
+            )),
+        }
+    }
+}
+
+/// How to export.
+#[derive(Debug, Clone)]
+pub struct ExportOptions {
+    /// The target format.
+    pub format: ExportFormat,
+    /// Excitation grid of the matrix formats (default: the material's absorption and
+    /// reflectance samples).
+    pub excitation_nm: Option<Vec<f64>>,
+    /// Emission grid of the matrix formats (default: the material's emission and
+    /// reflectance samples).
+    pub emission_nm: Option<Vec<f64>>,
+    /// Matrix values per emission bin (the default, like a BFC-450) or per nm.
+    pub units: Units,
+}
+
+impl ExportOptions {
+    /// Options for `format` with default grids, per bin.
+    pub fn new(format: ExportFormat) -> Self {
+        ExportOptions {
+            format,
+            excitation_nm: None,
+            emission_nm: None,
+            units: Units::PerBin,
+        }
+    }
+}
+
+/// One exported file: its name (relative to the output folder) and its content.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportFile {
+    /// File name, derived from the material's name.
+    pub name: String,
+    /// The file's bytes.
+    pub contents: Vec<u8>,
+}
+
+/// Renders `material` in `options.format`, in memory. The material is checked first:
+/// a material that breaks a law of the model is not exported.
+pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<ExportFile>> {
+    let report = crate::check::check_material(material);
+    if !report.valid {
+        return Err(Error::invalid(
+            "material",
+            format!(
+                "{} violates {}; run `fluorite check` for the report",
+                material.name,
+                report
+                    .failed()
+                    .iter()
+                    .map(|l| l.name())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        ));
+    }
+    let stem = file_stem(&material.name);
+    let grids = || -> Result<(Vec<f64>, Vec<f64>)> {
+        let (ex, em) = default_grids(material);
+        Ok((
+            options.excitation_nm.clone().unwrap_or(ex),
+            options.emission_nm.clone().unwrap_or(em),
+        ))
+    };
+    let text = |name: String, s: String| ExportFile {
+        name,
+        contents: s.into_bytes(),
+    };
+    Ok(match options.format {
+        ExportFormat::Csv => vec![text(format!("{stem}.csv"), spectra::csv(material))],
+        ExportFormat::Matrix => {
+            let (ex, em) = grids()?;
+            vec![text(
+                format!("{stem}.matrix.csv"),
+                matrix::wide(material, &ex, &em, options.units)?,
+            )]
+        }
+        ExportFormat::Bfc => {
+            let (ex, em) = grids()?;
+            vec![text(
+                format!("{stem}.BFC"),
+                matrix::bfc(material, &ex, &em, options.units)?,
+            )]
+        }
+        ExportFormat::Mitsuba => renderers::mitsuba(material, &stem)
+            .into_iter()
+            .map(|(n, s)| text(n, s))
+            .collect(),
+        ExportFormat::Pbrt => {
+            let (ex, em) = grids()?;
+            let mut files: Vec<ExportFile> = renderers::pbrt(material, &stem)
+                .into_iter()
+                .map(|(n, s)| text(n, s))
+                .collect();
+            files.push(text(
+                format!("{stem}_reradiation.csv"),
+                matrix::wide(material, &ex, &em, options.units)?,
+            ));
+            files
+        }
+    })
+}
+
+/// A file-name-safe stem from a material name.
+pub fn file_stem(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_alphanumeric() || matches!(c, '-' | '_' | '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    let s = s.trim_start_matches('.').to_string();
+    if s.is_empty() {
+        "material".to_string()
+    } else {
+        s
+    }
+}
+
+/// The material name as it may appear on one header line (control characters removed).
+pub(crate) fn one_line(name: &str) -> String {
+    name.chars()
+        .map(|c| if c.is_control() { ' ' } else { c })
+        .collect()
+}
+
+/// The fluorite version that writes the exports.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");

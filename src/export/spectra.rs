@@ -1,0 +1,72 @@
+//! Spectra tables: the `csv` export and the two-column files renderers read.
+
+use crate::material::Material;
+
+use super::{VERSION, one_line};
+
+/// Every wavelength at which some spectrum of the material is sampled.
+pub(super) fn union_grid(material: &Material) -> Vec<f64> {
+    material.sample_wavelengths()
+}
+
+/// The `csv` export: `wavelength_nm,absorption,emission,reflectance` (with `_N` suffixes
+/// for several fluorophores) on the union of the material's sample wavelengths; a and e
+/// are zero outside their samples, r holds its end values.
+pub(super) fn csv(material: &Material) -> String {
+    let name = one_line(&material.name);
+    let n = material.fluorophores.len();
+    let suffix = |i: usize| {
+        if n > 1 {
+            format!("_{i}")
+        } else {
+            String::new()
+        }
+    };
+    let mut out = format!(
+        "# fluorite {VERSION} export of material \"{name}\": spectra of the diffuse fluorescent BBRRDF (Jung et al. 2018)\n"
+    );
+    out.push_str("# wavelength_nm: wavelength (nm)\n");
+    for (i, f) in material.fluorophores.iter().enumerate() {
+        let s = suffix(i);
+        out.push_str(&format!(
+            "# absorption{s}: a(λ), dimensionless, max a = 1, zero outside the samples\n# emission{s}: e(λ), emission density in 1/nm, ∫e dλ = 1, zero outside the samples\n# concentration{s}: c = {}\n# quantum_yield{s}: Q = {} (energy yield)\n",
+            f.concentration, f.quantum_yield
+        ));
+    }
+    out.push_str(
+        "# reflectance: r(λ), dimensionless reflectance of the non-fluorescent part, end values held outside the samples\n",
+    );
+    out.push_str("wavelength_nm");
+    for i in 0..n {
+        let s = suffix(i);
+        out.push_str(&format!(",absorption{s},emission{s}"));
+    }
+    out.push_str(",reflectance\n");
+    for l in union_grid(material) {
+        out.push_str(&format!("{l}"));
+        for f in &material.fluorophores {
+            out.push_str(&format!(
+                ",{},{}",
+                f.absorption.eval_zero_outside(l),
+                f.emission.eval_zero_outside(l)
+            ));
+        }
+        out.push_str(&format!(",{}\n", material.reflectance.eval_clamped(l)));
+    }
+    out
+}
+
+/// A two-column spectrum file (`wavelength value` per line) with `#` header lines, as
+/// Mitsuba 3 and pbrt-v4 read them.
+pub(super) fn two_column(header: &[String], samples: impl Iterator<Item = (f64, f64)>) -> String {
+    let mut out = String::new();
+    for h in header {
+        out.push_str("# ");
+        out.push_str(h);
+        out.push('\n');
+    }
+    for (l, v) in samples {
+        out.push_str(&format!("{l} {v}\n"));
+    }
+    out
+}

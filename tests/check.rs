@@ -1,0 +1,368 @@
+//! `check`: every fitted and synthetic material passes; each law broken alone is named,
+//! in the report and through the CLI's exit code.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use fluorite::check::{Law, Status, check_file, check_material};
+use fluorite::fit::{FitOptions, FitOutcome, fit};
+use fluorite::formats::{ReadOptions, read};
+use fluorite::material::{Fluorophore, Material};
+use fluorite::spectrum::Spectrum;
+use fluorite::synth::{PRESETS, SynthSpec};
+
+fn measured() -> Option<Vec<PathBuf>> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/measured");
+    if !dir.is_dir() {
+        eprintln!("skipped: {} is absent", dir.display());
+        return None;
+    }
+    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            let e = p.extension().map(|e| e.to_string_lossy().to_lowercase());
+            matches!(e.as_deref(), Some("bfc") | Some("csv"))
+        })
+        .collect();
+    v.sort();
+    Some(v)
+}
+
+#[test]
+fn every_fitted_measured_material_passes() {
+    let Some(files) = measured() else { return };
+    assert!(files.len() >= 6);
+    for path in files {
+        let m = read(&path, &ReadOptions::default()).unwrap();
+        let FitOutcome::Material(material) = fit(&m, &FitOptions::default()).unwrap() else {
+            panic!("{}: expected a material", path.display());
+        };
+        let report = check_material(&material);
+        let energy = report.law(Law::Energy);
+        let photons = report.law(Law::Photons);
+        println!(
+            "{}: valid {} energy margin {:.3e} at {:?} nm, photon margin {:.3e}, Φ range {:?}",
+            material.name,
+            report.valid,
+            energy.margin,
+            energy.worst_nm,
+            photons.margin,
+            report
+                .fluorophores
+                .first()
+                .and_then(|f| f.photon_yield_range)
+        );
+        assert!(report.valid, "{}", report.to_text());
+        // The exact search (samples and interior vertices) finds at least what the
+        // material's own margins (samples and midpoints) find.
+        let c = material.conservation_margins();
+        assert!(energy.worst_value >= c.max_energy_albedo - 1e-12);
+        assert!((photons.worst_value - c.max_photon_ratio).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn synthetic_truths_pass() {
+    for preset in PRESETS {
+        let (_, truth) = SynthSpec::preset(preset).unwrap().generate().unwrap();
+        let report = check_material(&truth);
+        assert!(report.valid, "{preset}: {}", report.to_text());
+        for f in &report.fluorophores {
+            let [lo, hi] = f.photon_yield_range.unwrap();
+            assert!(lo <= hi && hi <= 1.0 + 1e-9);
+        }
+    }
+}
+
+fn triangle(grid: &[f64], centre: f64, half: f64) -> Vec<f64> {
+    grid.iter()
+        .map(|l| (1.0 - (l - centre).abs() / half).max(0.0))
+        .collect()
+}
+
+/// A valid hand-made material: r = 0.5 (with a plateau sample set so a single r sample
+/// can be raised under the absorption plateau), a = 1 on 400–500 nm falling to 0 at 350
+/// and 550, e a triangle around 600 nm with ∫e = 1, c = 0.5, Q = 0.3.
+fn base() -> Material {
+    let r = Spectrum::new(vec![300.0, 420.0, 450.0, 480.0, 800.0], vec![0.5; 5], "r").unwrap();
+    let a = Spectrum::new(
+        vec![340.0, 350.0, 400.0, 500.0, 550.0, 560.0],
+        vec![0.0, 0.0, 1.0, 1.0, 0.0, 0.0],
+        "a",
+    )
+    .unwrap();
+    let grid: Vec<f64> = (0..=40).map(|i| 500.0 + 5.0 * i as f64).collect();
+    let mut e = Spectrum::new(grid.clone(), triangle(&grid, 600.0, 50.0), "e").unwrap();
+    let area = e.integral();
+    e.value.iter_mut().for_each(|v| *v /= area);
+    Material::new(
+        "base",
+        r,
+        vec![Fluorophore {
+            concentration: 0.5,
+            quantum_yield: 0.3,
+            concentration_range: None,
+            absorption: a,
+            emission: e,
+        }],
+    )
+}
+
+/// Each case breaks one law and keeps every other (see the comments for how).
+fn violating() -> Vec<(Law, String, String)> {
+    let json = |m: &Material| serde_json::to_string_pretty(m).unwrap();
+    let mut cases = Vec::new();
+    let mut push =
+        |law: Law, what: &str, m: Material| cases.push((law, what.to_string(), json(&m)));
+
+    let mut m = base();
+    m.schema = "fluorite-material/0".into();
+    push(Law::Schema, "wrong schema", m);
+
+    // A negative reflectance sample lowers the albedo: only non-negativity breaks.
+    let mut m = base();
+    m.reflectance.value[0] = -0.1;
+    push(Law::FiniteNonNegative, "negative reflectance", m);
+
+    // Swapped wavelengths of a constant reflectance change nothing else.
+    let mut m = base();
+    m.reflectance.wavelength_nm.swap(0, 1);
+    push(Law::SortedWavelengths, "unsorted reflectance", m);
+
+    // r = 1.2 only under the absorption plateau (a = 1 on 420–480 nm), where
+    // ρ = (1 − c)·r + c·Q ≤ 0.5·1.2 + 0.15 = 0.75.
+    let mut m = base();
+    m.reflectance.value[2] = 1.2;
+    push(Law::ReflectanceRange, "r > 1 under the absorption", m);
+
+    // a exceeds 1 by 5e-7: beyond the bound tolerance 1e-9 of a ≤ 1, within the
+    // normalisation tolerance 1e-6 of max a = 1.
+    let mut m = base();
+    m.fluorophores[0].absorption.value[2] = 1.0 + 5e-7;
+    push(Law::AbsorptionRange, "a slightly above 1", m);
+
+    // c < 0 lowers both absorption and emission: only its range breaks.
+    let mut m = base();
+    m.fluorophores[0].concentration = -0.1;
+    push(Law::ConcentrationRange, "negative concentration", m);
+
+    // Q < 0 likewise.
+    let mut m = base();
+    m.fluorophores[0].quantum_yield = -0.1;
+    push(Law::QuantumYieldRange, "negative quantum yield", m);
+
+    let mut m = base();
+    m.fluorophores[0]
+        .absorption
+        .value
+        .iter_mut()
+        .for_each(|v| *v *= 0.8);
+    push(Law::AbsorptionPeak, "max a = 0.8", m);
+
+    // ∫e = 1.1: ρ ≤ 0.5·... + 0.15·1.1 stays below 1.
+    let mut m = base();
+    m.fluorophores[0]
+        .emission
+        .value
+        .iter_mut()
+        .for_each(|v| *v *= 1.1);
+    push(Law::EmissionIntegral, "∫e = 1.1", m);
+
+    // Two fluorophores of c = 0.6 with the same a absorb 1.2 on the plateau.
+    let mut m = base();
+    m.fluorophores[0].concentration = 0.6;
+    let second = m.fluorophores[0].clone();
+    m.fluorophores.push(second);
+    push(Law::TotalAbsorption, "Σc·a = 1.2", m);
+
+    // Energy breaks alone only at the edge of the tolerances (the model guarantees ρ ≤ 1
+    // when every other law holds): r = 1, c = Q = 1, ∫e = 1 + 5e-7 (within 1e-6), emission
+    // at shorter wavelengths than absorption so photons hold; ρ = 1 + 5e-7 on the plateau.
+    let mut m = base();
+    m.reflectance.value.iter_mut().for_each(|v| *v = 1.0);
+    m.fluorophores[0].concentration = 1.0;
+    m.fluorophores[0].quantum_yield = 1.0;
+    let grid: Vec<f64> = (0..=20).map(|i| 250.0 + 5.0 * i as f64).collect();
+    let mut e = Spectrum::new(grid.clone(), triangle(&grid, 300.0, 40.0), "e").unwrap();
+    let area = e.integral();
+    e.value.iter_mut().for_each(|v| *v *= (1.0 + 5e-7) / area);
+    m.fluorophores[0].emission = e;
+    push(Law::Energy, "ρ = 1 + 5e-7", m);
+
+    // Q = 0.9 with λ̄e = 600 nm and absorption from 350 nm: Q·λ̄e/λ = 1.54;
+    // ρ = 0.5·(1 − 0.5·a) + 0.45·a ≤ 0.7.
+    let mut m = base();
+    m.fluorophores[0].quantum_yield = 0.9;
+    push(Law::Photons, "Q·λ̄e/λ = 1.54", m);
+
+    // A null value (not a number): only finiteness breaks (derived laws not evaluated).
+    let text = json(&base()).replacen("0.5", "null", 1);
+    cases.push((Law::FiniteNonNegative, "null reflectance".into(), text));
+    cases
+}
+
+fn temp_dir(tag: &str) -> PathBuf {
+    let dir =
+        std::env::temp_dir().join(format!("fluorite-test-check-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn base_is_valid_and_each_law_broken_alone_is_named() {
+    let report = check_material(&base());
+    assert!(report.valid, "{}", report.to_text());
+    let dir = temp_dir("laws");
+    let mut seen = Vec::new();
+    for (n, (law, what, text)) in violating().into_iter().enumerate() {
+        let path = dir.join(format!("case{n}.json"));
+        std::fs::write(&path, &text).unwrap();
+        let report = check_file(&path).unwrap();
+        assert_eq!(report.failed(), vec![law], "{what}:\n{}", report.to_text());
+        assert!(!report.valid);
+        let result = report.law(law);
+        assert_eq!(result.status, Status::Fail);
+        assert!(!result.violations.is_empty());
+        // Every other law passes or, where the inputs are malformed, is not evaluated.
+        assert!(
+            report
+                .laws
+                .iter()
+                .filter(|l| l.law != law)
+                .all(|l| l.status != Status::Fail)
+        );
+        seen.push(law);
+
+        // The CLI: exit 1, the law named in the text report and in the JSON.
+        let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .arg("check")
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{what}");
+        let stdout = String::from_utf8(out.stdout).unwrap();
+        assert!(
+            stdout.contains(&format!("VIOLATES {}", law.name())),
+            "{what}: {stdout}"
+        );
+        assert!(
+            stdout
+                .lines()
+                .any(|l| l.contains("FAIL") && l.contains(law.name())),
+            "{what}: {stdout}"
+        );
+        let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .args(["check", "--json"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1));
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(json["valid"], false);
+        let failed: Vec<&str> = json["laws"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|l| l["status"] == "fail")
+            .map(|l| l["law"].as_str().unwrap())
+            .collect();
+        assert_eq!(failed, vec![law.name()], "{what}");
+    }
+    for law in Law::ALL {
+        assert!(seen.contains(&law), "no case breaks {law}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn margins_and_worst_wavelengths_are_the_analytic_ones() {
+    // Photons: Q·λ̄e/λ is worst at the shortest absorbed wavelength, 350 nm (the zero
+    // sample before the first positive one bounds the absorbed interval).
+    let mut m = base();
+    m.fluorophores[0].quantum_yield = 0.9;
+    let report = check_material(&m);
+    let photons = report.law(Law::Photons);
+    let mean = m.fluorophores[0].emission.mean_wavelength_nm();
+    assert!((mean - 600.0).abs() < 1e-9);
+    assert_eq!(photons.worst_nm, Some(350.0));
+    assert!((photons.worst_value - 0.9 * 600.0 / 350.0).abs() < 1e-12);
+    assert!((photons.margin - (1.0 - 0.9 * 600.0 / 350.0)).abs() < 1e-12);
+    let f = &report.fluorophores[0];
+    assert_eq!(f.absorbed_nm, Some([350.0, 550.0]));
+    let [lo, hi] = f.photon_yield_range.unwrap();
+    assert!((lo - 0.9 * 600.0 / 550.0).abs() < 1e-12 && (hi - 0.9 * 600.0 / 350.0).abs() < 1e-12);
+
+    // Energy of the base material: ρ = (1 − 0.5·a)·0.5 + 0.15·a is largest where a = 0:
+    // 0.5, margin 0.5.
+    let report = check_material(&base());
+    assert!((report.law(Law::Energy).margin - 0.5).abs() < 1e-12);
+
+    // A quadratic albedo between samples: r and a rising together on 400–500 nm (and
+    // falling together on 500–600 nm) make ρ = (1 − a)·r = (1 − t)·t concave there, with
+    // maximum 1/4 at 450 and 550 nm; the samples alone would give 0.
+    let r = Spectrum::new(vec![400.0, 500.0, 600.0], vec![0.0, 1.0, 0.0], "r").unwrap();
+    let a = r.clone();
+    let e = Spectrum::new(vec![600.0, 700.0], vec![0.01, 0.01], "e").unwrap();
+    let m = Material::new(
+        "q",
+        r,
+        vec![Fluorophore {
+            concentration: 1.0,
+            quantum_yield: 0.0,
+            concentration_range: None,
+            absorption: a,
+            emission: e,
+        }],
+    );
+    let energy = check_material(&m).law(Law::Energy).clone();
+    assert!((energy.worst_value - 0.25).abs() < 1e-12, "{energy:?}");
+    let nm = energy.worst_nm.unwrap();
+    assert!(
+        (nm - 450.0).abs() < 1e-9 || (nm - 550.0).abs() < 1e-9,
+        "{nm}"
+    );
+}
+
+#[test]
+fn cli_exit_codes() {
+    let dir = temp_dir("cli");
+    let good = dir.join("good.json");
+    base().save(&good).unwrap();
+    let run = |args: &[&Path]| {
+        Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .arg("check")
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let out = run(&[&good]);
+    assert_eq!(out.status.code(), Some(0));
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        stdout.contains("valid") && stdout.contains("photon quantum yield"),
+        "{stdout}"
+    );
+
+    let not_json = dir.join("bad.json");
+    std::fs::write(&not_json, "{ \"schema\": ").unwrap();
+    let missing = dir.join("absent.json");
+    let no_fluorophores = dir.join("shape.json");
+    std::fs::write(
+        &no_fluorophores,
+        "{\"reflectance\": {\"wavelength_nm\": [400], \"value\": [0.5]}}",
+    )
+    .unwrap();
+    for path in [&not_json, &missing, &no_fluorophores] {
+        let out = run(&[path]);
+        assert_eq!(out.status.code(), Some(2), "{}", path.display());
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(
+            stderr.starts_with("fluorite: error: ") && stderr.contains(&*path.to_string_lossy()),
+            "{stderr}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

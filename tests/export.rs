@@ -1,0 +1,642 @@
+//! `export`: round trips through `fit`, independent readers of every format, and bad
+//! input through the binary.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use fluorite::Units;
+use fluorite::export::{ExportFormat, ExportOptions, export};
+use fluorite::fit::{FitOptions, FitOutcome, fit};
+use fluorite::formats::{ReadOptions, read};
+use fluorite::material::Material;
+use fluorite::synth::SynthSpec;
+
+const VERSION: &str = env!("CARGO_PKG_VERSION");
+
+fn temp_dir(tag: &str) -> PathBuf {
+    let dir =
+        std::env::temp_dir().join(format!("fluorite-test-export-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn fitted(outcome: FitOutcome) -> Material {
+    match outcome {
+        FitOutcome::Material(m) => *m,
+        FitOutcome::Shapes(_) => panic!("expected a material"),
+    }
+}
+
+/// A noise-free synthetic matrix (no crosstalk, nothing missing) and its fit.
+fn synthetic_fit(preset: &str) -> Material {
+    let mut spec = SynthSpec::preset(preset).unwrap();
+    spec.noise_sigma = 0.0;
+    spec.crosstalk = 0.0;
+    let (m, _) = spec.generate().unwrap();
+    fitted(fit(&m, &FitOptions::default()).unwrap())
+}
+
+fn measured(name: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/measured")
+        .join(name);
+    if p.is_file() {
+        Some(p)
+    } else {
+        eprintln!("skipped: {} is absent", p.display());
+        None
+    }
+}
+
+/// Exports the matrix of `material` on the grids to a file, reads it back and fits it.
+fn refit(material: &Material, ex: &[f64], em: &[f64], dir: &Path) -> Material {
+    let options = ExportOptions {
+        excitation_nm: Some(ex.to_vec()),
+        emission_nm: Some(em.to_vec()),
+        ..ExportOptions::new(ExportFormat::Matrix)
+    };
+    let files = export(material, &options).unwrap();
+    assert_eq!(files.len(), 1);
+    let path = dir.join(&files[0].name);
+    std::fs::write(&path, &files[0].contents).unwrap();
+    let m = read(&path, &ReadOptions::default()).unwrap();
+    assert_eq!(m.excitation_nm, ex);
+    assert_eq!(m.emission_nm, em);
+    fitted(fit(&m, &FitOptions::default()).unwrap())
+}
+
+/// max |got − want| / max |want|.
+fn rel(got: &[f64], want: &[f64]) -> f64 {
+    assert_eq!(got.len(), want.len());
+    let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    got.iter()
+        .zip(want)
+        .map(|(g, w)| (g - w).abs())
+        .fold(0.0, f64::max)
+        / scale
+}
+
+fn uniform(start: f64, end: f64, step: f64) -> Vec<f64> {
+    let n = ((end - start) / step).round() as usize;
+    (0..=n).map(|i| start + step * i as f64).collect()
+}
+
+/// Acceptance: fit → export matrix on the measurement grid → fit reproduces a, e, r and
+/// k to 1e-6 (relative to each spectrum's peak), for a noise-free synthetic matrix and a
+/// real one.
+#[test]
+fn matrix_round_trip_on_the_measurement_grid() {
+    let dir = temp_dir("roundtrip");
+    let mut materials = vec![synthetic_fit("green-dye"), synthetic_fit("red-pigment")];
+    for name in ["HERPICER.BFC", "postit_yellow.csv"] {
+        if let Some(p) = measured(name) {
+            let m = read(&p, &ReadOptions::default()).unwrap();
+            materials.push(fitted(fit(&m, &FitOptions::default()).unwrap()));
+        }
+    }
+    for first in materials {
+        let f1 = &first.fluorophores[0];
+        let second = refit(
+            &first,
+            &f1.absorption.wavelength_nm,
+            &f1.emission.wavelength_nm,
+            &dir,
+        );
+        let f2 = &second.fluorophores[0];
+        let errors = [
+            rel(&f2.absorption.value, &f1.absorption.value),
+            rel(&f2.emission.value, &f1.emission.value),
+            rel(&second.reflectance.value, &first.reflectance.value),
+            (f2.k() - f1.k()).abs() / f1.k(),
+            (f2.concentration - f1.concentration).abs() / f1.concentration,
+        ];
+        println!("{}: a, e, r, k, c relative errors {errors:?}", first.name);
+        assert_eq!(
+            second.reflectance.wavelength_nm,
+            first.reflectance.wavelength_nm
+        );
+        assert!(
+            errors.iter().all(|&e| e < 1e-6),
+            "{}: {errors:?}",
+            first.name
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Export on a grid of half the step (excitation 300:780:5, emission 380:780:5) and fit.
+///
+/// The interpolation error, derived: the fitted a and e are linear between the 10 nm
+/// samples, and every 10 nm sample is also a 5 nm sample, so the finer matrix samples the
+/// same interpolants: k·a(λi)·e(λo)·Δλo with the 5 nm trapezoid widths, whose ∫e is
+/// exactly the 10 nm one (the trapezoid rule is exact for a linear interpolant). So a, e
+/// and k are reproduced exactly (to the solver's 1e-6) at every 5 nm sample. What is
+/// not linear is λ·e(λ) in λ̄e = ∫λ·e dλ: the trapezoid rule overestimates ∫ of the
+/// quadratic λ·e on an interval of width h by h³·s/6 (s the slope of e there), so
+/// halving the step lowers λ̄e by Σ (H³ − H³/4)·s/6 = H²/8·(e(λlast) − e(λfirst)) with
+/// H = 10 nm: a telescoping sum. The fit's gauge c = k·max(1, λ̄e/λmin) moves with λ̄e
+/// when the photon bound is active, and with it Q = k/c and r = d/(1 − c·a), d being
+/// gauge-invariant. The test predicts c, Q and r from that shift and checks them to 1e-6,
+/// and checks d = (1 − c·a)·r to 1e-6.
+#[test]
+fn matrix_on_a_finer_grid_reproduces_within_the_interpolation_error() {
+    let dir = temp_dir("fine");
+    let mut materials = vec![synthetic_fit("green-dye"), synthetic_fit("brightener")];
+    if let Some(p) = measured("HERPICER.BFC") {
+        let m = read(&p, &ReadOptions::default()).unwrap();
+        materials.push(fitted(fit(&m, &FitOptions::default()).unwrap()));
+    }
+    for first in materials {
+        let f1 = &first.fluorophores[0];
+        let (ea, ee) = (&f1.absorption.wavelength_nm, &f1.emission.wavelength_nm);
+        let h = 10.0;
+        let ex = uniform(ea[0], ea[ea.len() - 1], h / 2.0);
+        let em = uniform(ee[0], ee[ee.len() - 1], h / 2.0);
+        let second = refit(&first, &ex, &em, &dir);
+        let f2 = &second.fluorophores[0];
+        let a_want: Vec<f64> = ex
+            .iter()
+            .map(|&l| f1.absorption.eval_zero_outside(l))
+            .collect();
+        let e_want: Vec<f64> = em
+            .iter()
+            .map(|&l| f1.emission.eval_zero_outside(l))
+            .collect();
+        let err_a = rel(&f2.absorption.value, &a_want);
+        let err_e = rel(&f2.emission.value, &e_want);
+        let err_k = (f2.k() - f1.k()).abs() / f1.k();
+        // λ̄e shift, derived above.
+        let e = &f1.emission.value;
+        let shift = h * h / 8.0 * (e[e.len() - 1] - e[0]);
+        let mean1 = f1.emission_mean_nm();
+        let mean2 = f2.emission_mean_nm();
+        let err_mean = (mean1 - shift - mean2).abs() / mean1;
+        let shortest = f1.shortest_absorbed_nm().unwrap();
+        let c_pred = f1.k() * (mean2 / shortest).max(1.0);
+        let err_c = (f2.concentration - c_pred).abs() / c_pred;
+        // r predicted from the gauge-invariant diagonal of the first material.
+        let diag = second.reflectance.wavelength_nm.clone();
+        let r_pred: Vec<f64> = diag
+            .iter()
+            .map(|&l| first.diagonal(l) / (1.0 - c_pred * f1.absorption.eval_zero_outside(l)))
+            .collect();
+        let err_r = rel(&second.reflectance.value, &r_pred);
+        let d1: Vec<f64> = diag.iter().map(|&l| first.diagonal(l)).collect();
+        let d2: Vec<f64> = diag.iter().map(|&l| second.diagonal(l)).collect();
+        let err_d = rel(&d2, &d1);
+        let c_shift = (f2.concentration - f1.concentration) / f1.concentration;
+        println!(
+            "{}: λ̄e shift predicted {shift:.3e} nm; relative errors a {err_a:.2e} e {err_e:.2e} k {err_k:.2e} λ̄e {err_mean:.2e} c {err_c:.2e} r {err_r:.2e} d {err_d:.2e}; c moved by {c_shift:.2e}",
+            first.name
+        );
+        for (what, err) in [
+            ("a", err_a),
+            ("e", err_e),
+            ("k", err_k),
+            ("λ̄e", err_mean),
+            ("c", err_c),
+            ("r", err_r),
+            ("d", err_d),
+        ] {
+            assert!(err < 1e-6, "{}: {what} {err:e}", first.name);
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+// ---- independent readers ----------------------------------------------------------
+
+/// Header lines (`#` stripped) and data lines of a text file.
+fn split_header(text: &str, marker: &str) -> (Vec<String>, Vec<String>) {
+    let mut header = Vec::new();
+    let mut data = Vec::new();
+    for line in text.lines() {
+        let line = line.trim_end_matches('\r');
+        if let Some(h) = line.strip_prefix(marker) {
+            header.push(h.trim().to_string());
+        } else if !line.trim().is_empty() {
+            data.push(line.to_string());
+        }
+    }
+    (header, data)
+}
+
+fn numbers(line: &str, sep: &str) -> Vec<f64> {
+    let cells: Vec<&str> = if sep == " " {
+        line.split_whitespace().collect()
+    } else {
+        line.trim().split(sep).collect()
+    };
+    cells
+        .iter()
+        .map(|c| c.trim().parse::<f64>().unwrap())
+        .collect()
+}
+
+/// Trapezoid bin widths, written out again here rather than taken from the library.
+fn widths(grid: &[f64]) -> Vec<f64> {
+    (0..grid.len())
+        .map(|i| {
+            let lo = grid[i.saturating_sub(1)];
+            let hi = grid[(i + 1).min(grid.len() - 1)];
+            (hi - lo) / 2.0
+        })
+        .collect()
+}
+
+/// The model's matrix cell from the material's spectra, independently of `model`.
+fn cell(m: &Material, li: f64, lo: f64, width: f64) -> f64 {
+    let f = &m.fluorophores[0];
+    let a = |l: f64| f.absorption.eval_zero_outside(l);
+    let mut v =
+        f.concentration * f.quantum_yield * a(li) * f.emission.eval_zero_outside(lo) * width;
+    if (li - lo).abs() < 1e-9 {
+        v += (1.0 - f.concentration * a(li)) * m.reflectance.eval_clamped(li);
+    }
+    v
+}
+
+fn close(got: f64, want: f64) -> bool {
+    (got - want).abs() <= 1e-12 * want.abs().max(1e-3)
+}
+
+fn check_wide_matrix(text: &str, m: &Material, per_nm: bool) {
+    let (header, data) = split_header(text, "#");
+    let all = header.join("\n");
+    assert!(
+        all.contains(&format!("fluorite {VERSION}")) && all.contains(&format!("\"{}\"", m.name)),
+        "{all}"
+    );
+    if per_nm {
+        assert!(all.contains("per nm of emission (1/nm"), "{all}");
+    } else {
+        assert!(all.contains("per emission bin (dimensionless"), "{all}");
+    }
+    assert!(
+        all.contains("rows: excitation wavelength λi (nm); columns: emission wavelength λo (nm)")
+    );
+    let first: Vec<&str> = data[0].split(',').collect();
+    assert_eq!(first[0], "ex_nm\\em_nm");
+    let em: Vec<f64> = first[1..].iter().map(|c| c.parse().unwrap()).collect();
+    let w = widths(&em);
+    let mut rows = 0;
+    for line in &data[1..] {
+        let v = numbers(line, ",");
+        let li = v[0];
+        for (j, &lo) in em.iter().enumerate() {
+            let want = cell(m, li, lo, if per_nm { 1.0 } else { w[j] });
+            assert!(close(v[j + 1], want), "{li} {lo}: {} vs {want}", v[j + 1]);
+        }
+        rows += 1;
+    }
+    assert!(rows > 1);
+}
+
+fn check_spd(
+    text: &str,
+    m: &Material,
+    quantity: &str,
+    unit: &str,
+    want: impl Fn(f64) -> f64,
+) -> usize {
+    let (header, data) = split_header(text, "#");
+    let all = header.join("\n");
+    assert!(all.contains(&format!("fluorite {VERSION}")), "{all}");
+    assert!(all.contains(&format!("\"{}\"", m.name)), "{all}");
+    assert!(
+        all.contains(quantity) && all.contains(unit),
+        "{quantity} {unit}: {all}"
+    );
+    assert!(all.contains("wavelength (nm)"));
+    for line in &data {
+        let v = numbers(line, " ");
+        assert_eq!(v.len(), 2, "{line}");
+        assert!(
+            close(v[1], want(v[0])),
+            "{quantity} at {}: {} vs {}",
+            v[0],
+            v[1],
+            want(v[0])
+        );
+    }
+    data.len()
+}
+
+fn truth() -> Material {
+    let (_, truth) = SynthSpec::preset("green-dye").unwrap().generate().unwrap();
+    truth
+}
+
+fn render(m: &Material, format: ExportFormat) -> Vec<(String, String)> {
+    export(m, &ExportOptions::new(format))
+        .unwrap()
+        .into_iter()
+        .map(|f| (f.name, String::from_utf8(f.contents).unwrap()))
+        .collect()
+}
+
+fn file<'a>(files: &'a [(String, String)], name: &str) -> &'a str {
+    &files
+        .iter()
+        .find(|(n, _)| n == name)
+        .unwrap_or_else(|| {
+            panic!(
+                "{name} missing among {:?}",
+                files.iter().map(|f| &f.0).collect::<Vec<_>>()
+            )
+        })
+        .1
+}
+
+#[test]
+fn csv_export_reads_back() {
+    let m = truth();
+    let f = &m.fluorophores[0];
+    let files = render(&m, ExportFormat::Csv);
+    assert_eq!(files.len(), 1);
+    let (header, data) = split_header(file(&files, "green-dye.csv"), "#");
+    let all = header.join("\n");
+    assert!(all.contains(&format!("fluorite {VERSION}")) && all.contains("\"green-dye\""));
+    assert!(all.contains("emission density in 1/nm"));
+    let scalar = |key: &str| -> f64 {
+        header
+            .iter()
+            .find_map(|h| h.strip_prefix(key))
+            .unwrap()
+            .split_whitespace()
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    assert_eq!(scalar("concentration: c = "), f.concentration);
+    assert_eq!(scalar("quantum_yield: Q = "), f.quantum_yield);
+    assert_eq!(data[0], "wavelength_nm,absorption,emission,reflectance");
+    let mut area = 0.0;
+    let mut previous: Option<(f64, f64)> = None;
+    for line in &data[1..] {
+        let v = numbers(line, ",");
+        assert_eq!(v[1], f.absorption.eval_zero_outside(v[0]));
+        assert_eq!(v[2], f.emission.eval_zero_outside(v[0]));
+        assert_eq!(v[3], m.reflectance.eval_clamped(v[0]));
+        if let Some((l, e)) = previous {
+            area += 0.5 * (e + v[2]) * (v[0] - l);
+        }
+        previous = Some((v[0], v[2]));
+    }
+    // The unit: e is a density in 1/nm, so its column integrates to 1 over nm.
+    assert!((area - 1.0).abs() < 1e-9, "{area}");
+}
+
+#[test]
+fn matrix_and_bfc_exports_read_back() {
+    let m = truth();
+    for per_nm in [false, true] {
+        let options = ExportOptions {
+            units: if per_nm { Units::PerNm } else { Units::PerBin },
+            ..ExportOptions::new(ExportFormat::Matrix)
+        };
+        let files = export(&m, &options).unwrap();
+        check_wide_matrix(std::str::from_utf8(&files[0].contents).unwrap(), &m, per_nm);
+    }
+    let files = render(&m, ExportFormat::Bfc);
+    let text = file(&files, "green-dye.BFC");
+    assert!(
+        !text.replace("\r\n", "").contains('\n') && text.ends_with("EOD\r\n"),
+        "CRLF line ends"
+    );
+    let lines: Vec<&str> = text.split("\r\n").collect();
+    assert_eq!(lines[1], "BFC-450 Matrix File");
+    let meta = lines[2..10].join("\n");
+    assert!(meta.contains(";green-dye") && meta.contains(&format!("fluorite {VERSION}")));
+    assert!(
+        meta.contains("radiance factor per emission bin (dimensionless)"),
+        "{meta}"
+    );
+    let grid = numbers(lines[10], "\t");
+    let em = uniform(grid[0], grid[1], grid[2]);
+    let ex: Vec<f64> = (0..grid[3] as usize)
+        .map(|i| grid[4] + grid[5] * i as f64)
+        .collect();
+    assert_eq!((em[0], ex[0]), (380.0, 300.0));
+    assert_eq!(numbers(&lines[11]["r:c:".len()..], "\t"), ex);
+    let w = widths(&em);
+    for (j, line) in lines[12..12 + em.len()].iter().enumerate() {
+        let v = numbers(line, "\t");
+        assert_eq!(v[0], em[j]);
+        for (i, &li) in ex.iter().enumerate() {
+            assert!(close(v[i + 1], cell(&m, li, em[j], w[j])));
+        }
+    }
+    assert_eq!(lines[12 + em.len()], "EOD");
+}
+
+#[test]
+fn renderer_exports_read_back() {
+    let m = truth();
+    let f = &m.fluorophores[0];
+    let albedo = |l: f64| {
+        (1.0 - f.concentration * f.absorption.eval_zero_outside(l)) * m.reflectance.eval_clamped(l)
+    };
+    for format in [ExportFormat::Mitsuba, ExportFormat::Pbrt] {
+        let files = render(&m, format);
+        let n = check_spd(
+            file(&files, "green-dye_albedo.spd"),
+            &m,
+            "non-fluorescent albedo (1 - c*a(λ))*r(λ)",
+            "dimensionless",
+            albedo,
+        );
+        assert_eq!(n, m.sample_wavelengths().len());
+        check_spd(
+            file(&files, "green-dye_reflectance.spd"),
+            &m,
+            "reflectance r(λ)",
+            "dimensionless",
+            |l| m.reflectance.eval_clamped(l),
+        );
+        let n = check_spd(
+            file(&files, "green-dye_excitation.spd"),
+            &m,
+            "excitation c*Q*a(λ)",
+            "dimensionless",
+            |l| f.concentration * f.quantum_yield * f.absorption.eval_zero_outside(l),
+        );
+        assert_eq!(n, f.absorption.len());
+        check_spd(
+            file(&files, "green-dye_emission.spd"),
+            &m,
+            "emission spectrum e(λ)",
+            "1/nm",
+            |l| f.emission.eval_zero_outside(l),
+        );
+        match format {
+            ExportFormat::Mitsuba => {
+                let xml = file(&files, "green-dye.xml");
+                assert!(
+                    xml.contains(&format!("fluorite {VERSION}")) && xml.contains("\"green-dye\"")
+                );
+                // Outside comments: one diffuse BSDF reading the albedo file.
+                let mut outside = String::new();
+                let mut rest = xml;
+                while let Some(start) = rest.find("<!--") {
+                    outside.push_str(&rest[..start]);
+                    rest = &rest[start + rest[start..].find("-->").unwrap() + 3..];
+                }
+                outside.push_str(rest);
+                assert_eq!(
+                    outside.trim(),
+                    "<bsdf type=\"diffuse\" id=\"green-dye\">\n    <spectrum name=\"reflectance\" filename=\"green-dye_albedo.spd\"/>\n</bsdf>"
+                );
+                assert!(
+                    xml.contains("filename=\"green-dye_excitation.spd\"")
+                        && xml.contains("filename=\"green-dye_emission.spd\"")
+                );
+            }
+            _ => {
+                let scene = file(&files, "green-dye.pbrt");
+                assert!(scene.contains(&format!("fluorite {VERSION}")));
+                assert!(scene.contains("\"string type\" \"diffuse\"\n    \"spectrum reflectance\" \"green-dye_albedo.spd\""));
+                check_wide_matrix(file(&files, "green-dye_reradiation.csv"), &m, false);
+            }
+        }
+    }
+}
+
+// ---- bad input through the binary -----------------------------------------------
+
+fn run(args: &[&str], cwd: &Path) -> (Option<i32>, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .unwrap();
+    (out.status.code(), String::from_utf8(out.stderr).unwrap())
+}
+
+fn listing(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = walk(dir);
+    v.sort();
+    v
+}
+
+fn walk(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(walk(&p));
+        }
+        out.push(p);
+    }
+    out
+}
+
+#[test]
+fn bad_input_is_a_one_line_error_and_writes_nothing() {
+    let dir = temp_dir("bad");
+    truth().save(&dir.join("m.json")).unwrap();
+    std::fs::write(dir.join("blocker"), "a file, not a folder").unwrap();
+    std::fs::write(
+        dir.join("broken.json"),
+        "{\"schema\": \"fluorite-material/1\"}",
+    )
+    .unwrap();
+    let before = listing(&dir);
+    let cases: [(&[&str], &str); 10] = [
+        (
+            &["--to", "obj", "-o", "out.csv"],
+            "--to: \"obj\" is not a known format",
+        ),
+        (
+            &["--to", "matrix", "--grid", "300:780", "-o", "out.csv"],
+            "--grid: segment \"300:780\"",
+        ),
+        (
+            &["--to", "matrix", "--grid", "300:x:5", "-o", "out.csv"],
+            "is not a number",
+        ),
+        (
+            &[
+                "--to",
+                "matrix",
+                "--grid",
+                "300:400:10,400:500:10",
+                "-o",
+                "out.csv",
+            ],
+            "overlapping",
+        ),
+        (
+            &["--to", "matrix", "--grid", "780:300:5", "-o", "out.csv"],
+            "is empty",
+        ),
+        (
+            &["--to", "matrix", "--emission-grid", "", "-o", "out.csv"],
+            "--emission-grid: is empty",
+        ),
+        (
+            &["--to", "matrix", "-o", "missing/out.csv"],
+            "does not exist",
+        ),
+        (
+            &["--to", "mitsuba", "-o", "blocker/sub"],
+            "cannot create the output folder",
+        ),
+        (
+            &[
+                "--to",
+                "bfc",
+                "--grid",
+                "300:400:10,405:780:5",
+                "-o",
+                "out.BFC",
+            ],
+            "uniform",
+        ),
+        (
+            &["--to", "csv", "--grid", "300:780:5", "-o", "out.csv"],
+            "apply to the matrix formats",
+        ),
+    ];
+    for (args, expected) in cases {
+        let mut all = vec!["export", "m.json"];
+        all.extend_from_slice(args);
+        let (code, stderr) = run(&all, &dir);
+        assert!(code.is_some() && code != Some(0), "{args:?}: {code:?}");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.starts_with("fluorite: error: "), "{stderr}");
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
+        assert_eq!(listing(&dir), before, "{args:?} left output behind");
+    }
+    let (code, stderr) = run(
+        &["export", "broken.json", "--to", "csv", "-o", "out.csv"],
+        &dir,
+    );
+    assert_ne!(code, Some(0));
+    assert_eq!(stderr.lines().count(), 1);
+    assert!(stderr.contains("broken.json"), "{stderr}");
+    assert_eq!(listing(&dir), before);
+
+    // And the good case writes exactly the announced files.
+    let (code, stderr) = run(&["export", "m.json", "--to", "pbrt", "-o", "pbrt/"], &dir);
+    assert_eq!(code, Some(0), "{stderr}");
+    let mut names: Vec<String> = std::fs::read_dir(dir.join("pbrt"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            "green-dye.pbrt",
+            "green-dye_albedo.spd",
+            "green-dye_emission.spd",
+            "green-dye_excitation.spd",
+            "green-dye_reflectance.spd",
+            "green-dye_reradiation.csv"
+        ]
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
