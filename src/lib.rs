@@ -8,6 +8,7 @@
 
 pub mod colour;
 pub mod error;
+pub mod evaluate;
 pub mod export;
 pub mod fit;
 pub mod formats;

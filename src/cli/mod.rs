@@ -1,9 +1,11 @@
 //! Command-line interface: one file per subcommand, each parsing its arguments and
 //! calling the library.
 
+mod bench;
 mod fit;
 mod plot;
 mod render;
+mod stability;
 mod synth;
 
 use std::process::ExitCode;
@@ -29,6 +31,10 @@ enum Command {
     Render(render::RenderArgs),
     /// Plot a fitted material: residual maps, spectra, colour swatches, convergence.
     Plot(plot::PlotArgs),
+    /// Time every fitting method on inputs against its accuracy; chart the trade-off.
+    Bench(bench::BenchArgs),
+    /// Map where each fitting method fails on synthetic data with known truth.
+    Stability(stability::StabilityArgs),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -39,5 +45,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Synth(args) => synth::run(args),
         Command::Render(args) => render::run(args),
         Command::Plot(args) => plot::run(args),
+        Command::Bench(args) => bench::run(args),
+        Command::Stability(args) => stability::run(args),
     }
 }
