@@ -325,11 +325,12 @@ pub fn recovery_error(fitted: &Material, truth: &Material) -> f64 {
     rel(&ka_fit, &ka_true).max(rel(&f.emission.value, &e_true))
 }
 
-fn one_run(sweep: Sweep, value: f64, method: &Method, seed: usize) -> Result<Run> {
+/// The synthetic measurement of one case, its truth (on the fine 10 nm grids: a coarse
+/// grid's own truth would hide what the coarse sampling misses) and the start the
+/// iterative solvers get.
+pub fn case_data(sweep: Sweep, value: f64, seed: usize) -> Result<(Measurement, Material, Start)> {
     let (spec, crosstalk_steps, start) = case(sweep, value, seed)?;
     let (mut m, truth_on_grid) = spec.generate()?;
-    // Colour is judged against the material on the fine (10 nm) grid: a coarse grid's
-    // own truth would hide what the coarse sampling misses.
     let truth = SynthSpec {
         excitation_nm: uniform_grid(300.0, 780.0, 10.0),
         ..spec.clone()
@@ -338,6 +339,11 @@ fn one_run(sweep: Sweep, value: f64, method: &Method, seed: usize) -> Result<Run
     if crosstalk_steps > 1 {
         widen_crosstalk(&mut m, &truth_on_grid, crosstalk_steps);
     }
+    Ok((m, truth, start))
+}
+
+fn one_run(sweep: Sweep, value: f64, method: &Method, seed: usize) -> Result<Run> {
+    let (m, truth, start) = case_data(sweep, value, seed)?;
     let mut options = method.options();
     options.start = start;
     let lights = Light::standard();
