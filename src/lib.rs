@@ -9,6 +9,7 @@
 pub mod check;
 pub mod colour;
 pub mod error;
+pub mod evaluate;
 pub mod export;
 pub mod fit;
 pub mod formats;

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use fluorite::colour::Light;
 use fluorite::export::write_atomic;
-use fluorite::fit::{FitOptions, FitOutcome, Solver, fit};
+use fluorite::fit::{FitOptions, FitOutcome, Solver, Start, fit};
 use fluorite::formats::{Format, ReadOptions, RowsAre, read};
 use fluorite::measurement::Measurement;
 use rayon::prelude::*;
@@ -36,6 +36,9 @@ pub struct FitArgs {
     /// Refinement solver.
     #[arg(long, value_enum, default_value = "lbfgs")]
     pub solver: Solver,
+    /// Starting point of the iterative solvers.
+    #[arg(long, value_enum, default_value = "closed-form")]
+    pub start: Start,
     /// Exclude cells within this many nm of the diagonal (crosstalk). Default: one grid step.
     #[arg(long)]
     pub guard: Option<f64>,
@@ -133,6 +136,7 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         max_iterations: args.max_iterations,
         tolerance: args.tolerance,
         lights,
+        start: args.start,
     };
     let read_options = ReadOptions {
         format: args.format,

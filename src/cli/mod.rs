@@ -1,12 +1,14 @@
 //! Command-line interface: one file per subcommand, each parsing its arguments and
 //! calling the library.
 
+mod bench;
 mod check;
 mod export;
 mod fit;
 mod import_spectra;
 mod plot;
 mod render;
+mod stability;
 mod synth;
 
 use std::process::ExitCode;
@@ -39,6 +41,10 @@ enum Command {
     Export(export::ExportArgs),
     /// Build a material from absorption and emission spectra, c and Q.
     ImportSpectra(import_spectra::ImportSpectraArgs),
+    /// Time every fitting method on inputs against its accuracy; chart the trade-off.
+    Bench(bench::BenchArgs),
+    /// Map where each fitting method fails on synthetic data with known truth.
+    Stability(stability::StabilityArgs),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -68,5 +74,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Check(args) => check::run(args),
         Command::Export(args) => export::run(args),
         Command::ImportSpectra(args) => import_spectra::run(args),
+        Command::Bench(args) => bench::run(args),
+        Command::Stability(args) => stability::run(args),
     }
 }

@@ -1,5 +1,6 @@
 //! Refinement with argmin: L-BFGS (More-Thuente line search) on the objective's
-//! gradient, or Gauss-Newton (with line search) on its residuals and Jacobian.
+//! gradient, Gauss-Newton (with line search) on its residuals and Jacobian, or
+//! Nelder-Mead on the cost alone (no derivatives: the baseline that shows what they buy).
 
 use std::cell::RefCell;
 use std::sync::{Arc, Mutex};
@@ -13,6 +14,7 @@ use argmin::solver::gaussnewton::GaussNewtonLS;
 use argmin::solver::linesearch::{
     BacktrackingLineSearch, MoreThuenteLineSearch, condition::ArmijoCondition,
 };
+use argmin::solver::neldermead::NelderMead;
 use argmin::solver::quasinewton::LBFGS;
 use nalgebra::{DMatrix, DVector};
 
@@ -248,4 +250,42 @@ pub fn gauss_newton(
         .iter_mut()
         .for_each(|c| *c = 0.5 * *c * *c);
     Ok(refined)
+}
+
+/// Relative size of the initial Nelder-Mead simplex: each vertex moves one parameter by
+/// this fraction of its magnitude (at least this much in absolute terms), large enough to
+/// leave the start's basin of numerical noise, small enough to stay near the start.
+const NELDER_MEAD_STEP: f64 = 0.05;
+
+/// Refines `theta0` with Nelder-Mead, which uses cost values only. It stops when the
+/// standard deviation of the simplex's costs falls below the cost tolerance.
+pub fn nelder_mead(
+    objective: Objective<'_>,
+    representation: &dyn Representation,
+    theta0: &[f64],
+    stopping: Stopping,
+) -> Result<Refined, String> {
+    let problem = Problem {
+        objective,
+        representation,
+        cache: RefCell::new(None),
+        prior: None,
+    };
+    let start = DVector::from_column_slice(theta0);
+    let mut simplex = vec![start.clone()];
+    for k in 0..theta0.len() {
+        let mut vertex = start.clone();
+        vertex[k] += NELDER_MEAD_STEP * theta0[k].abs().max(1.0);
+        simplex.push(vertex);
+    }
+    let solver = NelderMead::new(simplex)
+        .with_sd_tolerance(stopping.cost_tolerance)
+        .map_err(|e| e.to_string())?;
+    let recorder = CostRecorder::default();
+    let result = Executor::new(problem, solver)
+        .configure(|state| state.max_iters(stopping.max_iterations))
+        .add_observer(recorder.clone(), ObserverMode::Always)
+        .run()
+        .map_err(|e| format!("Nelder-Mead: {e}"))?;
+    Ok(finish(&result.state, recorder, theta0))
 }

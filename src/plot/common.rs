@@ -27,13 +27,20 @@ pub(crate) fn render<D: Draw>(
     size: (u32, u32),
     format: ImageFormat,
 ) -> Result<(Vec<u8>, Layout)> {
+    render_named(figure, kind.suffix(), size, format)
+}
+
+/// Renders `figure`, named `name` in errors, at `size` into PNG or SVG bytes: for figures
+/// outside the per-material set of [`FigureKind`] (the evaluation charts).
+pub(crate) fn render_named<D: Draw>(
+    figure: &D,
+    name: &str,
+    size: (u32, u32),
+    format: ImageFormat,
+) -> Result<(Vec<u8>, Layout)> {
     super::font::ensure_registered()?;
-    let failed = |e: String| {
-        Error::invalid(
-            format!("{} figure", kind.suffix()),
-            format!("could not be drawn: {e}"),
-        )
-    };
+    let failed =
+        |e: String| Error::invalid(format!("{name} figure"), format!("could not be drawn: {e}"));
     match format {
         ImageFormat::Png => {
             let (w, h) = size;

@@ -15,6 +15,7 @@
 pub mod colormap;
 mod common;
 pub mod convergence;
+pub mod evaluation;
 pub mod font;
 pub mod heatmap;
 pub mod spectra;

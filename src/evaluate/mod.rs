@@ -1,0 +1,133 @@
+//! Evaluation of the fitting methods (issue 6): speed against accuracy on given inputs
+//! ([`bench`]) and where each method fails on synthetic data with known truth
+//! ([`stability`]). Both produce tables (CSV, Markdown) and charts
+//! ([`crate::plot::evaluation`]).
+
+pub mod bench;
+pub mod stability;
+
+use crate::fit::{FitOptions, Solver, Start};
+
+/// A fitting method: a solver with its stopping rules and starting point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Method {
+    /// Short name for tables and legends (`lbfgs`, `lbfgs-tight`, ...).
+    pub name: String,
+    /// Solver.
+    pub solver: Solver,
+    /// Relative tolerance ([`FitOptions::tolerance`]).
+    pub tolerance: f64,
+    /// Iteration limit.
+    pub max_iterations: u64,
+    /// Starting point of the iterative solvers.
+    pub start: Start,
+}
+
+/// Default tolerance of `fit` (see [`FitOptions::default`]).
+pub const DEFAULT_TOLERANCE: f64 = 1e-9;
+/// The tightened tolerance of the "-tight" methods.
+pub const TIGHT_TOLERANCE: f64 = 1e-13;
+/// Iteration limit of Nelder-Mead: it needs far more (cheap) iterations than the
+/// gradient methods, a few hundred per parameter to get anywhere on ~90 parameters.
+pub const NELDER_MEAD_ITERATIONS: u64 = 20_000;
+/// Iteration limit of the tightened Nelder-Mead.
+pub const NELDER_MEAD_TIGHT_ITERATIONS: u64 = 100_000;
+
+impl Method {
+    /// A method with the default tolerance and iteration limit of its solver.
+    pub fn new(solver: Solver) -> Method {
+        Method {
+            name: solver.name().to_string(),
+            solver,
+            tolerance: DEFAULT_TOLERANCE,
+            max_iterations: if solver == Solver::NelderMead {
+                NELDER_MEAD_ITERATIONS
+            } else {
+                FitOptions::default().max_iterations
+            },
+            start: Start::ClosedForm,
+        }
+    }
+
+    /// The same solver with the tightened tolerance (and more iterations for it).
+    pub fn tightened(solver: Solver) -> Method {
+        let mut m = Method::new(solver);
+        m.name = format!("{}-tight", solver.name());
+        m.tolerance = TIGHT_TOLERANCE;
+        m.max_iterations = if solver == Solver::NelderMead {
+            NELDER_MEAD_TIGHT_ITERATIONS
+        } else {
+            5 * m.max_iterations
+        };
+        m
+    }
+
+    /// Fit options for this method.
+    pub fn options(&self) -> FitOptions {
+        FitOptions {
+            solver: self.solver,
+            tolerance: self.tolerance,
+            max_iterations: self.max_iterations,
+            start: self.start,
+            ..FitOptions::default()
+        }
+    }
+}
+
+/// Every method `fit` offers, each with default and tightened tolerance; the closed-form
+/// estimate has no tolerance and appears once.
+pub fn all_methods() -> Vec<Method> {
+    let mut methods = vec![Method::new(Solver::Init)];
+    for solver in [Solver::Lbfgs, Solver::GaussNewton, Solver::NelderMead] {
+        methods.push(Method::new(solver));
+        methods.push(Method::tightened(solver));
+    }
+    methods
+}
+
+/// The median of `values` (NaN when empty; NaNs are ignored).
+pub fn median(values: &[f64]) -> f64 {
+    quantile(values, 0.5)
+}
+
+/// The `q`-quantile of the finite `values`, linearly interpolated (NaN when none).
+pub fn quantile(values: &[f64], q: f64) -> f64 {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let pos = q.clamp(0.0, 1.0) * (v.len() - 1) as f64;
+    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
+    v[lo] + (v[hi] - v[lo]) * (pos - lo as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_interpolate_and_skip_nan() {
+        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&[4.0, 1.0, f64::NAN, 2.0, 3.0]), 2.5);
+        assert_eq!(quantile(&[0.0, 10.0], 0.25), 2.5);
+        assert!(median(&[]).is_nan());
+    }
+
+    #[test]
+    fn every_solver_appears_with_both_tolerances() {
+        let names: Vec<String> = all_methods().into_iter().map(|m| m.name).collect();
+        assert_eq!(
+            names,
+            [
+                "init",
+                "lbfgs",
+                "lbfgs-tight",
+                "gauss-newton",
+                "gauss-newton-tight",
+                "nelder-mead",
+                "nelder-mead-tight"
+            ]
+        );
+    }
+}

@@ -1,0 +1,216 @@
+//! The evaluation harness (issue 6): a small version of the stability sweep, one test
+//! per failure mode showing that `fit` flags it, and the benchmark table's structure and
+//! accuracy numbers (never its times).
+
+use std::path::Path;
+
+use fluorite::evaluate::stability::{
+    self, Config, DELTA_E_TOLERANCE, RECOVERY_TOLERANCE, Sweep, case_data,
+};
+use fluorite::evaluate::{Method, bench};
+use fluorite::fit::{FitOptions, Solver, fit};
+use fluorite::formats::{ReadOptions, read};
+use fluorite::synth::{MEASURED_NOISE_SIGMA, SynthSpec};
+
+/// Warnings (and convergence) of the default fit of one sweep case.
+fn warnings_of(sweep: Sweep, value: f64, seed: usize, solver: Solver) -> (Vec<String>, bool) {
+    let (m, _, start) = case_data(sweep, value, seed).unwrap();
+    let options = FitOptions {
+        solver,
+        start,
+        max_iterations: if solver == Solver::NelderMead {
+            2000
+        } else {
+            500
+        },
+        ..FitOptions::default()
+    };
+    let outcome = fit(&m, &options).unwrap();
+    let report = outcome.report();
+    (report.warnings.clone(), report.converged)
+}
+
+fn any_contains(warnings: &[String], needle: &str) -> bool {
+    warnings.iter().any(|w| w.contains(needle))
+}
+
+#[test]
+fn small_sweep_succeeds_at_the_bfc_noise_level_and_flags_wide_crosstalk() {
+    let config = Config {
+        seeds: 3,
+        sweeps: vec![Sweep::Noise, Sweep::CrosstalkWidth],
+        methods: vec![Method::new(Solver::Init), Method::new(Solver::Lbfgs)],
+    };
+    let runs = stability::run(&config).unwrap();
+    assert_eq!(runs.len(), (7 + 4) * 2 * 3);
+    let summaries = stability::summarise(&runs);
+    assert_eq!(summaries.len(), (7 + 4) * 2);
+
+    // Closed form + L-BFGS at the BFC-450 noise level: every preset recovered.
+    let at_bfc = summaries
+        .iter()
+        .find(|s| s.sweep == Sweep::Noise && s.value == 6e-4 && s.method == "lbfgs")
+        .unwrap();
+    assert_eq!(MEASURED_NOISE_SIGMA, 6e-4);
+    assert_eq!(at_bfc.success_rate, 1.0);
+    assert!(at_bfc.median_recovery_error < RECOVERY_TOLERANCE / 2.0);
+    assert!(at_bfc.median_delta_e < DELTA_E_TOLERANCE);
+    assert_eq!(at_bfc.flagged_rate, 0.0, "no false alarm at the BFC level");
+
+    // Crosstalk two steps wide (guard band one step): every run fails and is flagged.
+    for s in summaries
+        .iter()
+        .filter(|s| s.sweep == Sweep::CrosstalkWidth && s.value >= 2.0)
+    {
+        assert_eq!(s.success_rate, 0.0, "{s:?}");
+        assert_eq!(s.flagged_failures, 1.0, "{s:?}");
+    }
+    // At the largest noise the fit falls back to a plain reflector, flagged.
+    let loudest = summaries
+        .iter()
+        .find(|s| s.sweep == Sweep::Noise && s.value == 0.2 && s.method == "lbfgs")
+        .unwrap();
+    assert_eq!(loudest.success_rate, 0.0);
+    assert_eq!(loudest.flagged_failures, 1.0);
+
+    // Table structure: one CSV line per summary; the report has a table per sweep and
+    // names where each method breaks.
+    let csv = stability::to_csv(&summaries);
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines[0], stability::CSV_HEADER);
+    assert_eq!(lines.len(), summaries.len() + 1);
+    let columns = stability::CSV_HEADER.split(',').count();
+    assert!(lines.iter().all(|l| l.split(',').count() == columns));
+    let report = stability::report(&config, &summaries, "test");
+    assert!(report.contains("## noise σ\n"));
+    assert!(report.contains("## crosstalk width (steps)\n"));
+    assert!(report.contains("`lbfgs` breaks at crosstalk width (steps) = 2"));
+    assert_eq!(
+        stability::breaking_point(&summaries, Sweep::CrosstalkWidth, "init"),
+        Some(2.0)
+    );
+}
+
+#[test]
+fn fit_flags_crosstalk_wider_than_the_guard_band() {
+    for seed in 0..3 {
+        let (w, _) = warnings_of(Sweep::CrosstalkWidth, 2.0, seed, Solver::Lbfgs);
+        assert!(
+            any_contains(&w, "crosstalk reaches past the guard band"),
+            "{w:?}"
+        );
+        let (w, _) = warnings_of(Sweep::CrosstalkWidth, 1.0, seed, Solver::Lbfgs);
+        assert!(w.is_empty(), "{w:?}");
+    }
+}
+
+#[test]
+fn fit_flags_weak_fluorescence() {
+    for seed in 0..3 {
+        let (w, _) = warnings_of(Sweep::Strength, 0.1, seed, Solver::Lbfgs);
+        assert!(any_contains(&w, "weak fluorescence"), "{w:?}");
+        let (w, _) = warnings_of(Sweep::Strength, 0.03, seed, Solver::Lbfgs);
+        assert!(any_contains(&w, "no fluorescent signal"), "{w:?}");
+    }
+}
+
+#[test]
+fn fit_flags_noise_limited_colour() {
+    // σ = 2·10⁻³: the shapes are still within 10 %, but the colour error reaches ΔE ≈ 1.
+    for seed in [1, 2] {
+        let (w, _) = warnings_of(Sweep::Noise, 2e-3, seed, Solver::Lbfgs);
+        assert!(any_contains(&w, "noise limits the colour"), "{w:?}");
+    }
+}
+
+#[test]
+fn fit_flags_undersampled_absorption() {
+    for seed in 0..3 {
+        let (w, _) = warnings_of(Sweep::ExcitationStep, 40.0, seed, Solver::Lbfgs);
+        assert!(
+            any_contains(&w, "absorption band resolved by only"),
+            "{w:?}"
+        );
+    }
+}
+
+#[test]
+fn fit_flags_many_missing_cells() {
+    for seed in 0..3 {
+        let (w, _) = warnings_of(Sweep::Missing, 0.8, seed, Solver::Lbfgs);
+        assert!(
+            any_contains(&w, "absorption is barely constrained"),
+            "{w:?}"
+        );
+    }
+}
+
+#[test]
+fn fit_flags_a_poor_start_that_nelder_mead_cannot_leave() {
+    let (w, converged) = warnings_of(Sweep::PoorStart, 6e-4, 0, Solver::NelderMead);
+    assert!(!converged);
+    assert!(any_contains(&w, "stuck in a local minimum"), "{w:?}");
+    // L-BFGS finds its way from the same flat start without a warning.
+    let (w, converged) = warnings_of(Sweep::PoorStart, 6e-4, 0, Solver::Lbfgs);
+    assert!(converged);
+    assert!(w.is_empty(), "{w:?}");
+}
+
+#[test]
+fn bench_table_holds_each_method_with_the_fits_own_accuracy() {
+    let mut spec = SynthSpec::preset("green-dye").unwrap();
+    spec.noise_sigma = 0.0;
+    let (m, _) = spec.generate().unwrap();
+    let methods = vec![
+        Method::new(Solver::Init),
+        Method::new(Solver::Lbfgs),
+        Method::tightened(Solver::Lbfgs),
+    ];
+    let rows = bench::run(std::slice::from_ref(&m), &methods, 2).unwrap();
+    assert_eq!(rows.len(), 3);
+    for (row, method) in rows.iter().zip(&methods) {
+        assert_eq!(row.method, method.name);
+        assert_eq!(row.runs, 2);
+        assert!(row.min_ms <= row.median_ms && row.median_ms <= row.max_ms);
+        // Noise-free data (crosstalk only in the guard band): exact recovery.
+        assert!(row.max_delta_e < 1e-3, "{row:?}");
+        assert!(row.rel_residual < 1e-6, "{row:?}");
+        let own = fit(&m, &method.options()).unwrap();
+        let own_de = own
+            .report()
+            .delta_e2000
+            .values()
+            .cloned()
+            .fold(0.0, f64::max);
+        assert!((own_de - row.max_delta_e).abs() < 1e-12);
+    }
+    assert!(rows.iter().any(|r| r.pareto));
+    let csv = bench::to_csv(&rows);
+    assert_eq!(csv.lines().next().unwrap(), bench::CSV_HEADER);
+    assert_eq!(csv.lines().count(), 4);
+    assert!(bench::run(&[m], &methods, 0).is_err());
+}
+
+#[test]
+fn bench_on_a_real_matrix_reports_the_fitted_accuracy() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/measured/HERPICER.BFC");
+    if !path.exists() {
+        eprintln!("skipped: {} not present", path.display());
+        return;
+    }
+    let m = read(&path, &ReadOptions::default()).unwrap();
+    let rows = bench::run(
+        &[m],
+        &[Method::new(Solver::Init), Method::new(Solver::Lbfgs)],
+        1,
+    )
+    .unwrap();
+    for r in &rows {
+        // The rank-1 model leaves 8–50 % of the fluorescence of real files unexplained
+        // (data README); HERPICER's colour is off mostly under the UV light.
+        assert!((0.08..0.2).contains(&r.rel_residual), "{r:?}");
+        assert!((1.0..8.0).contains(&r.max_delta_e), "{r:?}");
+    }
+    // Refinement lowers the fluorescent residual below the closed-form estimate's.
+    assert!(rows[1].rel_residual < rows[0].rel_residual);
+}
