@@ -436,7 +436,7 @@ fn noise_colour_check(
     options: &FitOptions,
     warnings: &mut Vec<String>,
 ) {
-    if !(noise_sigma > 0.0) || options.lights.is_empty() {
+    if noise_sigma.is_nan() || noise_sigma <= 0.0 || options.lights.is_empty() {
         return;
     }
     // The refits cost ~30× a fit; skip them where the sweeps never saw noise move the
@@ -663,17 +663,13 @@ fn build_material(
     warnings: &mut Vec<String>,
 ) -> Result<Material> {
     let derived = objective.derived(sp);
-    let peak = sp.absorption.iter().cloned().fold(0.0, f64::max);
-    let absorption: Vec<f64> = sp.absorption.iter().map(|a| a / peak).collect();
-    let emission: Vec<f64> = sp
-        .emission
-        .iter()
-        .zip(&data.emission_weight)
-        .zip(&data.emission_bin_widths)
-        .map(|((v, ew), w)| v * ew / (w * derived.normaliser))
-        .collect();
-    // F = s·a·v = (s·peak·S)·a'·(v/S): k = s·peak·S; the smallest feasible c is k·γ.
-    let k = derived.scale * peak * derived.normaliser;
+    let Normalised {
+        absorption,
+        emission,
+        k,
+        peak,
+    } = normalised(data, &derived, sp);
+    // The smallest feasible c is k·γ = κ·peak.
     let c_min = (sp.kappa * peak).min(1.0);
 
     // The diagonal, projected onto its feasible interval; unmeasured samples interpolated.
@@ -820,6 +816,40 @@ fn build_material(
     Ok(material)
 }
 
+/// Grid spectra in the material's normalisation.
+struct Normalised {
+    /// a with max a = 1.
+    absorption: Vec<f64>,
+    /// e in 1/nm with ∫e dλ = 1.
+    emission: Vec<f64>,
+    /// k = c·Q.
+    k: f64,
+    /// The largest grid absorption sample before normalising.
+    peak: f64,
+}
+
+/// Normalises grid spectra: F = s·a·v = (s·peak·S)·(a/peak)·(v/S), so k = s·peak·S.
+fn normalised(data: &FitData, derived: &objective::Derived, sp: &GridSpectra) -> Normalised {
+    let peak = sp
+        .absorption
+        .iter()
+        .cloned()
+        .fold(0.0, f64::max)
+        .max(f64::MIN_POSITIVE);
+    Normalised {
+        absorption: sp.absorption.iter().map(|a| a / peak).collect(),
+        emission: sp
+            .emission
+            .iter()
+            .zip(&data.emission_weight)
+            .zip(&data.emission_bin_widths)
+            .map(|((v, ew), w)| v * ew / (w * derived.normaliser))
+            .collect(),
+        k: derived.scale * peak * derived.normaliser,
+        peak,
+    }
+}
+
 /// Fills unmeasured diagonal samples by linear interpolation (ends held), within their cap.
 fn fill_missing(diagonal: &mut [f64], wavelengths: &[f64], cap: &[f64], name: &str) -> Result<()> {
     let known: Vec<usize> = (0..diagonal.len())
@@ -939,21 +969,12 @@ fn shapes(
     started: Instant,
 ) -> FitOutcome {
     let derived = objective.derived(sp);
-    let peak = sp
-        .absorption
-        .iter()
-        .cloned()
-        .fold(0.0, f64::max)
-        .max(f64::MIN_POSITIVE);
-    let absorption: Vec<f64> = sp.absorption.iter().map(|a| a / peak).collect();
-    let emission: Vec<f64> = sp
-        .emission
-        .iter()
-        .zip(&data.emission_weight)
-        .zip(&data.emission_bin_widths)
-        .map(|((v, ew), w)| v * ew / (w * derived.normaliser))
-        .collect();
-    let k = derived.scale * peak * derived.normaliser;
+    let Normalised {
+        absorption,
+        emission,
+        k,
+        ..
+    } = normalised(data, &derived, sp);
     // Residual of the off-diagonal cells, the only accuracy figure without a diagonal.
     let (mut num, mut den) = (0.0, 0.0);
     for c in &data.off_diagonal {
