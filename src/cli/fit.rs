@@ -52,7 +52,7 @@ pub struct FitArgs {
     #[arg(long, default_value_t = 500)]
     pub max_iterations: u64,
     /// Relative tolerance of the refinement.
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(long, default_value_t = fluorite::fit::DEFAULT_TOLERANCE)]
     pub tolerance: f64,
     /// Lights for the ΔE2000 report: built-in names or CSV files, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "d65,a,f11,uv")]

@@ -23,10 +23,10 @@ pub struct Method {
     pub start: Start,
 }
 
-/// Default tolerance of `fit` (see [`FitOptions::default`]).
-pub const DEFAULT_TOLERANCE: f64 = 1e-9;
-/// The tightened tolerance of the "-tight" methods.
-pub const TIGHT_TOLERANCE: f64 = 1e-13;
+/// Default tolerance of `fit`.
+pub use crate::fit::DEFAULT_TOLERANCE;
+/// The tightened tolerance of the "-tight" methods (a thousand times tighter).
+pub const TIGHT_TOLERANCE: f64 = 1e-9;
 /// Iteration limit of Nelder-Mead: it needs far more (cheap) iterations than the
 /// gradient methods, a few hundred per parameter to get anywhere on ~90 parameters.
 pub const NELDER_MEAD_ITERATIONS: u64 = 20_000;
