@@ -12,10 +12,16 @@ fluorite=target/release/fluorite
 $fluorite synth --out data/ --missing 0.02 --seed 1
 $fluorite fit data/*.csv -o fits/ --plot --render --table --timing-runs 21 | tee fits/data-table.txt
 
+# Speed against accuracy of every fitting method, and where each method fails.
+$fluorite bench data/*.csv --chart fits/speed-accuracy.svg --csv fits/speed-accuracy.csv -q
+$fluorite stability --chart fits/stability.svg --report fits/stability.md --csv fits/stability.csv
+
 shared=../shared/data/measured
 if [ -d "$shared" ]; then
   mkdir -p fits/measured
   $fluorite fit "$shared"/*.BFC "$shared"/*.csv -o fits/measured/ --plot --table --timing-runs 21 | tee fits/measured/table.txt
+  $fluorite bench "$shared"/*.BFC "$shared"/*.csv --chart fits/measured/speed-accuracy.svg \
+    --csv fits/measured/speed-accuracy.csv --repeats 3 -q
   # The paper's first figure: each material beside its twin without fluorescence (same r, c = 0).
   for material in HERPICER CIBA12; do
     for light in d65 uv; do
