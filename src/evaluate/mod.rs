@@ -1,5 +1,5 @@
 //! Evaluation of the fitting methods (issue 6): speed against accuracy on given inputs
-//! ([`bench`]) and where each method fails on synthetic data with known truth
+//! ([`mod@bench`]) and where each method fails on synthetic data with known truth
 //! ([`stability`]). Both produce tables (CSV, Markdown) and charts
 //! ([`crate::plot::evaluation`]).
 
