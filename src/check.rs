@@ -748,6 +748,7 @@ pub fn check(m: &RawMaterial) -> CheckReport {
                 })
                 .collect(),
             fit: None,
+            forms: None,
             conservation: None,
         };
         let grid = material.sample_wavelengths();

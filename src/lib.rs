@@ -17,6 +17,7 @@ pub mod import;
 pub mod material;
 pub mod measurement;
 pub mod model;
+pub mod parametric;
 pub mod plot;
 pub mod render;
 pub mod spectrum;

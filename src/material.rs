@@ -7,6 +7,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::parametric::MaterialForms;
 use crate::spectrum::Spectrum;
 
 /// Schema tag written into every material file.
@@ -14,6 +15,8 @@ pub const SCHEMA: &str = "fluorite-material/1";
 
 /// Tolerance for the normalisations max a = 1 and ∫e = 1.
 pub const NORMALISATION_TOLERANCE: f64 = 1e-6;
+/// Largest difference between a form and its samples, relative to the samples' peak.
+pub const FORM_TOLERANCE: f64 = 1e-6;
 /// Tolerance for range and conservation checks (values may exceed a bound by this much).
 pub const BOUND_TOLERANCE: f64 = 1e-9;
 
@@ -34,6 +37,10 @@ pub struct Material {
     /// Conservation margins, recomputed whenever a material is written.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub conservation: Option<Conservation>,
+    /// Continuous forms of the spectra (parametric fits); the tabulated spectra above are
+    /// these forms sampled finely, and everything downstream reads the samples.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub forms: Option<MaterialForms>,
 }
 
 /// One fluorescent component.
@@ -144,6 +151,7 @@ impl Material {
             fluorophores,
             fit: None,
             conservation: None,
+            forms: None,
         };
         m.conservation = Some(m.conservation_margins());
         m
@@ -194,6 +202,59 @@ impl Material {
         all.sort_by(f64::total_cmp);
         all.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
         all
+    }
+
+    /// Checks the `forms` block: one entry per fluorophore, finite parameters, and
+    /// samples that are the forms evaluated (within [`FORM_TOLERANCE`] of the peak).
+    fn validate_forms(&self, forms: &MaterialForms) -> Result<()> {
+        if forms.fluorophores.len() != self.fluorophores.len() {
+            return Err(Error::invalid(
+                "forms.fluorophores",
+                format!(
+                    "has {} entries for {} fluorophores; give one per fluorophore or drop the forms block",
+                    forms.fluorophores.len(),
+                    self.fluorophores.len()
+                ),
+            ));
+        }
+        let mut pairs = Vec::new();
+        if let Some(r) = &forms.reflectance {
+            pairs.push((r, &self.reflectance, "reflectance".to_string()));
+        }
+        for (n, (ff, f)) in forms
+            .fluorophores
+            .iter()
+            .zip(&self.fluorophores)
+            .enumerate()
+        {
+            pairs.push((
+                &ff.absorption,
+                &f.absorption,
+                format!("fluorophores[{n}].absorption"),
+            ));
+            pairs.push((
+                &ff.emission,
+                &f.emission,
+                format!("fluorophores[{n}].emission"),
+            ));
+        }
+        for (form, samples, what) in pairs {
+            let place = format!("forms.{what}");
+            form.validate(&place)?;
+            let peak = samples.max().abs().max(1e-300);
+            for (l, v) in samples.wavelength_nm.iter().zip(&samples.value) {
+                let f = form.eval(*l);
+                if (f - v).abs() > FORM_TOLERANCE * peak {
+                    return Err(Error::invalid(
+                        place,
+                        format!(
+                            "gives {f} at {l} nm where {what} has the sample {v}; the samples must be the form evaluated (re-tabulate or drop the forms block)"
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Computes the conservation margins. The albedo is piecewise linear-times-linear
@@ -286,6 +347,9 @@ impl Material {
                     format!("is [{lo}, {hi}]; it must be an interval within [0, 1]"),
                 ));
             }
+        }
+        if let Some(forms) = &self.forms {
+            self.validate_forms(forms)?;
         }
         let total_peak = self
             .sample_wavelengths()

@@ -1,0 +1,1 @@
+//! Least-squares fits of forms to sampled spectra.
