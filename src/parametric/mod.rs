@@ -295,8 +295,8 @@ impl SpectralForm {
                 .bands
                 .iter()
                 .position(|b| {
-                    !(b.centre_nm.is_finite() && b.centre_nm > 0.0)
-                        || !(b.width.is_finite() && b.width > 0.0)
+                    let positive = |v: f64| v.is_finite() && v > 0.0;
+                    !(positive(b.centre_nm) && positive(b.width))
                         || !(b.height.is_finite() && b.height >= 0.0)
                 })
                 .map(|n| format!("{what}.bands[{n}]")),
