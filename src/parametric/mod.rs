@@ -296,8 +296,10 @@ impl SpectralForm {
                 .iter()
                 .position(|b| {
                     let positive = |v: f64| v.is_finite() && v > 0.0;
-                    !(positive(b.centre_nm) && positive(b.width))
-                        || !(b.height.is_finite() && b.height >= 0.0)
+                    !(positive(b.centre_nm)
+                        && positive(b.width)
+                        && b.height.is_finite()
+                        && b.height >= 0.0)
                 })
                 .map(|n| format!("{what}.bands[{n}]")),
             SpectralForm::SigmoidPolynomial(s) => s
