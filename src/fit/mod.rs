@@ -16,6 +16,7 @@ pub mod checks;
 pub mod data;
 pub mod init;
 pub mod objective;
+pub mod parametric;
 pub mod representation;
 pub mod solve;
 

@@ -1,0 +1,788 @@
+//! Parametric models: K fluorescent components whose absorption and emission are sums
+//! of Gaussian bands, and a reflectance that is a sigmoid of a Legendre polynomial (or
+//! tabulated), fitted to the matrix cells and to the patch spectra under the scene's
+//! lights (model.md §7).
+//!
+//! The model on the grid is F_ij = Σk s_k·a_ik·e_jk·u_j off the diagonal, with
+//! s_k = κ_k/(γ_k·S_k) as in the tabulated objective (S_k normalises e, γ_k is the photon
+//! factor, κ_k the smallest feasible concentration), and d_j = (1 − Σk κ_k·a_jk)·r_j on
+//! it. κ_k = sin²t·w_k with shares w_k = u_k²/Σu² keeps Σk κ_k ≤ 1, hence Σ c·a ≤ 1, and
+//! r = sigmoid(p) keeps r in (0, 1): every parameter vector is a valid material.
+
+use crate::colour::{Light, cie1931};
+use crate::parametric::{
+    BandDomain, PARAMS_PER_BAND, bands_value_gradient, legendre, position, sigmoid,
+};
+use crate::spectrum::hat_integrals;
+
+use super::data::FitData;
+
+/// Absorption below this fraction of its peak counts as none for the photon law: a
+/// Gaussian tail never reaches zero, and without a floor every band would be "absorbing"
+/// down to the shortest measured wavelength.
+pub const ABSORPTION_FLOOR: f64 = 1e-4;
+
+/// Weight of the terms fixing the free heights (max a = 1, ∫e = 1 on the grid); they
+/// change no fitted material.
+const HEIGHT_GAUGE_WEIGHT: f64 = 1e-4;
+
+/// Smallest weight of an excitation row that no chosen light reaches.
+const ROW_WEIGHT_FLOOR: f64 = 0.02;
+
+/// How the reflectance is represented.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReflectanceForm {
+    /// One free sample per diagonal cell (projected onto its feasible interval).
+    Tabulated,
+    /// A sigmoid of a Legendre polynomial of this degree.
+    Polynomial(usize),
+}
+
+/// The structure of a parametric model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ModelSpec {
+    /// Number of fluorescent components K.
+    pub components: usize,
+    /// Gaussian bands of each absorption spectrum.
+    pub absorption_bands: usize,
+    /// Gaussian bands of each emission spectrum.
+    pub emission_bands: usize,
+    /// The reflectance representation.
+    pub reflectance: ReflectanceForm,
+    /// The axis the bands are Gaussian in.
+    pub domain: BandDomain,
+}
+
+impl ModelSpec {
+    /// The model's name: `gaussian:KxB` (A = E = B bands) or `gaussian:KxA/E`, then
+    /// `+rD` (sigmoid-polynomial reflectance of degree D) or `+rt` (tabulated), then
+    /// `@wavelength` when the bands are Gaussian in wavelength.
+    pub fn name(&self) -> String {
+        let bands = if self.absorption_bands == self.emission_bands {
+            format!("{}", self.absorption_bands)
+        } else {
+            format!("{}/{}", self.absorption_bands, self.emission_bands)
+        };
+        let reflectance = match self.reflectance {
+            ReflectanceForm::Tabulated => "+rt".to_string(),
+            ReflectanceForm::Polynomial(d) => format!("+r{d}"),
+        };
+        let domain = match self.domain {
+            BandDomain::Wavenumber => "",
+            BandDomain::Wavelength => "@wavelength",
+        };
+        format!("gaussian:{}x{bands}{reflectance}{domain}", self.components)
+    }
+
+    /// Solver parameters per component (bands only).
+    fn component_params(&self) -> usize {
+        PARAMS_PER_BAND * (self.absorption_bands + self.emission_bands)
+    }
+
+    /// Free parameters of the material the model describes (the solver has a few more:
+    /// the band heights' scales, fixed by normalisation). `diagonal_samples` counts the
+    /// samples of a tabulated reflectance.
+    pub fn parameter_count(&self, diagonal_samples: usize) -> usize {
+        let per_component = self.component_params() - 2 + 1;
+        let reflectance = match self.reflectance {
+            ReflectanceForm::Tabulated => diagonal_samples,
+            ReflectanceForm::Polynomial(d) => d + 1,
+        };
+        self.components * per_component + reflectance
+    }
+}
+
+/// Where each block of parameters sits in the solver vector.
+#[derive(Debug, Clone, Copy)]
+pub struct Layout {
+    /// The model.
+    pub spec: ModelSpec,
+    /// Index of the first component's absorption bands.
+    first_component: usize,
+    /// Index of the reflectance coefficients.
+    reflectance: usize,
+    /// Total length.
+    pub len: usize,
+}
+
+impl Layout {
+    /// The layout of `spec`.
+    pub fn new(spec: ModelSpec) -> Self {
+        let shares = if spec.components > 1 {
+            spec.components
+        } else {
+            0
+        };
+        let first_component = 1 + shares;
+        let reflectance = first_component + spec.components * spec.component_params();
+        let len = reflectance
+            + match spec.reflectance {
+                ReflectanceForm::Tabulated => 0,
+                ReflectanceForm::Polynomial(d) => d + 1,
+            };
+        Layout {
+            spec,
+            first_component,
+            reflectance,
+            len,
+        }
+    }
+
+    /// Range of component `k`'s absorption band parameters.
+    pub fn absorption(&self, k: usize) -> std::ops::Range<usize> {
+        let start = self.first_component + k * self.spec.component_params();
+        start..start + PARAMS_PER_BAND * self.spec.absorption_bands
+    }
+
+    /// Range of component `k`'s emission band parameters.
+    pub fn emission(&self, k: usize) -> std::ops::Range<usize> {
+        let start = self.absorption(k).end;
+        start..start + PARAMS_PER_BAND * self.spec.emission_bands
+    }
+
+    /// Range of the reflectance coefficients (empty when tabulated).
+    pub fn reflectance(&self) -> std::ops::Range<usize> {
+        self.reflectance..self.len
+    }
+
+    /// κ_k for every component, and ∂κ_k/∂(t, u_1..u_K) as a closure's input.
+    fn kappas(&self, theta: &[f64]) -> (f64, Vec<f64>) {
+        let total = theta[0].sin().powi(2);
+        let k = self.spec.components;
+        if k == 1 {
+            return (total, vec![1.0]);
+        }
+        let shares = &theta[1..1 + k];
+        let sum: f64 = shares.iter().map(|u| u * u).sum::<f64>().max(1e-300);
+        (total, shares.iter().map(|u| u * u / sum).collect())
+    }
+}
+
+/// The patch-spectrum weights of one light on the fit grids.
+#[derive(Debug, Clone)]
+struct PatchLight {
+    /// ∫L·h_i over the excitation grid.
+    light_weights: Vec<f64>,
+    /// Mean light power over each emission bin (reflected light).
+    mean_power: Vec<f64>,
+    /// √(observer weight of the bin) / ‖white patch‖: per-bin row weights.
+    row_weight: Vec<f64>,
+}
+
+/// A diagonal position of the fit.
+#[derive(Debug, Clone, Copy)]
+struct DiagonalSample {
+    row: usize,
+    column: usize,
+    /// Measured value, if the cell is measured.
+    value: Option<f64>,
+    /// Legendre position of its wavelength.
+    x: f64,
+}
+
+/// Everything an evaluation needs, precomputed from the data, the lights and the spec.
+pub struct Problem<'a> {
+    /// The cells.
+    pub data: &'a FitData,
+    /// Parameter layout.
+    pub layout: Layout,
+    excitation_u: Vec<f64>,
+    emission_u: Vec<f64>,
+    /// u_j: e_j·u_j is the model's column value (bin width per bin, 1 per nm).
+    column_factor: Vec<f64>,
+    /// f_j turning a column sum into an emitted density (1/Δλ per bin, 1 per nm).
+    density_factor: Vec<f64>,
+    diagonal: Vec<DiagonalSample>,
+    /// Index into `diagonal` for each emission column with a diagonal position.
+    diagonal_of_column: Vec<Option<usize>>,
+    /// Weight of each excitation row's residuals (how much light the scene sends there).
+    row_weight: Vec<f64>,
+    patches: Vec<PatchLight>,
+    colour_weight: f64,
+    /// The reflectance's Legendre support (nm).
+    pub reflectance_support: [f64; 2],
+}
+
+/// The model's quantities on the grids for one parameter vector.
+#[derive(Debug, Clone)]
+pub struct GridModel {
+    /// κ_k.
+    pub kappa: Vec<f64>,
+    /// a_ik normalised to max 1 on the excitation grid, per component.
+    pub absorption: Vec<Vec<f64>>,
+    /// G_k: the unnormalised absorption peak on the grid, per component.
+    pub absorption_peak: Vec<f64>,
+    /// Index of the absorption peak.
+    peak_index: Vec<usize>,
+    /// e_jk (unnormalised density), per component.
+    pub emission: Vec<Vec<f64>>,
+    /// S_k = Σ e_j·Δλ_j.
+    pub normaliser: Vec<f64>,
+    /// λ̄e_k.
+    pub emission_mean_nm: Vec<f64>,
+    /// λmin_k (absorption above [`ABSORPTION_FLOOR`]).
+    pub shortest_absorbed_nm: Vec<f64>,
+    /// γ_k.
+    pub photon_factor: Vec<f64>,
+    /// s_k = κ_k/(γ_k·S_k).
+    pub scale: Vec<f64>,
+    /// r at each diagonal sample (polynomial reflectance only).
+    pub reflectance: Vec<f64>,
+}
+
+impl<'a> Problem<'a> {
+    /// Prepares the fit of `spec` to `data`; `lights` weight the rows and give the patch
+    /// spectra, `colour_weight` the patch term's weight against the matrix residual.
+    pub fn new(data: &'a FitData, spec: ModelSpec, lights: &[Light], colour_weight: f64) -> Self {
+        let domain = spec.domain;
+        let widths = &data.emission_bin_widths;
+        let column_factor: Vec<f64> = widths
+            .iter()
+            .zip(&data.emission_weight)
+            .map(|(w, ew)| w / ew)
+            .collect();
+        let density_factor: Vec<f64> = column_factor.iter().map(|u| 1.0 / u).collect();
+        let diagonal_nm: Vec<f64> = data
+            .diagonal_positions
+            .iter()
+            .map(|&(_, j)| data.emission_nm[j])
+            .collect();
+        let reflectance_support = [
+            diagonal_nm.first().copied().unwrap_or(380.0),
+            diagonal_nm.last().copied().unwrap_or(780.0),
+        ];
+        let mut diagonal: Vec<DiagonalSample> = data
+            .diagonal_positions
+            .iter()
+            .map(|&(row, column)| DiagonalSample {
+                row,
+                column,
+                value: None,
+                x: position(reflectance_support, data.emission_nm[column]),
+            })
+            .collect();
+        for c in &data.diagonal {
+            if let Some(d) = diagonal
+                .iter_mut()
+                .find(|d| d.row == c.row && d.column == c.column)
+            {
+                d.value = Some(c.value);
+            }
+        }
+        let mut diagonal_of_column = vec![None; data.n_emission()];
+        for (p, d) in diagonal.iter().enumerate() {
+            diagonal_of_column[d.column] = Some(p);
+        }
+        let observer = cie1931();
+        let sub = |grid: &[f64]| {
+            let span = grid.last().unwrap_or(&0.0) - grid.first().unwrap_or(&0.0);
+            ((span / grid.len().max(2) as f64) / 0.25).ceil().max(4.0) as usize
+        };
+        let hats = hat_integrals(&data.emission_nm, |_| 1.0, sub(&data.emission_nm));
+        let observer_weight = hat_integrals(
+            &data.emission_nm,
+            |l| observer.at(l).iter().sum::<f64>(),
+            sub(&data.emission_nm),
+        );
+        let mut row_weight = vec![0.0f64; data.n_excitation()];
+        let patches: Vec<PatchLight> = lights
+            .iter()
+            .map(|light| {
+                let light_weights = hat_integrals(
+                    &data.excitation_nm,
+                    |l| light.power(l),
+                    sub(&data.excitation_nm),
+                );
+                let peak = light_weights.iter().cloned().fold(0.0, f64::max);
+                if peak > 0.0 {
+                    for (w, lw) in row_weight.iter_mut().zip(&light_weights) {
+                        *w = w.max(lw / peak);
+                    }
+                }
+                let mean_power: Vec<f64> = hat_integrals(
+                    &data.emission_nm,
+                    |l| light.power(l),
+                    sub(&data.emission_nm),
+                )
+                .iter()
+                .zip(&hats)
+                .map(|(p, h)| if *h > 0.0 { p / h } else { 0.0 })
+                .collect();
+                let white: f64 = observer_weight
+                    .iter()
+                    .zip(&mean_power)
+                    .map(|(o, p)| o * p * p)
+                    .sum::<f64>()
+                    .sqrt()
+                    .max(1e-300);
+                PatchLight {
+                    light_weights,
+                    mean_power,
+                    row_weight: observer_weight.iter().map(|o| o.sqrt() / white).collect(),
+                }
+            })
+            .collect();
+        if lights.is_empty() {
+            row_weight.iter_mut().for_each(|w| *w = 1.0);
+        }
+        let row_weight = row_weight.iter().map(|w| w.max(ROW_WEIGHT_FLOOR)).collect();
+        Problem {
+            data,
+            layout: Layout::new(spec),
+            excitation_u: data
+                .excitation_nm
+                .iter()
+                .map(|&l| domain.coordinate(l))
+                .collect(),
+            emission_u: data
+                .emission_nm
+                .iter()
+                .map(|&l| domain.coordinate(l))
+                .collect(),
+            column_factor,
+            density_factor,
+            diagonal,
+            diagonal_of_column,
+            row_weight,
+            patches,
+            colour_weight,
+            reflectance_support,
+        }
+    }
+
+    /// The model's grid quantities at `theta`.
+    pub fn grid_model(&self, theta: &[f64]) -> GridModel {
+        let layout = &self.layout;
+        let data = self.data;
+        let k_count = layout.spec.components;
+        let (total, shares) = layout.kappas(theta);
+        let mut m = GridModel {
+            kappa: shares.iter().map(|w| total * w).collect(),
+            absorption: Vec::with_capacity(k_count),
+            absorption_peak: Vec::with_capacity(k_count),
+            peak_index: Vec::with_capacity(k_count),
+            emission: Vec::with_capacity(k_count),
+            normaliser: Vec::with_capacity(k_count),
+            emission_mean_nm: Vec::with_capacity(k_count),
+            shortest_absorbed_nm: Vec::with_capacity(k_count),
+            photon_factor: Vec::with_capacity(k_count),
+            scale: Vec::with_capacity(k_count),
+            reflectance: Vec::new(),
+        };
+        let mut scratch = vec![0.0; PARAMS_PER_BAND * 8];
+        for k in 0..k_count {
+            let ap = &theta[layout.absorption(k)];
+            let ep = &theta[layout.emission(k)];
+            scratch.resize(ap.len().max(ep.len()), 0.0);
+            let raw: Vec<f64> = self
+                .excitation_u
+                .iter()
+                .map(|&u| bands_value_gradient(ap, u, &mut scratch[..ap.len()]))
+                .collect();
+            let (peak_index, peak) =
+                raw.iter().enumerate().fold(
+                    (0, f64::MIN),
+                    |best, (i, &v)| if v > best.1 { (i, v) } else { best },
+                );
+            let peak = peak.max(1e-300);
+            let absorption: Vec<f64> = raw.iter().map(|v| v / peak).collect();
+            let emission: Vec<f64> = self
+                .emission_u
+                .iter()
+                .map(|&u| bands_value_gradient(ep, u, &mut scratch[..ep.len()]))
+                .collect();
+            let (mut normaliser, mut moment) = (0.0, 0.0);
+            for ((e, w), l) in emission
+                .iter()
+                .zip(&data.emission_bin_widths)
+                .zip(&data.emission_nm)
+            {
+                normaliser += e * w;
+                moment += e * w * l;
+            }
+            let normaliser = normaliser.max(1e-300);
+            let mean = moment / normaliser;
+            let shortest = absorption
+                .iter()
+                .position(|&a| a >= ABSORPTION_FLOOR)
+                .map(|i| data.excitation_nm[i.saturating_sub(1)])
+                .unwrap_or(data.excitation_nm[0]);
+            let photon_factor = (mean / shortest).max(1.0);
+            m.scale.push(m.kappa[k] / (photon_factor * normaliser));
+            m.absorption.push(absorption);
+            m.absorption_peak.push(peak);
+            m.peak_index.push(peak_index);
+            m.emission.push(emission);
+            m.normaliser.push(normaliser);
+            m.emission_mean_nm.push(mean);
+            m.shortest_absorbed_nm.push(shortest);
+            m.photon_factor.push(photon_factor);
+        }
+        if let ReflectanceForm::Polynomial(_) = layout.spec.reflectance {
+            let coefficients = &theta[layout.reflectance()];
+            m.reflectance = self
+                .diagonal
+                .iter()
+                .map(|d| {
+                    let mut p = 0.0;
+                    legendre(d.x, coefficients.len(), |n, pn| p += coefficients[n] * pn);
+                    sigmoid(p)
+                })
+                .collect();
+        }
+        m
+    }
+
+    /// Σk κ_k·a_k at diagonal sample `d`.
+    fn absorbed(&self, m: &GridModel, d: &DiagonalSample) -> f64 {
+        m.kappa
+            .iter()
+            .zip(&m.absorption)
+            .map(|(kappa, a)| kappa * a[d.row])
+            .sum()
+    }
+
+    /// The fluorescent model value of cell (i, j).
+    fn fluorescence(&self, m: &GridModel, i: usize, j: usize) -> f64 {
+        let u = self.column_factor[j];
+        (0..m.kappa.len())
+            .map(|k| m.scale[k] * m.absorption[k][i] * m.emission[k][j] * u)
+            .sum()
+    }
+
+    /// The diagonal d_j at sample `p` and, for a tabulated reflectance, how it was
+    /// projected (`None` for a polynomial reflectance).
+    pub fn diagonal_value(&self, m: &GridModel, p: usize) -> (f64, Option<Projection>) {
+        let d = &self.diagonal[p];
+        let cap = 1.0 - self.absorbed(m, d);
+        match self.layout.spec.reflectance {
+            ReflectanceForm::Polynomial(_) => (cap * m.reflectance[p], None),
+            ReflectanceForm::Tabulated => {
+                let Some(value) = d.value else {
+                    return (f64::NAN, Some(Projection::Unmeasured));
+                };
+                let raw = value - self.fluorescence(m, d.row, d.column);
+                if raw < 0.0 {
+                    (0.0, Some(Projection::AtZero))
+                } else if raw > cap {
+                    (cap, Some(Projection::AtCap))
+                } else {
+                    (raw, Some(Projection::Free))
+                }
+            }
+        }
+    }
+
+    /// The objective and its gradient.
+    pub fn cost_gradient(&self, theta: &[f64]) -> (f64, Vec<f64>) {
+        let data = self.data;
+        let layout = &self.layout;
+        let m = self.grid_model(theta);
+        let k_count = m.kappa.len();
+        let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
+        let n_lights = self.patches.len();
+        // Residuals, and the patch rows they add up to.
+        let off: Vec<f64> = data
+            .off_diagonal
+            .iter()
+            .map(|c| c.value - self.fluorescence(&m, c.row, c.column))
+            .collect();
+        let diag: Vec<(f64, Option<Projection>)> = (0..self.diagonal.len())
+            .map(|p| {
+                let (d, projection) = self.diagonal_value(&m, p);
+                let s = &self.diagonal[p];
+                let residual = match (s.value, projection) {
+                    (None, _) | (_, Some(Projection::Free)) => 0.0,
+                    (Some(v), _) => v - self.fluorescence(&m, s.row, s.column) - d,
+                };
+                (residual, projection)
+            })
+            .collect();
+        let mut patch = vec![0.0; n_lights * n_em];
+        for (c, r) in data.off_diagonal.iter().zip(&off) {
+            for (l, light) in self.patches.iter().enumerate() {
+                patch[l * n_em + c.column] += light.light_weights[c.row] * r;
+            }
+        }
+        for (l, light) in self.patches.iter().enumerate() {
+            for j in 0..n_em {
+                let mut v = patch[l * n_em + j] * self.density_factor[j];
+                if let Some(p) = self.diagonal_of_column[j] {
+                    v += light.mean_power[j] * diag[p].0;
+                }
+                patch[l * n_em + j] = v * light.row_weight[j];
+            }
+        }
+        let mut cost = 0.0;
+        for (c, r) in data.off_diagonal.iter().zip(&off) {
+            cost += 0.5 * self.row_weight[c.row] * r * r;
+        }
+        for (s, (r, _)) in self.diagonal.iter().zip(&diag) {
+            cost += 0.5 * self.row_weight[s.row] * r * r;
+        }
+        cost += 0.5 * self.colour_weight * patch.iter().map(|p| p * p).sum::<f64>();
+        // q_lj = W·p_lj·ρ_lj: the patch term's pull on a residual feeding (l, j).
+        let q: Vec<f64> = (0..n_lights * n_em)
+            .map(|lj| {
+                let (l, j) = (lj / n_em, lj % n_em);
+                self.colour_weight * patch[lj] * self.patches[l].row_weight[j]
+            })
+            .collect();
+
+        // Adjoints: ∂cost/∂F for every cell (F̄ = −δ), then through the factors.
+        let mut scale_bar = vec![0.0; k_count];
+        let mut a_bar = vec![vec![0.0; n_ex]; k_count];
+        let mut e_bar = vec![vec![0.0; n_em]; k_count];
+        let mut kappa_bar = vec![0.0; k_count];
+        let mut r_bar = vec![0.0; self.diagonal.len()];
+        let mut push_f =
+            |i: usize, j: usize, f_bar: f64, a_bar: &mut [Vec<f64>], e_bar: &mut [Vec<f64>]| {
+                let u = self.column_factor[j];
+                for k in 0..k_count {
+                    let (a, e) = (m.absorption[k][i], m.emission[k][j] * u);
+                    scale_bar[k] += f_bar * a * e;
+                    a_bar[k][i] += f_bar * m.scale[k] * e;
+                    e_bar[k][j] += f_bar * m.scale[k] * a * u;
+                }
+            };
+        for (c, r) in data.off_diagonal.iter().zip(&off) {
+            let mut delta = self.row_weight[c.row] * r;
+            let f = self.density_factor[c.column];
+            for l in 0..n_lights {
+                delta += q[l * n_em + c.column] * f * self.patches[l].light_weights[c.row];
+            }
+            push_f(c.row, c.column, -delta, &mut a_bar, &mut e_bar);
+        }
+        for (p, (s, (r, projection))) in self.diagonal.iter().zip(&diag).enumerate() {
+            if s.value.is_none() || *projection == Some(Projection::Free) {
+                continue;
+            }
+            let mut delta = self.row_weight[s.row] * r;
+            for l in 0..n_lights {
+                delta += q[l * n_em + s.column] * self.patches[l].mean_power[s.column];
+            }
+            // r = M − F − d: F̄ = −δ; d̄ = −δ.
+            push_f(s.row, s.column, -delta, &mut a_bar, &mut e_bar);
+            let d_bar = -delta;
+            let absorbed_bar = match projection {
+                None => {
+                    let cap = 1.0 - self.absorbed(&m, s);
+                    r_bar[p] += d_bar * cap;
+                    -d_bar * m.reflectance[p]
+                }
+                Some(Projection::AtCap) => -d_bar,
+                _ => 0.0,
+            };
+            for k in 0..k_count {
+                kappa_bar[k] += absorbed_bar * m.absorption[k][s.row];
+                a_bar[k][s.row] += absorbed_bar * m.kappa[k];
+            }
+        }
+
+        let mut gradient = vec![0.0; layout.len];
+        let mut scratch = vec![0.0; PARAMS_PER_BAND * 8];
+        for k in 0..k_count {
+            // s = κ/(γ·S): through κ, S and γ (γ = λ̄e/λmin when photon-limited).
+            kappa_bar[k] += scale_bar[k] / (m.photon_factor[k] * m.normaliser[k]);
+            let s = m.scale[k];
+            let photon_limited = m.emission_mean_nm[k] / m.shortest_absorbed_nm[k] > 1.0;
+            let gauge_s = m.normaliser[k] - 1.0;
+            for j in 0..n_em {
+                let w = data.emission_bin_widths[j];
+                let mut d_scale = -s * w / m.normaliser[k];
+                if photon_limited {
+                    let d_gamma = w * (data.emission_nm[j] - m.emission_mean_nm[k])
+                        / (m.normaliser[k] * m.shortest_absorbed_nm[k]);
+                    d_scale -= s * d_gamma / m.photon_factor[k];
+                }
+                e_bar[k][j] += scale_bar[k] * d_scale + HEIGHT_GAUGE_WEIGHT * gauge_s * w;
+            }
+            // a = g/G with G the grid peak.
+            let peak = m.absorption_peak[k];
+            let mut g_bar: Vec<f64> = a_bar[k].iter().map(|ab| ab / peak).collect();
+            let through_peak: f64 = a_bar[k]
+                .iter()
+                .zip(&m.absorption[k])
+                .map(|(ab, a)| ab * a)
+                .sum::<f64>()
+                / peak;
+            g_bar[m.peak_index[k]] += -through_peak + HEIGHT_GAUGE_WEIGHT * (peak - 1.0);
+            let ar = layout.absorption(k);
+            scratch.resize(ar.len().max(layout.emission(k).len()), 0.0);
+            for (i, &u) in self.excitation_u.iter().enumerate() {
+                if g_bar[i] == 0.0 {
+                    continue;
+                }
+                let g = &mut scratch[..ar.len()];
+                bands_value_gradient(&theta[ar.clone()], u, g);
+                for (t, gp) in gradient[ar.clone()].iter_mut().zip(g.iter()) {
+                    *t += g_bar[i] * gp;
+                }
+            }
+            let er = layout.emission(k);
+            for (j, &u) in self.emission_u.iter().enumerate() {
+                if e_bar[k][j] == 0.0 {
+                    continue;
+                }
+                let g = &mut scratch[..er.len()];
+                bands_value_gradient(&theta[er.clone()], u, g);
+                for (t, gp) in gradient[er.clone()].iter_mut().zip(g.iter()) {
+                    *t += e_bar[k][j] * gp;
+                }
+            }
+            cost += 0.5 * HEIGHT_GAUGE_WEIGHT * (gauge_s * gauge_s + (peak - 1.0).powi(2));
+        }
+        // κ_k = sin²t·w_k.
+        let (total, shares) = layout.kappas(theta);
+        gradient[0] = kappa_bar
+            .iter()
+            .zip(&shares)
+            .map(|(kb, w)| kb * w)
+            .sum::<f64>()
+            * (2.0 * theta[0]).sin();
+        if k_count > 1 {
+            let u = &theta[1..1 + k_count];
+            let sum: f64 = u.iter().map(|x| x * x).sum::<f64>().max(1e-300);
+            let mean_bar: f64 = kappa_bar.iter().zip(&shares).map(|(kb, w)| kb * w).sum();
+            for k in 0..k_count {
+                gradient[1 + k] = 2.0 * u[k] * total / sum * (kappa_bar[k] - mean_bar);
+            }
+        }
+        if let ReflectanceForm::Polynomial(_) = layout.spec.reflectance {
+            let range = layout.reflectance();
+            let count = range.len();
+            for (p, s) in self.diagonal.iter().enumerate() {
+                if r_bar[p] == 0.0 {
+                    continue;
+                }
+                let r = m.reflectance[p];
+                let dp = r_bar[p] * r * (1.0 - r);
+                legendre(s.x, count, |n, pn| gradient[range.start + n] += dp * pn);
+            }
+        }
+        (cost, gradient)
+    }
+
+    /// The matrix-residual part of the cost alone (unweighted ½Σr² over the data cells),
+    /// for the information criterion.
+    pub fn residual_sum_of_squares(&self, theta: &[f64]) -> f64 {
+        let m = self.grid_model(theta);
+        let mut rss = 0.0;
+        for c in &self.data.off_diagonal {
+            rss += (c.value - self.fluorescence(&m, c.row, c.column)).powi(2);
+        }
+        for p in 0..self.diagonal.len() {
+            let s = &self.diagonal[p];
+            if let Some(v) = s.value {
+                let (d, _) = self.diagonal_value(&m, p);
+                if d.is_finite() {
+                    rss += (v - self.fluorescence(&m, s.row, s.column) - d).powi(2);
+                }
+            }
+        }
+        rss
+    }
+
+    /// Number of residuals the information criterion counts.
+    pub fn residual_count(&self) -> usize {
+        self.data.off_diagonal.len() + self.data.diagonal.len()
+    }
+
+    /// The central-difference gradient of the cost (to test [`Problem::cost_gradient`]).
+    pub fn numerical_gradient(&self, theta: &[f64], step: f64) -> Vec<f64> {
+        (0..theta.len())
+            .map(|n| {
+                let mut plus = theta.to_vec();
+                let mut minus = theta.to_vec();
+                plus[n] += step;
+                minus[n] -= step;
+                (self.cost_gradient(&plus).0 - self.cost_gradient(&minus).0) / (2.0 * step)
+            })
+            .collect()
+    }
+
+    /// The diagonal sample positions (row, column) in order.
+    pub fn diagonal_positions(&self) -> Vec<(usize, usize)> {
+        self.diagonal.iter().map(|d| (d.row, d.column)).collect()
+    }
+}
+
+/// How a tabulated diagonal sample was projected onto its feasible interval.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Projection {
+    /// Matched exactly.
+    Free,
+    /// Clamped at zero.
+    AtZero,
+    /// Clamped at 1 − Σκ·a.
+    AtCap,
+    /// Not measured (filled later).
+    Unmeasured,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::SynthSpec;
+
+    fn problem_data() -> FitData {
+        let (m, _) = SynthSpec::preset("green-dye").unwrap().generate().unwrap();
+        FitData::new(&m, m.default_guard_nm())
+    }
+
+    fn theta_for(layout: &Layout) -> Vec<f64> {
+        let spec = layout.spec;
+        let mut theta = vec![0.0; layout.len];
+        theta[0] = 0.6;
+        for k in 0..spec.components {
+            if spec.components > 1 {
+                theta[1 + k] = 0.8 + 0.3 * k as f64;
+            }
+            let centres = [20.5 + 3.0 * k as f64, 26.0];
+            for (b, chunk) in theta[layout.absorption(k)].chunks_mut(3).enumerate() {
+                chunk.copy_from_slice(&[-0.2 * b as f64, centres[b % 2], 0.1]);
+            }
+            for (b, chunk) in theta[layout.emission(k)].chunks_mut(3).enumerate() {
+                chunk.copy_from_slice(&[
+                    0.3 - 0.4 * b as f64,
+                    19.0 - 2.0 * k as f64 - b as f64,
+                    -0.3,
+                ]);
+            }
+        }
+        for (n, t) in theta[layout.reflectance()].iter_mut().enumerate() {
+            *t = [1.0, -1.5, 0.4, 0.2, -0.1][n % 5];
+        }
+        theta
+    }
+
+    #[test]
+    fn gradient_matches_central_differences() {
+        let data = problem_data();
+        let lights = Light::standard();
+        for reflectance in [ReflectanceForm::Polynomial(4), ReflectanceForm::Tabulated] {
+            for (components, absorption_bands, emission_bands) in [(1, 1, 1), (2, 2, 1)] {
+                let spec = ModelSpec {
+                    components,
+                    absorption_bands,
+                    emission_bands,
+                    reflectance,
+                    domain: BandDomain::Wavenumber,
+                };
+                let problem = Problem::new(&data, spec, &lights, 0.3);
+                let theta = theta_for(&problem.layout);
+                let (_, analytic) = problem.cost_gradient(&theta);
+                let numeric = problem.numerical_gradient(&theta, 1e-6);
+                let norm = numeric.iter().map(|g| g * g).sum::<f64>().sqrt();
+                assert!(norm > 1e-6, "a test point away from the optimum");
+                for (n, (a, b)) in analytic.iter().zip(&numeric).enumerate() {
+                    assert!(
+                        (a - b).abs() <= 1e-5 * norm + 1e-9,
+                        "{}: parameter {n}: analytic {a} vs numeric {b} (norm {norm})",
+                        spec.name()
+                    );
+                }
+            }
+        }
+    }
+}
