@@ -126,6 +126,64 @@ pub struct FitReport {
     /// Objective value per solver iteration (for convergence plots).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub cost_history: Vec<f64>,
+    /// The spectral model (`tabulated`, `gaussian:1x2+r4`, …); empty in files written
+    /// before models had names (those are tabulated).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub model: String,
+    /// Free parameters of the model (0 when unknown).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub parameter_count: usize,
+    /// Bayesian information criterion on the matrix residual, RSS/σ² + p·ln n, with σ the
+    /// anti-Stokes noise level: lower is better among fits of the same data.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bic: Option<f64>,
+    /// The candidates tried when the model was chosen automatically.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_search: Option<ModelSearch>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
+
+/// How a model was chosen: the rule, every candidate tried, and the choice.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct ModelSearch {
+    /// The rule, in words (`first model with ΔE2000 ≤ 1 under d65, a, f11, uv`).
+    pub rule: String,
+    /// The ΔE2000 bound, when the rule is colour accuracy.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_delta_e: Option<f64>,
+    /// Candidates in the order tried (smallest first).
+    pub candidates: Vec<Candidate>,
+    /// The model chosen.
+    pub chosen: String,
+    /// Whether the chosen model meets the rule (false: none did; the closest was kept).
+    pub met: bool,
+    /// The candidate with the lowest BIC among those tried.
+    pub lowest_bic: String,
+    /// Wall time of the whole search (seconds).
+    pub seconds: f64,
+}
+
+/// One model tried by the search.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct Candidate {
+    /// Model name.
+    pub model: String,
+    /// Free parameters.
+    pub parameters: usize,
+    /// ΔE2000 per light (measured patch vs this model).
+    pub delta_e2000: BTreeMap<String, f64>,
+    /// ‖M − fit‖/‖M‖ over the Stokes cells.
+    pub rel_residual_fluorescence: f64,
+    /// BIC on the matrix residual.
+    pub bic: f64,
+    /// Fit time (seconds).
+    pub seconds: f64,
+    /// Why the candidate failed to fit, if it did (then the figures are empty).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
 }
 
 /// Conservation margins of a material (the `conservation` block).

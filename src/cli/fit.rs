@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use fluorite::colour::Light;
 use fluorite::export::write_atomic;
-use fluorite::fit::{FitOptions, FitOutcome, Solver, Start, fit};
+use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, Solver, Start, fit};
 use fluorite::formats::{Format, ReadOptions, RowsAre, read};
 use fluorite::measurement::Measurement;
 use rayon::prelude::*;
@@ -54,9 +54,24 @@ pub struct FitArgs {
     /// Relative tolerance of the refinement.
     #[arg(long, default_value_t = fluorite::fit::DEFAULT_TOLERANCE)]
     pub tolerance: f64,
-    /// Lights for the ΔE2000 report: built-in names or CSV files, comma-separated.
+    /// Lights of the scene: the ΔE2000 report, the model search's bound and the colour
+    /// term of parametric fits. Built-in names (d65, a, f11, uv) or CSV files, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "d65,a,f11,uv")]
     pub lights: Vec<String>,
+    /// Spectral model: `tabulated` (one sample per grid wavelength, the default), `auto`
+    /// (search from the smallest parametric model up), or `gaussian:KxB[/E][+rD|+rt]`
+    /// (K fluorophores with B Gaussian bands, or A absorption and E emission bands;
+    /// reflectance a sigmoid polynomial of degree D or tabulated; default degree: chosen).
+    #[arg(long, value_parser = parse_model)]
+    pub model: Option<ModelChoice>,
+    /// Choose the smallest model whose ΔE2000 under every light of --lights is at most
+    /// this (implies --model auto). Without it, `--model auto` takes the lowest BIC.
+    #[arg(long)]
+    pub max_delta_e: Option<f64>,
+    /// Weight of the patch spectra under --lights against the matrix residual in
+    /// parametric fits (0: matrix only).
+    #[arg(long, default_value_t = fluorite::fit::search::DEFAULT_COLOUR_WEIGHT)]
+    pub colour_weight: f64,
     /// Exit with code 1 when a fit did not converge or carries warnings.
     #[arg(long)]
     pub strict: bool,
@@ -76,6 +91,10 @@ pub struct FitArgs {
     /// Print nothing but errors.
     #[arg(short, long)]
     pub quiet: bool,
+}
+
+fn parse_model(text: &str) -> Result<ModelChoice, String> {
+    text.parse::<ModelChoice>().map_err(|e| e.to_string())
 }
 
 /// Where each input's result goes.
@@ -137,6 +156,13 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         tolerance: args.tolerance,
         lights,
         start: args.start,
+        model: match (args.model, args.max_delta_e) {
+            (Some(model), _) => model,
+            (None, Some(_)) => ModelChoice::Auto,
+            (None, None) => ModelChoice::Tabulated,
+        },
+        max_delta_e: args.max_delta_e,
+        colour_weight: args.colour_weight,
     };
     let read_options = ReadOptions {
         format: args.format,
@@ -230,14 +256,66 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
         let _ = writeln!(s, "  note: {note}");
     }
     match outcome {
-        FitOutcome::Material(material) => match material.fluorophores.first() {
-            Some(f) => {
+        FitOutcome::Material(material) => {
+            if !report.model.is_empty() {
+                let _ = writeln!(
+                    s,
+                    "  model {} ({} parameters{})",
+                    report.model,
+                    report.parameter_count,
+                    report
+                        .bic
+                        .map(|b| format!(", BIC {b:.1}"))
+                        .unwrap_or_default()
+                );
+            }
+            if let Some(search) = &report.model_search {
+                let _ = writeln!(
+                    s,
+                    "  search ({}): {} of {} candidates tried in {:.1} ms; {}; lowest BIC: {}",
+                    search.rule,
+                    search.chosen,
+                    search.candidates.len(),
+                    1e3 * search.seconds,
+                    if search.met { "met" } else { "NOT met" },
+                    search.lowest_bic
+                );
+                for c in &search.candidates {
+                    let de: Vec<String> = c
+                        .delta_e2000
+                        .iter()
+                        .map(|(l, v)| format!("{l} {v:.2}"))
+                        .collect();
+                    let _ = writeln!(
+                        s,
+                        "    {:<22} {:>4} p   ΔE {}   BIC {:.1}   {:.1} ms{}",
+                        c.model,
+                        c.parameters,
+                        if de.is_empty() { "–".into() } else { de.join(" ") },
+                        c.bic,
+                        1e3 * c.seconds,
+                        c.error
+                            .as_ref()
+                            .map(|e| format!("   failed: {e}"))
+                            .unwrap_or_default()
+                    );
+                }
+            }
+            if material.fluorophores.is_empty() {
+                let _ = writeln!(s, "  plain reflector: c = 0 (no fluorescence)");
+            }
+            for (n, f) in material.fluorophores.iter().enumerate() {
                 let [c_lo, c_hi] = f
                     .concentration_range
                     .unwrap_or([f.concentration, f.concentration]);
+                let label = if material.fluorophores.len() > 1 {
+                    format!("  [{}] ", n + 1)
+                } else {
+                    "  ".into()
+                };
                 let _ = writeln!(
                     s,
-                    "  k = c·Q = {:.4}   c = {:.4} (feasible {:.4}–{:.4})   Q = {:.4}   λ̄e = {:.1} nm   photon yield Φ(λmin) = {:.3}",
+                    "{label}k = c·Q = {:.4}   c = {:.4} (feasible {:.4}–{:.4})   Q = {:.4}   λ̄e = {:.1} nm   photon yield Φ(λmin) = {:.3}",
                     f.k(),
                     f.concentration,
                     c_lo,
@@ -247,12 +325,11 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
                     f.quantum_yield * f.emission_mean_nm()
                         / f.shortest_absorbed_nm().unwrap_or(f64::NAN)
                 );
+            }
+            if !material.fluorophores.is_empty() {
                 let _ = writeln!(s, "  gauge: {}", report.gauge);
             }
-            None => {
-                let _ = writeln!(s, "  plain reflector: c = 0 (no fluorescence)");
-            }
-        },
+        }
         FitOutcome::Shapes(shapes) => {
             let _ = writeln!(
                 s,

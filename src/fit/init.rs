@@ -103,3 +103,80 @@ pub fn rank_one(data: &FitData, max_sweeps: usize) -> RankOne {
         cost_history: history,
     }
 }
+
+/// A masked non-negative factorisation M ≈ Σk row_k·column_kᵀ of the off-diagonal cells.
+#[derive(Debug, Clone)]
+pub struct Factors {
+    /// Per component, per excitation row.
+    pub rows: Vec<Vec<f64>>,
+    /// Per component, per emission column.
+    pub columns: Vec<Vec<f64>>,
+}
+
+/// Refines starting factors by hierarchical alternating least squares on the off-diagonal
+/// cells: each half-step solves one component's row (or column) exactly with the others
+/// fixed, clamped at zero. Several fluorophores excited in different bands separate
+/// because each row's emission is the mix the data show there.
+pub fn masked_nmf(data: &FitData, start: Factors, sweeps: usize) -> Factors {
+    let Factors {
+        mut rows,
+        mut columns,
+    } = start;
+    let k_count = rows.len();
+    let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
+    let mut residual: Vec<f64> = data
+        .off_diagonal
+        .iter()
+        .map(|c| {
+            c.value
+                - (0..k_count)
+                    .map(|k| rows[k][c.row] * columns[k][c.column])
+                    .sum::<f64>()
+        })
+        .collect();
+    let mut num = vec![0.0; n_ex.max(n_em)];
+    let mut den = vec![0.0; n_ex.max(n_em)];
+    for _ in 0..sweeps {
+        for k in 0..k_count {
+            // Rows of component k.
+            num[..n_ex].iter_mut().for_each(|x| *x = 0.0);
+            den[..n_ex].iter_mut().for_each(|x| *x = 0.0);
+            for (c, r) in data.off_diagonal.iter().zip(&residual) {
+                let v = columns[k][c.column];
+                num[c.row] += (r + rows[k][c.row] * v) * v;
+                den[c.row] += v * v;
+            }
+            let old = rows[k].clone();
+            for i in 0..n_ex {
+                rows[k][i] = if den[i] > 0.0 {
+                    (num[i] / den[i]).max(0.0)
+                } else {
+                    0.0
+                };
+            }
+            for (c, r) in data.off_diagonal.iter().zip(residual.iter_mut()) {
+                *r -= (rows[k][c.row] - old[c.row]) * columns[k][c.column];
+            }
+            // Columns of component k.
+            num[..n_em].iter_mut().for_each(|x| *x = 0.0);
+            den[..n_em].iter_mut().for_each(|x| *x = 0.0);
+            for (c, r) in data.off_diagonal.iter().zip(&residual) {
+                let u = rows[k][c.row];
+                num[c.column] += (r + u * columns[k][c.column]) * u;
+                den[c.column] += u * u;
+            }
+            let old = columns[k].clone();
+            for j in 0..n_em {
+                columns[k][j] = if den[j] > 0.0 {
+                    (num[j] / den[j]).max(0.0)
+                } else {
+                    0.0
+                };
+            }
+            for (c, r) in data.off_diagonal.iter().zip(residual.iter_mut()) {
+                *r -= rows[k][c.row] * (columns[k][c.column] - old[c.column]);
+            }
+        }
+    }
+    Factors { rows, columns }
+}

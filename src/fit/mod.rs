@@ -18,6 +18,7 @@ pub mod init;
 pub mod objective;
 pub mod parametric;
 pub mod representation;
+pub mod search;
 pub mod solve;
 
 use std::time::Instant;
@@ -32,6 +33,7 @@ use crate::spectrum::Spectrum;
 use data::FitData;
 use objective::{DiagonalRegime, Objective};
 use representation::{GridSpectra, Representation, Tabulated};
+pub use search::{ModelChoice, ModelRequest};
 
 /// Default relative tolerance of the refinement. Measured on the six BFC-450 files: k, c
 /// and ΔE2000 agree to the printed digits with 1e-9, at half the L-BFGS iterations.
@@ -95,6 +97,14 @@ pub struct FitOptions {
     pub lights: Vec<Light>,
     /// Starting point of the iterative solvers.
     pub start: Start,
+    /// The spectral model: tabulated (the default), a parametric model, or the search.
+    pub model: ModelChoice,
+    /// The search's bound: the first model with ΔE2000 at most this under every light in
+    /// `lights` is chosen (without it the search takes the lowest BIC).
+    pub max_delta_e: Option<f64>,
+    /// Weight of the patch spectra under `lights` against the matrix residual in the
+    /// objective of parametric models.
+    pub colour_weight: f64,
 }
 
 impl Default for FitOptions {
@@ -108,6 +118,9 @@ impl Default for FitOptions {
             tolerance: DEFAULT_TOLERANCE,
             lights: Light::standard(),
             start: Start::ClosedForm,
+            model: ModelChoice::Tabulated,
+            max_delta_e: None,
+            colour_weight: search::DEFAULT_COLOUR_WEIGHT,
         }
     }
 }
@@ -173,7 +186,13 @@ const START_KAPPA_CAP: f64 = 0.98;
 
 /// Fits the model to `m`.
 pub fn fit(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
-    fit_checked(m, options, true)
+    match options.model {
+        ModelChoice::Tabulated => fit_checked(m, options, true),
+        _ => {
+            validate_options(options)?;
+            search::fit_model(m, options)
+        }
+    }
 }
 
 /// [`fit`], with or without the noise bootstrap (its own refits skip it).
@@ -356,6 +375,9 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
         noise_sigma: noise_sigma * data_scale,
         guard_signal_fraction: guard_fraction(&data),
         cost_history,
+        model: "tabulated".into(),
+        parameter_count: 1 + (data.n_excitation() - 1) + (data.n_emission() - 1)
+            + data.diagonal_positions.len(),
         ..FitReport::default()
     };
     let unobservable =
@@ -405,6 +427,12 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
     fit.rel_residual_fluorescence = accuracy.rel_residual_fluorescence;
     fit.rmse_diagonal = accuracy.rmse_diagonal;
     fit.delta_e2000 = accuracy.delta_e2000;
+    let rss = accuracy.rms_off_diagonal.powi(2) * data.off_diagonal.len() as f64
+        + accuracy.rmse_diagonal.powi(2) * data.diagonal.len() as f64;
+    let residuals = (data.off_diagonal.len() + data.diagonal.len()).max(1) as f64;
+    fit.bic = Some(
+        rss / noise_sigma.max(1e-12).powi(2) + fit.parameter_count as f64 * residuals.ln(),
+    );
     fit.warnings = warnings;
     fit.seconds = started.elapsed().as_secs_f64();
     material.conservation = Some(material.conservation_margins());
@@ -575,6 +603,26 @@ fn validate_options(options: &FitOptions) -> Result<()> {
         return Err(Error::invalid(
             "--tolerance",
             format!("is {}; give a value in (0, 1)", options.tolerance),
+        ));
+    }
+    if let Some(bound) = options.max_delta_e
+        && !(bound.is_finite() && bound > 0.0)
+    {
+        return Err(Error::invalid(
+            "--max-delta-e",
+            format!("is {bound}; give a positive ΔE2000 (1 is invisible side by side)"),
+        ));
+    }
+    if !(options.colour_weight.is_finite() && options.colour_weight >= 0.0) {
+        return Err(Error::invalid(
+            "--colour-weight",
+            format!("is {}; give a weight ≥ 0", options.colour_weight),
+        ));
+    }
+    if options.model != ModelChoice::Tabulated && options.solver != Solver::Lbfgs {
+        return Err(Error::invalid(
+            "--solver",
+            "parametric models are refined with L-BFGS only; drop --solver or use --model tabulated",
         ));
     }
     Ok(())

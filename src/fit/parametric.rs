@@ -10,10 +10,13 @@
 //! r = sigmoid(p) keeps r in (0, 1): every parameter vector is a valid material.
 
 use crate::colour::{Light, cie1931};
+use crate::error::{Error, Result};
+use crate::material::{Fluorophore, Material};
 use crate::parametric::{
-    BandDomain, PARAMS_PER_BAND, bands_value_gradient, legendre, position, sigmoid,
+    BandDomain, FluorophoreForms, GaussianBands, MaterialForms, PARAMS_PER_BAND,
+    SigmoidPolynomial, SpectralForm, bands_value_gradient, legendre, position, sigmoid,
 };
-use crate::spectrum::hat_integrals;
+use crate::spectrum::{Spectrum, hat_integrals};
 
 use super::data::FitData;
 
@@ -704,6 +707,185 @@ impl<'a> Problem<'a> {
     /// The diagonal sample positions (row, column) in order.
     pub fn diagonal_positions(&self) -> Vec<(usize, usize)> {
         self.diagonal.iter().map(|d| (d.row, d.column)).collect()
+    }
+}
+
+/// Step (nm) of the tabulation a parametric material carries beside its forms.
+pub const TABULATION_STEP_NM: f64 = 1.0;
+
+/// The measurement grid refined to [`TABULATION_STEP_NM`] (grid points kept).
+pub fn fine_grid(coarse: &[f64]) -> Vec<f64> {
+    let (Some(&first), Some(&last)) = (coarse.first(), coarse.last()) else {
+        return Vec::new();
+    };
+    let steps = ((last - first) / TABULATION_STEP_NM).floor() as usize;
+    let mut grid: Vec<f64> = (0..=steps)
+        .map(|n| first + n as f64 * TABULATION_STEP_NM)
+        .chain(coarse.iter().copied())
+        .collect();
+    grid.sort_by(f64::total_cmp);
+    grid.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+    grid
+}
+
+impl Problem<'_> {
+    /// The material `theta` stands for: forms, their fine tabulation, c at its smallest
+    /// feasible value per component (the gauge of the tabulated fit), and Q = k/c.
+    pub fn material(&self, theta: &[f64], name: &str) -> Result<Material> {
+        let data = self.data;
+        let spec = self.layout.spec;
+        let gm = self.grid_model(theta);
+        let excitation_fine = fine_grid(&data.excitation_nm);
+        let emission_fine = fine_grid(&data.emission_nm);
+        let mut fluorophores = Vec::with_capacity(spec.components);
+        let mut forms = Vec::with_capacity(spec.components);
+        for k in 0..spec.components {
+            // Absorption: normalise on the fit grid, trim the support where the bands fall
+            // below the floor (the photon law's λmin), renormalise on the fine grid.
+            let mut absorption = GaussianBands::from_params(
+                spec.domain,
+                [data.excitation_nm[0], *data.excitation_nm.last().unwrap_or(&0.0)],
+                &theta[self.layout.absorption(k)],
+            );
+            absorption.scale(1.0 / gm.absorption_peak[k]);
+            if let Some(first) = gm.absorption[k].iter().position(|&a| a >= ABSORPTION_FLOOR) {
+                absorption.support_nm[0] = data.excitation_nm[first];
+            }
+            let fine_peak = excitation_fine
+                .iter()
+                .map(|&l| absorption.eval(l))
+                .fold(0.0, f64::max)
+                .max(1e-300);
+            absorption.scale(1.0 / fine_peak);
+            let absorption = SpectralForm::GaussianBands(absorption);
+            let what = format!("fluorophores[{k}]");
+            let absorption_samples =
+                absorption.tabulate(&excitation_fine, &format!("{what}.absorption"))?;
+            // Emission: ∫e = 1 on the fine grid.
+            let mut emission = GaussianBands::from_params(
+                spec.domain,
+                [data.emission_nm[0], *data.emission_nm.last().unwrap_or(&0.0)],
+                &theta[self.layout.emission(k)],
+            );
+            let raw = SpectralForm::GaussianBands(emission.clone())
+                .tabulate(&emission_fine, &format!("{what}.emission"))?;
+            let integral = raw.integral().max(1e-300);
+            emission.scale(1.0 / integral);
+            let emission = SpectralForm::GaussianBands(emission);
+            let emission_samples =
+                emission.tabulate(&emission_fine, &format!("{what}.emission"))?;
+            // c·a is what the fit determined: c = κ·(fine peak); k = c·Q keeps the
+            // fitted product: k = (κ/γ)·peak·∫/S.
+            let concentration = (gm.kappa[k] * fine_peak).min(1.0);
+            let k_product =
+                gm.kappa[k] / gm.photon_factor[k] * fine_peak * integral / gm.normaliser[k];
+            let mut fluorophore = Fluorophore {
+                concentration,
+                quantum_yield: 0.0,
+                concentration_range: None,
+                absorption: absorption_samples,
+                emission: emission_samples,
+            };
+            let photon_limit = fluorophore
+                .shortest_absorbed_nm()
+                .map(|l| (l / fluorophore.emission_mean_nm()).min(1.0))
+                .unwrap_or(1.0);
+            fluorophore.quantum_yield = if concentration > 0.0 {
+                (k_product / concentration).min(photon_limit)
+            } else {
+                0.0
+            };
+            fluorophores.push(fluorophore);
+            forms.push(FluorophoreForms {
+                absorption,
+                emission,
+            });
+        }
+        // Reflectance.
+        let diagonal_nm: Vec<f64> = self
+            .diagonal
+            .iter()
+            .map(|d| data.emission_nm[d.column])
+            .collect();
+        let absorbed_by = |l: f64| -> f64 {
+            fluorophores
+                .iter()
+                .map(|f| f.concentration * f.absorption.eval_zero_outside(l))
+                .sum()
+        };
+        let (reflectance, reflectance_form) = match spec.reflectance {
+            ReflectanceForm::Polynomial(_) => {
+                let form = SpectralForm::SigmoidPolynomial(SigmoidPolynomial {
+                    support_nm: self.reflectance_support,
+                    coefficients: theta[self.layout.reflectance()].to_vec(),
+                });
+                (
+                    form.tabulate(&fine_grid(&diagonal_nm), "reflectance")?,
+                    Some(form),
+                )
+            }
+            ReflectanceForm::Tabulated => {
+                let mut values: Vec<f64> = (0..self.diagonal.len())
+                    .map(|p| self.diagonal_value(&gm, p).0)
+                    .collect();
+                let known: Vec<usize> =
+                    (0..values.len()).filter(|&p| values[p].is_finite()).collect();
+                if known.is_empty() {
+                    return Err(Error::Fit(format!(
+                        "{name}: the diagonal (reflectance) is not measured at any wavelength; supply the diagonal or fit as an EEM"
+                    )));
+                }
+                let measured = Spectrum {
+                    wavelength_nm: known.iter().map(|&p| diagonal_nm[p]).collect(),
+                    value: known.iter().map(|&p| values[p]).collect(),
+                };
+                for (p, v) in values.iter_mut().enumerate() {
+                    if !v.is_finite() {
+                        *v = measured.eval_clamped(diagonal_nm[p]);
+                    }
+                }
+                let r = values
+                    .iter()
+                    .zip(&diagonal_nm)
+                    .map(|(d, &l)| {
+                        let transmitted = 1.0 - absorbed_by(l);
+                        if transmitted > 0.0 {
+                            (d / transmitted).clamp(0.0, 1.0)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect();
+                (Spectrum::new(diagonal_nm.clone(), r, "reflectance")?, None)
+            }
+        };
+        let mut material = Material::new(name.to_string(), reflectance, fluorophores);
+        let absorbed_by = |l: f64| material.absorbed(l);
+        // Feasible interval of each c with the others held: c ≥ k·γ, c·a ≤ 1 − d − Σ others.
+        let ranges: Vec<[f64; 2]> = (0..material.fluorophores.len())
+            .map(|k| {
+                let f = &material.fluorophores[k];
+                let mut upper: f64 = 1.0;
+                for &l in &diagonal_nm {
+                    let a = f.absorption.eval_zero_outside(l);
+                    if a > 0.0 {
+                        let others = absorbed_by(l) - f.concentration * a;
+                        upper = upper.min((1.0 - material.diagonal(l) - others) / a);
+                    }
+                }
+                [f.concentration, upper.max(f.concentration)]
+            })
+            .collect();
+        for (f, range) in material.fluorophores.iter_mut().zip(ranges) {
+            f.concentration_range = Some(range);
+        }
+        material.forms = Some(MaterialForms {
+            model: spec.name(),
+            reflectance: reflectance_form,
+            fluorophores: forms,
+        });
+        material.conservation = Some(material.conservation_margins());
+        Ok(material)
     }
 }
 

@@ -289,3 +289,68 @@ pub fn nelder_mead(
         .map_err(|e| format!("Nelder-Mead: {e}"))?;
     Ok(finish(&result.state, recorder, theta0))
 }
+
+/// A cost with its gradient, as a function of the parameters.
+pub type CostGradient<'a> = &'a dyn Fn(&[f64]) -> (f64, Vec<f64>);
+
+/// A problem given by a cost-and-gradient function (the parametric models).
+struct FunctionProblem<'a> {
+    function: CostGradient<'a>,
+    cache: RefCell<Option<Evaluation>>,
+}
+
+impl FunctionProblem<'_> {
+    fn evaluate(&self, theta: &[f64]) -> (f64, Vec<f64>) {
+        if let Some((t, c, g)) = self.cache.borrow().as_ref()
+            && t.as_slice() == theta
+        {
+            return (*c, g.clone());
+        }
+        let (cost, gradient) = (self.function)(theta);
+        *self.cache.borrow_mut() = Some((theta.to_vec(), cost, gradient.clone()));
+        (cost, gradient)
+    }
+}
+
+impl CostFunction for FunctionProblem<'_> {
+    type Param = DVector<f64>;
+    type Output = f64;
+    fn cost(&self, theta: &Self::Param) -> Result<f64, argmin::core::Error> {
+        Ok(self.evaluate(theta.as_slice()).0)
+    }
+}
+
+impl Gradient for FunctionProblem<'_> {
+    type Param = DVector<f64>;
+    type Gradient = DVector<f64>;
+    fn gradient(&self, theta: &Self::Param) -> Result<Self::Gradient, argmin::core::Error> {
+        Ok(DVector::from_vec(self.evaluate(theta.as_slice()).1))
+    }
+}
+
+/// Minimises `function` from `theta0` with L-BFGS and a More-Thuente line search.
+pub fn lbfgs_function(
+    function: CostGradient<'_>,
+    theta0: &[f64],
+    stopping: Stopping,
+) -> Result<Refined, String> {
+    let problem = FunctionProblem {
+        function,
+        cache: RefCell::new(None),
+    };
+    let solver = LBFGS::new(MoreThuenteLineSearch::new(), LBFGS_MEMORY)
+        .with_tolerance_grad(stopping.gradient_tolerance)
+        .and_then(|s| s.with_tolerance_cost(stopping.cost_tolerance))
+        .map_err(|e| e.to_string())?;
+    let recorder = CostRecorder::default();
+    let result = Executor::new(problem, solver)
+        .configure(|state| {
+            state
+                .param(DVector::from_column_slice(theta0))
+                .max_iters(stopping.max_iterations)
+        })
+        .add_observer(recorder.clone(), ObserverMode::Always)
+        .run()
+        .map_err(|e| format!("L-BFGS: {e}"))?;
+    Ok(finish(&result.state, recorder, theta0))
+}

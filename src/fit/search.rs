@@ -1,0 +1,625 @@
+//! Choosing the model a scene needs: parse `--model`, fit parametric candidates from the
+//! smallest up, and stop at the first whose ΔE2000 under every chosen light is within the
+//! bound (or take the lowest BIC when no bound is given).
+//!
+//! Every candidate starts from the tabulated fit (the grid model): its absorption and
+//! emission give the Gaussian bands, its reflectance the sigmoid polynomial, and for
+//! K > 1 a masked non-negative factorisation of the matrix splits the fluorescence into
+//! components.
+
+use std::str::FromStr;
+use std::time::Instant;
+
+use crate::error::{Error, Result};
+use crate::material::{Candidate, FitReport, Material, ModelSearch};
+use crate::measurement::Measurement;
+use crate::parametric::fit::{fit_bands, fit_sigmoid_polynomial};
+use crate::parametric::{BandDomain, logit};
+
+use super::data::FitData;
+use super::init::{Factors, masked_nmf, rank_one};
+use super::parametric::{ModelSpec, Problem, ReflectanceForm};
+use super::{FitOptions, FitOutcome, assess, solve};
+
+/// The axis bands are Gaussian in unless the model name says otherwise.
+pub const DEFAULT_DOMAIN: BandDomain = crate::parametric::fit::DEFAULT_BAND_DOMAIN;
+
+/// Weight of the patch-spectrum term against the matrix residual (see
+/// [`Problem::new`]): at 1, a 1 % error of the patch spectrum under one light costs as
+/// much as a residual of 0.01 in one cell.
+pub const DEFAULT_COLOUR_WEIGHT: f64 = 1.0;
+
+/// Highest degree of a sigmoid-polynomial reflectance the search tries before it falls
+/// back to a tabulated reflectance.
+pub const MAX_REFLECTANCE_DEGREE: usize = 12;
+
+/// Share of the ΔE2000 bound the reflectance alone may use when its degree is chosen.
+const REFLECTANCE_SHARE: f64 = 0.3;
+
+/// Sweeps of the masked factorisation that splits the fluorescence into components.
+const FACTOR_SWEEPS: usize = 60;
+
+/// Largest κ a start may have (κ = sin²t is stationary at 1).
+const START_KAPPA_CAP: f64 = 0.98;
+
+/// What model to fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ModelChoice {
+    /// One sample per grid wavelength, one fluorophore (the default).
+    #[default]
+    Tabulated,
+    /// The smallest parametric model meeting the rule.
+    Auto,
+    /// A given parametric model.
+    Fixed(ModelRequest),
+}
+
+/// A parametric model as requested: the reflectance may be left to the search.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ModelRequest {
+    /// Fluorescent components K.
+    pub components: usize,
+    /// Bands per absorption spectrum.
+    pub absorption_bands: usize,
+    /// Bands per emission spectrum.
+    pub emission_bands: usize,
+    /// The reflectance; `None` lets the fit choose the degree.
+    pub reflectance: Option<ReflectanceForm>,
+    /// The band axis.
+    pub domain: BandDomain,
+}
+
+impl FromStr for ModelChoice {
+    type Err = Error;
+
+    /// `tabulated`, `auto`, or `gaussian:KxB` / `gaussian:KxA/E`, optionally followed by
+    /// `+rD` (sigmoid-polynomial reflectance of degree D) or `+rt` (tabulated
+    /// reflectance) and `@wavenumber` / `@wavelength`.
+    fn from_str(text: &str) -> Result<Self> {
+        let bad = |why: &str| {
+            Error::invalid(
+                "--model",
+                format!(
+                    "\"{text}\" {why}; use tabulated, auto, or gaussian:KxB[/E][+rD|+rt][@wavenumber|@wavelength] (e.g. gaussian:2x1, gaussian:1x2/1+r4)"
+                ),
+            )
+        };
+        match text.trim() {
+            "tabulated" => return Ok(ModelChoice::Tabulated),
+            "auto" => return Ok(ModelChoice::Auto),
+            _ => {}
+        }
+        let Some(rest) = text.trim().strip_prefix("gaussian:") else {
+            return Err(bad("is not a model name"));
+        };
+        let (rest, domain) = match rest.split_once('@') {
+            Some((r, "wavenumber")) => (r, BandDomain::Wavenumber),
+            Some((r, "wavelength")) => (r, BandDomain::Wavelength),
+            Some(_) => return Err(bad("names an unknown band axis")),
+            None => (rest, DEFAULT_DOMAIN),
+        };
+        let (rest, reflectance) = match rest.split_once('+') {
+            Some((r, "rt")) => (r, Some(ReflectanceForm::Tabulated)),
+            Some((r, degree)) => {
+                let d = degree
+                    .strip_prefix('r')
+                    .and_then(|d| d.parse::<usize>().ok())
+                    .filter(|d| *d <= 20)
+                    .ok_or_else(|| bad("has a reflectance part other than +rD (D ≤ 20) or +rt"))?;
+                (r, Some(ReflectanceForm::Polynomial(d)))
+            }
+            None => (rest, None),
+        };
+        let (components, bands) = rest
+            .split_once('x')
+            .ok_or_else(|| bad("lacks the KxB part"))?;
+        let (absorption, emission) = bands.split_once('/').unwrap_or((bands, bands));
+        let count = |s: &str, what: &str| {
+            s.parse::<usize>()
+                .ok()
+                .filter(|n| (1..=6).contains(n))
+                .ok_or_else(|| bad(&format!("has {what} \"{s}\"; it must be 1 to 6")))
+        };
+        Ok(ModelChoice::Fixed(ModelRequest {
+            components: count(components, "a component count")?,
+            absorption_bands: count(absorption, "an absorption band count")?,
+            emission_bands: count(emission, "an emission band count")?,
+            reflectance,
+            domain,
+        }))
+    }
+}
+
+/// The fluorescent structures the automatic search tries, (K, A, E), in order of their
+/// parameter count: one component with one, then two bands, then two components.
+const LADDER: [(usize, usize, usize); 10] = [
+    (1, 1, 1),
+    (1, 2, 1),
+    (1, 1, 2),
+    (2, 1, 1),
+    (1, 2, 2),
+    (1, 3, 2),
+    (2, 2, 1),
+    (2, 1, 2),
+    (2, 2, 2),
+    (2, 3, 3),
+];
+
+/// Fits the model `options.model` asks for (anything but tabulated).
+pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
+    let started = Instant::now();
+    let base_options = FitOptions {
+        model: ModelChoice::Tabulated,
+        ..options.clone()
+    };
+    let base = match super::fit_checked(m, &base_options, false)? {
+        FitOutcome::Material(material) => *material,
+        FitOutcome::Shapes(_) => {
+            return Err(Error::Fit(format!(
+                "{}: parametric models need a calibrated diagonal (reflectance); this matrix has none or is on an arbitrary scale — fit it with --model tabulated",
+                m.name
+            )));
+        }
+    };
+    if options.quantum_yield.is_some() || options.concentration.is_some() {
+        return Err(Error::invalid(
+            "--model",
+            "pins of --quantum-yield or --concentration apply to the tabulated model only; drop the pin or use --model tabulated",
+        ));
+    }
+    let base_report = base.fit.clone().unwrap_or_default();
+    if base.fluorophores.is_empty() {
+        // A plain reflector: nothing fluorescent to model.
+        let mut material = base;
+        if let Some(fit) = material.fit.as_mut() {
+            fit.model = "tabulated".into();
+        }
+        return Ok(FitOutcome::Material(Box::new(material)));
+    }
+    let data = FitData::new(m, base_report.guard_nm);
+    let sigma = data.noise_sigma().max(1e-12);
+    let lights = &options.lights;
+    let budget = options.max_delta_e;
+    let domain = match options.model {
+        ModelChoice::Fixed(r) => r.domain,
+        _ => DEFAULT_DOMAIN,
+    };
+
+    let specs: Vec<(usize, usize, usize)> = match options.model {
+        ModelChoice::Fixed(r) => vec![(r.components, r.absorption_bands, r.emission_bands)],
+        _ => LADDER.to_vec(),
+    };
+    let reflectance = match options.model {
+        ModelChoice::Fixed(ModelRequest {
+            reflectance: Some(r),
+            ..
+        }) => r,
+        _ => reflectance_form(
+            &base,
+            m,
+            &data,
+            lights,
+            REFLECTANCE_SHARE * budget.unwrap_or(1.0),
+        ),
+    };
+
+    let mut candidates: Vec<Candidate> = Vec::new();
+    let mut fitted: Vec<(Material, f64)> = Vec::new();
+    let mut one_component: Option<(ModelSpec, Vec<f64>)> = None;
+    let mut chosen: Option<usize> = None;
+    for (components, absorption_bands, emission_bands) in specs {
+        let spec = ModelSpec {
+            components,
+            absorption_bands,
+            emission_bands,
+            reflectance,
+            domain,
+        };
+        let t0 = Instant::now();
+        let problem = Problem::new(&data, spec, lights, options.colour_weight);
+        let result = start(&problem, &base, one_component.as_ref(), sigma)
+            .and_then(|theta0| refine(&problem, &theta0, options))
+            .and_then(|(theta, refined)| {
+                let material = problem.material(&theta, &m.name)?;
+                material.validate().map_err(|e| {
+                    Error::Fit(format!("{}: candidate {}: {e}", m.name, spec.name()))
+                })?;
+                Ok((theta, refined, material))
+            });
+        let parameters = spec.parameter_count(data.diagonal_positions.len());
+        match result {
+            Ok((theta, refined, mut material)) => {
+                let accuracy = assess::accuracy(&material, m, &data, lights);
+                let rss = problem.residual_sum_of_squares(&theta);
+                let bic = bic(rss, sigma, parameters, problem.residual_count());
+                let seconds = t0.elapsed().as_secs_f64();
+                let worst = worst(&accuracy.delta_e2000);
+                candidates.push(Candidate {
+                    model: spec.name(),
+                    parameters,
+                    delta_e2000: accuracy.delta_e2000.clone(),
+                    rel_residual_fluorescence: accuracy.rel_residual_fluorescence,
+                    bic,
+                    seconds,
+                    error: None,
+                });
+                let mut report = FitReport {
+                    solver: "lbfgs".into(),
+                    converged: refined.converged,
+                    iterations: refined.iterations,
+                    gauge: "smallest feasible c per component (Q at its photon or energy limit); only k = c·Q is identified".into(),
+                    rel_residual_fluorescence: accuracy.rel_residual_fluorescence,
+                    rmse_diagonal: accuracy.rmse_diagonal,
+                    delta_e2000: accuracy.delta_e2000,
+                    cost_history: refined.cost_history,
+                    model: spec.name(),
+                    parameter_count: parameters,
+                    bic: Some(bic),
+                    ..base_report.clone()
+                };
+                report.warnings = Vec::new();
+                if !refined.converged {
+                    report.warnings.push(format!(
+                        "lbfgs stopped before converging ({}) after {} iterations; raise --max-iterations",
+                        refined.termination, refined.iterations
+                    ));
+                }
+                material.fit = Some(report);
+                if components == 1 {
+                    one_component = Some((spec, theta));
+                }
+                fitted.push((material, worst));
+                if let Some(bound) = budget
+                    && worst <= bound
+                {
+                    chosen = Some(fitted.len() - 1);
+                    break;
+                }
+            }
+            Err(e) => candidates.push(Candidate {
+                model: spec.name(),
+                parameters,
+                seconds: t0.elapsed().as_secs_f64(),
+                error: Some(e.to_string()),
+                ..Candidate::default()
+            }),
+        }
+    }
+    let succeeded: Vec<&Candidate> = candidates.iter().filter(|c| c.error.is_none()).collect();
+    if fitted.is_empty() {
+        return Err(Error::Fit(format!(
+            "{}: no parametric model could be fitted ({}); use --model tabulated",
+            m.name,
+            candidates
+                .iter()
+                .filter_map(|c| c.error.clone())
+                .collect::<Vec<_>>()
+                .join("; ")
+        )));
+    }
+    let lowest_bic = succeeded
+        .iter()
+        .min_by(|a, b| a.bic.total_cmp(&b.bic))
+        .map(|c| c.model.clone())
+        .unwrap_or_default();
+    let (index, met) = match (chosen, budget) {
+        (Some(i), _) => (i, true),
+        // No bound: the lowest BIC.
+        (None, None) => (
+            succeeded
+                .iter()
+                .position(|c| c.model == lowest_bic)
+                .unwrap_or(0),
+            true,
+        ),
+        // None met the bound: the closest in colour.
+        (None, Some(_)) => (
+            fitted
+                .iter()
+                .enumerate()
+                .min_by(|a, b| a.1.1.total_cmp(&b.1.1))
+                .map(|(i, _)| i)
+                .unwrap_or(0),
+            false,
+        ),
+    };
+    let mut material = fitted.swap_remove(index).0;
+    let rule = match budget {
+        Some(bound) => format!(
+            "first model with ΔE2000 ≤ {bound} under {}",
+            lights
+                .iter()
+                .map(|l| l.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        None if candidates.len() == 1 => "fixed by --model".to_string(),
+        None => "lowest BIC on the matrix residual".to_string(),
+    };
+    let fit = material.fit.as_mut().expect("candidates carry a report");
+    if !met {
+        fit.warnings.push(format!(
+            "no model tried meets ΔE2000 ≤ {} under every light; kept the closest ({}, worst ΔE2000 {:.2}); try --model tabulated or a larger --model",
+            budget.unwrap_or(f64::NAN),
+            fit.model,
+            worst(&fit.delta_e2000)
+        ));
+    }
+    fit.model_search = Some(ModelSearch {
+        rule,
+        max_delta_e: budget,
+        chosen: fit.model.clone(),
+        candidates,
+        met,
+        lowest_bic,
+        seconds: started.elapsed().as_secs_f64(),
+    });
+    fit.seconds = started.elapsed().as_secs_f64();
+    material.conservation = Some(material.conservation_margins());
+    Ok(FitOutcome::Material(Box::new(material)))
+}
+
+/// The largest ΔE2000 over the lights.
+fn worst(delta_e: &std::collections::BTreeMap<String, f64>) -> f64 {
+    delta_e.values().cloned().fold(0.0, f64::max)
+}
+
+/// BIC = RSS/σ² + p·ln n.
+fn bic(rss: f64, sigma: f64, parameters: usize, residuals: usize) -> f64 {
+    rss / (sigma * sigma) + parameters as f64 * (residuals.max(1) as f64).ln()
+}
+
+/// The reflectance form for the search: the lowest sigmoid-polynomial degree whose
+/// diagonal, with the tabulated fit's fluorescence, stays within `budget` ΔE2000 of the
+/// tabulated fit under every light; tabulated when no degree up to
+/// [`MAX_REFLECTANCE_DEGREE`] does.
+fn reflectance_form(
+    base: &Material,
+    m: &Measurement,
+    data: &FitData,
+    lights: &[crate::colour::Light],
+    budget: f64,
+) -> ReflectanceForm {
+    let nm = &base.reflectance.wavelength_nm;
+    let r = &base.reflectance.value;
+    let reference = colour_of(base, m, data, lights);
+    for degree in 1..=MAX_REFLECTANCE_DEGREE {
+        let Ok(fit) = fit_sigmoid_polynomial(nm, r, None, degree) else {
+            continue;
+        };
+        let mut candidate = base.clone();
+        candidate.reflectance.value = nm.iter().map(|&l| fit.form.eval(l)).collect();
+        let lab = colour_of(&candidate, m, data, lights);
+        let ok = reference
+            .iter()
+            .zip(&lab)
+            .all(|(a, b)| crate::colour::delta_e2000(*a, *b) <= budget);
+        if std::env::var("FLUORITE_DEBUG").is_ok() {
+            let des: Vec<f64> = reference.iter().zip(&lab).map(|(a, b)| crate::colour::delta_e2000(*a, *b)).collect();
+            eprintln!("degree {degree}: rms {:.4} ΔE {des:?}", fit.rms);
+        }
+        if ok {
+            return ReflectanceForm::Polynomial(degree);
+        }
+    }
+    ReflectanceForm::Tabulated
+}
+
+/// CIELAB of a material's patch on the measurement's grids, per light.
+fn colour_of(
+    material: &Material,
+    m: &Measurement,
+    data: &FitData,
+    lights: &[crate::colour::Light],
+) -> Vec<crate::colour::Lab> {
+    let predicted = crate::model::predict(
+        material,
+        &m.name,
+        &data.excitation_nm,
+        &data.emission_nm,
+        crate::measurement::Units::PerBin,
+        true,
+    );
+    lights
+        .iter()
+        .map(|light| {
+            let pc = crate::colour::PatchColorimeter::cached(
+                light,
+                &data.excitation_nm,
+                &data.emission_nm,
+            );
+            pc.lab(&predicted)
+        })
+        .collect()
+}
+
+/// The starting parameters: bands fitted to the tabulated fit's spectra (K = 1) or to
+/// the components of a masked non-negative factorisation (K > 1).
+fn start(
+    problem: &Problem<'_>,
+    base: &Material,
+    one_component: Option<&(ModelSpec, Vec<f64>)>,
+    sigma: f64,
+) -> Result<Vec<f64>> {
+    let data = problem.data;
+    let layout = problem.layout;
+    let spec = layout.spec;
+    let mut theta = vec![0.0; layout.len];
+    // Components as (κ, absorption on the excitation grid, emission density on the
+    // emission grid).
+    let components: Vec<(f64, Vec<f64>, Vec<f64>)> = if spec.components == 1 {
+        let f = &base.fluorophores[0];
+        vec![(
+            f.concentration,
+            f.absorption.resample_zero_outside(&data.excitation_nm).value,
+            f.emission.resample_zero_outside(&data.emission_nm).value,
+        )]
+    } else {
+        split_components(problem, base, one_component, sigma)
+    };
+    let total: f64 = components.iter().map(|c| c.0).sum::<f64>();
+    theta[0] = total.clamp(1e-6, START_KAPPA_CAP).sqrt().asin();
+    for (k, (kappa, absorption, emission)) in components.iter().enumerate() {
+        if spec.components > 1 {
+            theta[1 + k] = (kappa / total.max(1e-300)).max(1e-6).sqrt();
+        }
+        let a = fit_bands(
+            &data.excitation_nm,
+            absorption,
+            spec.domain,
+            spec.absorption_bands,
+        )?;
+        theta[layout.absorption(k)].copy_from_slice(&a.bands.params());
+        let e = fit_bands(&data.emission_nm, emission, spec.domain, spec.emission_bands)?;
+        theta[layout.emission(k)].copy_from_slice(&e.bands.params());
+    }
+    if let ReflectanceForm::Polynomial(degree) = spec.reflectance {
+        let nm = &base.reflectance.wavelength_nm;
+        let coefficients = match fit_sigmoid_polynomial(nm, &base.reflectance.value, None, degree)
+        {
+            Ok(fit) => fit.form.coefficients,
+            Err(_) => {
+                let mean = base.reflectance.value.iter().sum::<f64>()
+                    / base.reflectance.value.len().max(1) as f64;
+                let mut c = vec![0.0; degree + 1];
+                c[0] = logit(mean);
+                c
+            }
+        };
+        theta[layout.reflectance()].copy_from_slice(&coefficients);
+    }
+    Ok(theta)
+}
+
+/// K components from a masked non-negative factorisation of the off-diagonal cells,
+/// started from the one-component fit and the residual it leaves.
+fn split_components(
+    problem: &Problem<'_>,
+    base: &Material,
+    one_component: Option<&(ModelSpec, Vec<f64>)>,
+    sigma: f64,
+) -> Vec<(f64, Vec<f64>, Vec<f64>)> {
+    let data = problem.data;
+    let k_count = problem.layout.spec.components;
+    let column_factor: Vec<f64> = data
+        .emission_bin_widths
+        .iter()
+        .zip(&data.emission_weight)
+        .map(|(w, ew)| w / ew)
+        .collect();
+    // The first component: the one-component fit (parametric if fitted, else tabulated).
+    let (row0, column0) = match one_component {
+        Some((spec, theta)) => {
+            let p = Problem::new(data, *spec, &[], 0.0);
+            let gm = p.grid_model(theta);
+            let row: Vec<f64> = gm.absorption[0].iter().map(|a| a * gm.scale[0]).collect();
+            let column: Vec<f64> = gm.emission[0]
+                .iter()
+                .zip(&column_factor)
+                .map(|(e, u)| e * u)
+                .collect();
+            (row, column)
+        }
+        None => {
+            let f = &base.fluorophores[0];
+            let row = f
+                .absorption
+                .resample_zero_outside(&data.excitation_nm)
+                .value
+                .iter()
+                .map(|a| a * f.k())
+                .collect();
+            let column = f
+                .emission
+                .resample_zero_outside(&data.emission_nm)
+                .value
+                .iter()
+                .zip(&column_factor)
+                .map(|(e, u)| e * u)
+                .collect();
+            (row, column)
+        }
+    };
+    let mut rows = vec![row0];
+    let mut columns = vec![column0];
+    // Each further component starts as the rank-1 part of what the others leave.
+    for _ in 1..k_count {
+        let mut residual = data.clone();
+        for c in residual.off_diagonal.iter_mut() {
+            let explained: f64 = rows
+                .iter()
+                .zip(&columns)
+                .map(|(r, col)| r[c.row] * col[c.column])
+                .sum();
+            c.value -= explained;
+        }
+        let extra = rank_one(&residual, 50);
+        let floor = sigma * 1e-3;
+        rows.push(extra.row.iter().map(|v| v.max(floor)).collect());
+        columns.push(extra.column.iter().map(|v| v.max(floor)).collect());
+    }
+    let factors = masked_nmf(data, Factors { rows, columns }, FACTOR_SWEEPS);
+    factors
+        .rows
+        .iter()
+        .zip(&factors.columns)
+        .map(|(row, column)| {
+            let peak = row.iter().cloned().fold(0.0, f64::max).max(1e-300);
+            let absorption: Vec<f64> = row.iter().map(|v| v / peak).collect();
+            let emission: Vec<f64> = column
+                .iter()
+                .zip(&column_factor)
+                .map(|(v, u)| v / u)
+                .collect();
+            let normaliser: f64 = emission
+                .iter()
+                .zip(&data.emission_bin_widths)
+                .map(|(e, w)| e * w)
+                .sum::<f64>()
+                .max(1e-300);
+            let mean: f64 = emission
+                .iter()
+                .zip(&data.emission_bin_widths)
+                .zip(&data.emission_nm)
+                .map(|((e, w), l)| e * w * l)
+                .sum::<f64>()
+                / normaliser;
+            let shortest = absorption
+                .iter()
+                .position(|&a| a >= super::parametric::ABSORPTION_FLOOR)
+                .map(|i| data.excitation_nm[i.saturating_sub(1)])
+                .unwrap_or(data.excitation_nm[0]);
+            let photon_factor = (mean / shortest).max(1.0);
+            // F = peak·a·e·u = s·a·e·u with s = κ/(γ·S).
+            let kappa = peak * photon_factor * normaliser;
+            (
+                kappa,
+                absorption,
+                emission.iter().map(|e| e / normaliser).collect(),
+            )
+        })
+        .collect()
+}
+
+/// L-BFGS on the candidate's objective.
+fn refine(
+    problem: &Problem<'_>,
+    theta0: &[f64],
+    options: &FitOptions,
+) -> Result<(Vec<f64>, solve::Refined)> {
+    let function = |theta: &[f64]| problem.cost_gradient(theta);
+    let (start_cost, start_gradient) = problem.cost_gradient(theta0);
+    let gradient_norm = start_gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
+    let stopping = solve::Stopping {
+        max_iterations: options.max_iterations.max(2000),
+        gradient_tolerance: options.tolerance * gradient_norm.max(1e-300),
+        cost_tolerance: options.tolerance * start_cost.max(1e-300),
+    };
+    let refined = solve::lbfgs_function(&function, theta0, stopping).map_err(Error::Fit)?;
+    if refined.theta.iter().any(|t| !t.is_finite()) {
+        return Err(Error::Fit(
+            "the solver left the parameter space (non-finite parameters)".into(),
+        ));
+    }
+    Ok((refined.theta.clone(), refined))
+}
