@@ -291,7 +291,11 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
                         "    {:<22} {:>4} p   ΔE {}   BIC {:.1}   {:.1} ms{}",
                         c.model,
                         c.parameters,
-                        if de.is_empty() { "–".into() } else { de.join(" ") },
+                        if de.is_empty() {
+                            "–".into()
+                        } else {
+                            de.join(" ")
+                        },
                         c.bic,
                         1e3 * c.seconds,
                         c.error

@@ -553,6 +553,20 @@ impl PatchColorimeter {
         )
     }
 
+    /// The projections behind [`PatchColorimeter::xyz_from`]: ∫L·h_i per excitation
+    /// sample, ∫L·x̄·h_j and ∫x̄·h_j per emission sample, the emission bin widths and the
+    /// factor scaling the white to Y = 100. XYZ is linear in the matrix with these
+    /// weights, which is what a fit needs to differentiate colour.
+    pub fn weights(&self) -> (&[f64], &[Xyz], &[Xyz], &[f64], f64) {
+        (
+            &self.light_weights,
+            &self.reflected_weights,
+            &self.emitted_weights,
+            &self.emission_bin_widths,
+            self.scale,
+        )
+    }
+
     /// CIELAB of the patch a matrix describes, against the perfect white under this light.
     pub fn lab(&self, m: &Measurement) -> Lab {
         xyz_to_lab(self.xyz(m), self.white)

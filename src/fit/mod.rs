@@ -376,7 +376,9 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
         guard_signal_fraction: guard_fraction(&data),
         cost_history,
         model: "tabulated".into(),
-        parameter_count: 1 + (data.n_excitation() - 1) + (data.n_emission() - 1)
+        parameter_count: 1
+            + (data.n_excitation() - 1)
+            + (data.n_emission() - 1)
             + data.diagonal_positions.len(),
         ..FitReport::default()
     };
@@ -430,9 +432,8 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
     let rss = accuracy.rms_off_diagonal.powi(2) * data.off_diagonal.len() as f64
         + accuracy.rmse_diagonal.powi(2) * data.diagonal.len() as f64;
     let residuals = (data.off_diagonal.len() + data.diagonal.len()).max(1) as f64;
-    fit.bic = Some(
-        rss / noise_sigma.max(1e-12).powi(2) + fit.parameter_count as f64 * residuals.ln(),
-    );
+    fit.bic =
+        Some(rss / noise_sigma.max(1e-12).powi(2) + fit.parameter_count as f64 * residuals.ln());
     fit.warnings = warnings;
     fit.seconds = started.elapsed().as_secs_f64();
     material.conservation = Some(material.conservation_margins());

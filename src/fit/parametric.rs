@@ -6,17 +6,19 @@
 //! The model on the grid is F_ij = Σk s_k·a_ik·e_jk·u_j off the diagonal, with
 //! s_k = κ_k/(γ_k·S_k) as in the tabulated objective (S_k normalises e, γ_k is the photon
 //! factor, κ_k the smallest feasible concentration), and d_j = (1 − Σk κ_k·a_jk)·r_j on
-//! it. κ_k = sin²t·w_k with shares w_k = u_k²/Σu² keeps Σk κ_k ≤ 1, hence Σ c·a ≤ 1, and
-//! r = sigmoid(p) keeps r in (0, 1): every parameter vector is a valid material.
+//! it. κ_k = sin²t_k keeps each κ in [0, 1] and r = sigmoid(p) keeps r in (0, 1); with
+//! several components a stiff penalty keeps Σk κ_k·a_k ≤ 1 on the grid (components
+//! absorbing in different bands may each absorb nearly all light there), and the
+//! material is scaled onto the bound exactly when it is built.
 
-use crate::colour::{Light, cie1931};
+use crate::colour::{Light, PatchColorimeter, Xyz};
 use crate::error::{Error, Result};
 use crate::material::{Fluorophore, Material};
 use crate::parametric::{
-    BandDomain, FluorophoreForms, GaussianBands, MaterialForms, PARAMS_PER_BAND,
-    SigmoidPolynomial, SpectralForm, bands_value_gradient, legendre, position, sigmoid,
+    BandDomain, FluorophoreForms, GaussianBands, MaterialForms, PARAMS_PER_BAND, SigmoidPolynomial,
+    SpectralForm, bands_value_gradient, legendre, position, sigmoid,
 };
-use crate::spectrum::{Spectrum, hat_integrals};
+use crate::spectrum::Spectrum;
 
 use super::data::FitData;
 
@@ -28,6 +30,14 @@ pub const ABSORPTION_FLOOR: f64 = 1e-4;
 /// Weight of the terms fixing the free heights (max a = 1, ∫e = 1 on the grid); they
 /// change no fitted material.
 const HEIGHT_GAUGE_WEIGHT: f64 = 1e-4;
+
+/// Weight of the penalty on Σk κ_k·a_k > 1 (several components): stiff against the
+/// residuals (cells ≤ 1), so the optimum overshoots by at most about 1e-4.
+const ABSORPTION_PENALTY: f64 = 1e4;
+
+/// Weight of the soft box keeping band centres near the measured range and widths
+/// sensible: it acts only outside the box, where the data no longer pull on a band.
+const BAND_BOX_PENALTY: f64 = 1.0;
 
 /// Smallest weight of an excitation row that no chosen light reaches.
 const ROW_WEIGHT_FLOOR: f64 = 0.02;
@@ -111,12 +121,7 @@ pub struct Layout {
 impl Layout {
     /// The layout of `spec`.
     pub fn new(spec: ModelSpec) -> Self {
-        let shares = if spec.components > 1 {
-            spec.components
-        } else {
-            0
-        };
-        let first_component = 1 + shares;
+        let first_component = spec.components;
         let reflectance = first_component + spec.components * spec.component_params();
         let len = reflectance
             + match spec.reflectance {
@@ -148,28 +153,49 @@ impl Layout {
         self.reflectance..self.len
     }
 
-    /// κ_k for every component, and ∂κ_k/∂(t, u_1..u_K) as a closure's input.
-    fn kappas(&self, theta: &[f64]) -> (f64, Vec<f64>) {
-        let total = theta[0].sin().powi(2);
-        let k = self.spec.components;
-        if k == 1 {
-            return (total, vec![1.0]);
-        }
-        let shares = &theta[1..1 + k];
-        let sum: f64 = shares.iter().map(|u| u * u).sum::<f64>().max(1e-300);
-        (total, shares.iter().map(|u| u * u / sum).collect())
+    /// κ_k = sin²t_k for every component.
+    fn kappas(&self, theta: &[f64]) -> Vec<f64> {
+        theta[..self.spec.components]
+            .iter()
+            .map(|t| t.sin().powi(2))
+            .collect()
     }
 }
 
-/// The patch-spectrum weights of one light on the fit grids.
+/// The colour weights of one light on the fit grids: CIELAB of the patch, linearised at
+/// the measured colour, as linear functionals of the cell residuals.
 #[derive(Debug, Clone)]
 struct PatchLight {
     /// ∫L·h_i over the excitation grid.
     light_weights: Vec<f64>,
-    /// Mean light power over each emission bin (reflected light).
-    mean_power: Vec<f64>,
-    /// √(observer weight of the bin) / ‖white patch‖: per-bin row weights.
-    row_weight: Vec<f64>,
+    /// Per Lab channel and emission column: ∂Lab/∂(reradiated density at j).
+    emitted: [Vec<f64>; 3],
+    /// Per Lab channel and emission column: ∂Lab/∂(diagonal at j).
+    reflected: [Vec<f64>; 3],
+}
+
+/// ∂(L*, a*, b*)/∂(X, Y, Z) at `xyz` against `white`.
+fn lab_jacobian(xyz: Xyz, white: Xyz) -> [[f64; 3]; 3] {
+    let delta: f64 = 6.0 / 29.0;
+    let slope = |value: f64, reference: f64| {
+        let t = value / reference.max(1e-300);
+        let df = if t > delta.powi(3) {
+            t.powf(-2.0 / 3.0) / 3.0
+        } else {
+            1.0 / (3.0 * delta * delta)
+        };
+        df / reference.max(1e-300)
+    };
+    let (fx, fy, fz) = (
+        slope(xyz[0], white[0]),
+        slope(xyz[1], white[1]),
+        slope(xyz[2], white[2]),
+    );
+    [
+        [0.0, 116.0 * fy, 0.0],
+        [500.0 * fx, -500.0 * fy, 0.0],
+        [0.0, 200.0 * fy, -200.0 * fz],
+    ]
 }
 
 /// A diagonal position of the fit.
@@ -234,9 +260,16 @@ pub struct GridModel {
 }
 
 impl<'a> Problem<'a> {
-    /// Prepares the fit of `spec` to `data`; `lights` weight the rows and give the patch
-    /// spectra, `colour_weight` the patch term's weight against the matrix residual.
-    pub fn new(data: &'a FitData, spec: ModelSpec, lights: &[Light], colour_weight: f64) -> Self {
+    /// Prepares the fit of `spec` to `data`. `lights` weight the rows by how much light
+    /// reaches them and, with `reference` (the measured patch's XYZ under each light),
+    /// give the colour term: ½·`colour_weight`·Σ ΔE76², linearised at the reference.
+    pub fn new(
+        data: &'a FitData,
+        spec: ModelSpec,
+        lights: &[Light],
+        reference: &[Xyz],
+        colour_weight: f64,
+    ) -> Self {
         let domain = spec.domain;
         let widths = &data.emission_bin_widths;
         let column_factor: Vec<f64> = widths
@@ -276,52 +309,30 @@ impl<'a> Problem<'a> {
         for (p, d) in diagonal.iter().enumerate() {
             diagonal_of_column[d.column] = Some(p);
         }
-        let observer = cie1931();
-        let sub = |grid: &[f64]| {
-            let span = grid.last().unwrap_or(&0.0) - grid.first().unwrap_or(&0.0);
-            ((span / grid.len().max(2) as f64) / 0.25).ceil().max(4.0) as usize
-        };
-        let hats = hat_integrals(&data.emission_nm, |_| 1.0, sub(&data.emission_nm));
-        let observer_weight = hat_integrals(
-            &data.emission_nm,
-            |l| observer.at(l).iter().sum::<f64>(),
-            sub(&data.emission_nm),
-        );
         let mut row_weight = vec![0.0f64; data.n_excitation()];
         let patches: Vec<PatchLight> = lights
             .iter()
-            .map(|light| {
-                let light_weights = hat_integrals(
-                    &data.excitation_nm,
-                    |l| light.power(l),
-                    sub(&data.excitation_nm),
-                );
+            .zip(reference)
+            .map(|(light, xyz)| {
+                let pc = PatchColorimeter::cached(light, &data.excitation_nm, &data.emission_nm);
+                let (light_weights, reflected, emitted, _, scale) = pc.weights();
                 let peak = light_weights.iter().cloned().fold(0.0, f64::max);
                 if peak > 0.0 {
-                    for (w, lw) in row_weight.iter_mut().zip(&light_weights) {
+                    for (w, lw) in row_weight.iter_mut().zip(light_weights) {
                         *w = w.max(lw / peak);
                     }
                 }
-                let mean_power: Vec<f64> = hat_integrals(
-                    &data.emission_nm,
-                    |l| light.power(l),
-                    sub(&data.emission_nm),
-                )
-                .iter()
-                .zip(&hats)
-                .map(|(p, h)| if *h > 0.0 { p / h } else { 0.0 })
-                .collect();
-                let white: f64 = observer_weight
-                    .iter()
-                    .zip(&mean_power)
-                    .map(|(o, p)| o * p * p)
-                    .sum::<f64>()
-                    .sqrt()
-                    .max(1e-300);
+                let jacobian = lab_jacobian(*xyz, pc.white);
+                let project = |weights: &[Xyz], channel: usize| -> Vec<f64> {
+                    weights
+                        .iter()
+                        .map(|w| scale * (0..3).map(|x| jacobian[channel][x] * w[x]).sum::<f64>())
+                        .collect()
+                };
                 PatchLight {
-                    light_weights,
-                    mean_power,
-                    row_weight: observer_weight.iter().map(|o| o.sqrt() / white).collect(),
+                    light_weights: light_weights.to_vec(),
+                    emitted: [0, 1, 2].map(|c| project(emitted, c)),
+                    reflected: [0, 1, 2].map(|c| project(reflected, c)),
                 }
             })
             .collect();
@@ -358,9 +369,8 @@ impl<'a> Problem<'a> {
         let layout = &self.layout;
         let data = self.data;
         let k_count = layout.spec.components;
-        let (total, shares) = layout.kappas(theta);
         let mut m = GridModel {
-            kappa: shares.iter().map(|w| total * w).collect(),
+            kappa: layout.kappas(theta),
             absorption: Vec::with_capacity(k_count),
             absorption_peak: Vec::with_capacity(k_count),
             peak_index: Vec::with_capacity(k_count),
@@ -501,19 +511,26 @@ impl<'a> Problem<'a> {
                 (residual, projection)
             })
             .collect();
-        let mut patch = vec![0.0; n_lights * n_em];
+        // Column sums Σ_i L_i·r_ij per light, then ΔLab per light.
+        let mut column_sum = vec![0.0; n_lights * n_em];
         for (c, r) in data.off_diagonal.iter().zip(&off) {
             for (l, light) in self.patches.iter().enumerate() {
-                patch[l * n_em + c.column] += light.light_weights[c.row] * r;
+                column_sum[l * n_em + c.column] += light.light_weights[c.row] * r;
             }
         }
+        let mut patch = vec![0.0; n_lights * 3];
         for (l, light) in self.patches.iter().enumerate() {
-            for j in 0..n_em {
-                let mut v = patch[l * n_em + j] * self.density_factor[j];
-                if let Some(p) = self.diagonal_of_column[j] {
-                    v += light.mean_power[j] * diag[p].0;
+            for channel in 0..3 {
+                let mut v = 0.0;
+                for j in 0..n_em {
+                    v += light.emitted[channel][j]
+                        * self.density_factor[j]
+                        * column_sum[l * n_em + j];
+                    if let Some(p) = self.diagonal_of_column[j] {
+                        v += light.reflected[channel][j] * diag[p].0;
+                    }
                 }
-                patch[l * n_em + j] = v * light.row_weight[j];
+                patch[l * 3 + channel] = v;
             }
         }
         let mut cost = 0.0;
@@ -524,13 +541,21 @@ impl<'a> Problem<'a> {
             cost += 0.5 * self.row_weight[s.row] * r * r;
         }
         cost += 0.5 * self.colour_weight * patch.iter().map(|p| p * p).sum::<f64>();
-        // q_lj = W·p_lj·ρ_lj: the patch term's pull on a residual feeding (l, j).
-        let q: Vec<f64> = (0..n_lights * n_em)
-            .map(|lj| {
-                let (l, j) = (lj / n_em, lj % n_em);
-                self.colour_weight * patch[lj] * self.patches[l].row_weight[j]
-            })
-            .collect();
+        // The colour term's pull on residuals of column j: q (reradiated) and h (diagonal).
+        let mut q = vec![0.0; n_lights * n_em];
+        let mut h = vec![0.0; n_lights * n_em];
+        for (l, light) in self.patches.iter().enumerate() {
+            for j in 0..n_em {
+                let (mut qe, mut hr) = (0.0, 0.0);
+                for channel in 0..3 {
+                    let p = self.colour_weight * patch[l * 3 + channel];
+                    qe += p * light.emitted[channel][j];
+                    hr += p * light.reflected[channel][j];
+                }
+                q[l * n_em + j] = qe * self.density_factor[j];
+                h[l * n_em + j] = hr;
+            }
+        }
 
         // Adjoints: ∂cost/∂F for every cell (F̄ = −δ), then through the factors.
         let mut scale_bar = vec![0.0; k_count];
@@ -550,9 +575,8 @@ impl<'a> Problem<'a> {
             };
         for (c, r) in data.off_diagonal.iter().zip(&off) {
             let mut delta = self.row_weight[c.row] * r;
-            let f = self.density_factor[c.column];
             for l in 0..n_lights {
-                delta += q[l * n_em + c.column] * f * self.patches[l].light_weights[c.row];
+                delta += q[l * n_em + c.column] * self.patches[l].light_weights[c.row];
             }
             push_f(c.row, c.column, -delta, &mut a_bar, &mut e_bar);
         }
@@ -562,7 +586,7 @@ impl<'a> Problem<'a> {
             }
             let mut delta = self.row_weight[s.row] * r;
             for l in 0..n_lights {
-                delta += q[l * n_em + s.column] * self.patches[l].mean_power[s.column];
+                delta += h[l * n_em + s.column];
             }
             // r = M − F − d: F̄ = −δ; d̄ = −δ.
             push_f(s.row, s.column, -delta, &mut a_bar, &mut e_bar);
@@ -582,6 +606,22 @@ impl<'a> Problem<'a> {
             }
         }
 
+        // Σk κ_k·a_ik ≤ 1 on the excitation grid (several components only).
+        if k_count > 1 {
+            for i in 0..n_ex {
+                let excess: f64 = (0..k_count)
+                    .map(|k| m.kappa[k] * m.absorption[k][i])
+                    .sum::<f64>()
+                    - 1.0;
+                if excess > 0.0 {
+                    cost += 0.5 * ABSORPTION_PENALTY * excess * excess;
+                    for k in 0..k_count {
+                        kappa_bar[k] += ABSORPTION_PENALTY * excess * m.absorption[k][i];
+                        a_bar[k][i] += ABSORPTION_PENALTY * excess * m.kappa[k];
+                    }
+                }
+            }
+        }
         let mut gradient = vec![0.0; layout.len];
         let mut scratch = vec![0.0; PARAMS_PER_BAND * 8];
         for k in 0..k_count {
@@ -635,22 +675,11 @@ impl<'a> Problem<'a> {
             }
             cost += 0.5 * HEIGHT_GAUGE_WEIGHT * (gauge_s * gauge_s + (peak - 1.0).powi(2));
         }
-        // κ_k = sin²t·w_k.
-        let (total, shares) = layout.kappas(theta);
-        gradient[0] = kappa_bar
-            .iter()
-            .zip(&shares)
-            .map(|(kb, w)| kb * w)
-            .sum::<f64>()
-            * (2.0 * theta[0]).sin();
-        if k_count > 1 {
-            let u = &theta[1..1 + k_count];
-            let sum: f64 = u.iter().map(|x| x * x).sum::<f64>().max(1e-300);
-            let mean_bar: f64 = kappa_bar.iter().zip(&shares).map(|(kb, w)| kb * w).sum();
-            for k in 0..k_count {
-                gradient[1 + k] = 2.0 * u[k] * total / sum * (kappa_bar[k] - mean_bar);
-            }
+        // κ_k = sin²t_k.
+        for k in 0..k_count {
+            gradient[k] = kappa_bar[k] * (2.0 * theta[k]).sin();
         }
+        cost += self.band_penalty(theta, &mut gradient);
         if let ReflectanceForm::Polynomial(_) = layout.spec.reflectance {
             let range = layout.reflectance();
             let count = range.len();
@@ -664,6 +693,66 @@ impl<'a> Problem<'a> {
             }
         }
         (cost, gradient)
+    }
+
+    /// Moves band parameters into the box of [`Problem::band_penalty`] (for starts).
+    pub fn clamp_to_box(&self, theta: &mut [f64]) {
+        for (n, (low, high)) in self.band_box() {
+            let p = &mut theta[n];
+            *p = if p.is_finite() {
+                p.clamp(low, high)
+            } else {
+                0.5 * (low + high)
+            };
+        }
+    }
+
+    /// (parameter index, lower, upper) for every band parameter: centres within half the
+    /// measured span beyond its ends, widths between 1/200 and twice the span, heights
+    /// below e⁶.
+    fn band_box(&self) -> Vec<(usize, (f64, f64))> {
+        let mut boxes = Vec::new();
+        for k in 0..self.layout.spec.components {
+            for (range, grid) in [
+                (self.layout.absorption(k), &self.excitation_u),
+                (self.layout.emission(k), &self.emission_u),
+            ] {
+                let lo = grid.iter().cloned().fold(f64::INFINITY, f64::min);
+                let hi = grid.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+                let span = (hi - lo).max(1e-6);
+                let bounds = [
+                    (-30.0, 6.0),
+                    (lo - 0.5 * span, hi + 0.5 * span),
+                    ((span / 200.0).ln(), (2.0 * span).ln()),
+                ];
+                for band in range.step_by(PARAMS_PER_BAND) {
+                    for (n, b) in bounds.iter().enumerate() {
+                        boxes.push((band + n, *b));
+                    }
+                }
+            }
+        }
+        boxes
+    }
+
+    /// The soft box on band parameters: centres within half the measured span beyond
+    /// its ends, widths between 1/200 and twice the span, heights below e⁶. Adds its
+    /// gradient to `gradient` and returns its cost.
+    fn band_penalty(&self, theta: &[f64], gradient: &mut [f64]) -> f64 {
+        let mut cost = 0.0;
+        for (n, (low, high)) in self.band_box() {
+            let p = theta[n];
+            let outside = if p < low {
+                p - low
+            } else if p > high {
+                p - high
+            } else {
+                continue;
+            };
+            cost += 0.5 * BAND_BOX_PENALTY * outside * outside;
+            gradient[n] += BAND_BOX_PENALTY * outside;
+        }
+        cost
     }
 
     /// The matrix-residual part of the cost alone (unweighted ½Σr² over the data cells),
@@ -744,7 +833,10 @@ impl Problem<'_> {
             // below the floor (the photon law's λmin), renormalise on the fine grid.
             let mut absorption = GaussianBands::from_params(
                 spec.domain,
-                [data.excitation_nm[0], *data.excitation_nm.last().unwrap_or(&0.0)],
+                [
+                    data.excitation_nm[0],
+                    *data.excitation_nm.last().unwrap_or(&0.0),
+                ],
                 &theta[self.layout.absorption(k)],
             );
             absorption.scale(1.0 / gm.absorption_peak[k]);
@@ -764,7 +856,10 @@ impl Problem<'_> {
             // Emission: ∫e = 1 on the fine grid.
             let mut emission = GaussianBands::from_params(
                 spec.domain,
-                [data.emission_nm[0], *data.emission_nm.last().unwrap_or(&0.0)],
+                [
+                    data.emission_nm[0],
+                    *data.emission_nm.last().unwrap_or(&0.0),
+                ],
                 &theta[self.layout.emission(k)],
             );
             let raw = SpectralForm::GaussianBands(emission.clone())
@@ -779,6 +874,12 @@ impl Problem<'_> {
             let concentration = (gm.kappa[k] * fine_peak).min(1.0);
             let k_product =
                 gm.kappa[k] / gm.photon_factor[k] * fine_peak * integral / gm.normaliser[k];
+            let mut absorption_samples = absorption_samples;
+            // Rounding of the renormalisation may leave the peak a hair above 1.
+            absorption_samples
+                .value
+                .iter_mut()
+                .for_each(|a| *a = a.min(1.0));
             let mut fluorophore = Fluorophore {
                 concentration,
                 quantum_yield: 0.0,
@@ -800,6 +901,31 @@ impl Problem<'_> {
                 absorption,
                 emission,
             });
+        }
+        // The penalty lets Σ c·a overshoot 1 by ~1e-4, and the fine grid sees peaks the
+        // fit grid missed: scale the concentrations onto the bound (k = c·Q is kept where
+        // the yield allows).
+        let mut wavelengths: Vec<f64> = excitation_fine.clone();
+        wavelengths.extend(&emission_fine);
+        let total_peak = wavelengths
+            .iter()
+            .map(|&l| {
+                fluorophores
+                    .iter()
+                    .map(|f| f.concentration * f.absorption.eval_zero_outside(l))
+                    .sum::<f64>()
+            })
+            .fold(0.0, f64::max);
+        if total_peak > 1.0 {
+            for f in &mut fluorophores {
+                let k_product = f.k();
+                f.concentration /= total_peak;
+                let photon_limit = f
+                    .shortest_absorbed_nm()
+                    .map(|l| (l / f.emission_mean_nm()).min(1.0))
+                    .unwrap_or(1.0);
+                f.quantum_yield = (k_product / f.concentration).min(photon_limit);
+            }
         }
         // Reflectance.
         let diagonal_nm: Vec<f64> = self
@@ -828,8 +954,9 @@ impl Problem<'_> {
                 let mut values: Vec<f64> = (0..self.diagonal.len())
                     .map(|p| self.diagonal_value(&gm, p).0)
                     .collect();
-                let known: Vec<usize> =
-                    (0..values.len()).filter(|&p| values[p].is_finite()).collect();
+                let known: Vec<usize> = (0..values.len())
+                    .filter(|&p| values[p].is_finite())
+                    .collect();
                 if known.is_empty() {
                     return Err(Error::Fit(format!(
                         "{name}: the diagonal (reflectance) is not measured at any wavelength; supply the diagonal or fit as an EEM"
@@ -915,11 +1042,9 @@ mod tests {
     fn theta_for(layout: &Layout) -> Vec<f64> {
         let spec = layout.spec;
         let mut theta = vec![0.0; layout.len];
-        theta[0] = 0.6;
         for k in 0..spec.components {
-            if spec.components > 1 {
-                theta[1 + k] = 0.8 + 0.3 * k as f64;
-            }
+            // Both components absorb almost everything near 21 kK: the Σκa penalty acts.
+            theta[k] = 1.2 + 0.1 * k as f64;
             let centres = [20.5 + 3.0 * k as f64, 26.0];
             for (b, chunk) in theta[layout.absorption(k)].chunks_mut(3).enumerate() {
                 chunk.copy_from_slice(&[-0.2 * b as f64, centres[b % 2], 0.1]);
@@ -932,6 +1057,8 @@ mod tests {
                 ]);
             }
         }
+        // One band wider than the box allows: the box penalty acts.
+        theta[layout.emission(0).start + 2] = 4.0;
         for (n, t) in theta[layout.reflectance()].iter_mut().enumerate() {
             *t = [1.0, -1.5, 0.4, 0.2, -0.1][n % 5];
         }
@@ -951,7 +1078,8 @@ mod tests {
                     reflectance,
                     domain: BandDomain::Wavenumber,
                 };
-                let problem = Problem::new(&data, spec, &lights, 0.3);
+                let reference: Vec<Xyz> = lights.iter().map(|_| [40.0, 35.0, 20.0]).collect();
+                let problem = Problem::new(&data, spec, &lights, &reference, 0.3);
                 let theta = theta_for(&problem.layout);
                 let (_, analytic) = problem.cost_gradient(&theta);
                 let numeric = problem.numerical_gradient(&theta, 1e-6);

@@ -17,27 +17,33 @@ use crate::parametric::fit::{fit_bands, fit_sigmoid_polynomial};
 use crate::parametric::{BandDomain, logit};
 
 use super::data::FitData;
-use super::init::{Factors, masked_nmf, rank_one};
+use super::init::{Factors, masked_nmf};
 use super::parametric::{ModelSpec, Problem, ReflectanceForm};
 use super::{FitOptions, FitOutcome, assess, solve};
 
 /// The axis bands are Gaussian in unless the model name says otherwise.
 pub const DEFAULT_DOMAIN: BandDomain = crate::parametric::fit::DEFAULT_BAND_DOMAIN;
 
-/// Weight of the patch-spectrum term against the matrix residual (see
-/// [`Problem::new`]): at 1, a 1 % error of the patch spectrum under one light costs as
-/// much as a residual of 0.01 in one cell.
-pub const DEFAULT_COLOUR_WEIGHT: f64 = 1.0;
+/// Weight of the colour term ½·w·Σ ΔE76² (one term per light, see [`Problem::new`])
+/// against the matrix's ½·Σ r². At 0.01 a ΔE of 1 under one light costs as much as a
+/// residual of 0.1 in one cell, or the noise (σ ≈ 0.0006) over a whole 49 × 41 matrix
+/// ten times over. Measured on the six real surfaces (`fluorite fit … --max-delta-e 1
+/// --colour-weight w`): 0.01 meets the bound on five with one-component models; 0 (matrix
+/// only) needs larger models and 0.1 trades matrix fidelity for little colour gain.
+pub const DEFAULT_COLOUR_WEIGHT: f64 = 0.01;
 
 /// Highest degree of a sigmoid-polynomial reflectance the search tries before it falls
 /// back to a tabulated reflectance.
 pub const MAX_REFLECTANCE_DEGREE: usize = 12;
 
 /// Share of the ΔE2000 bound the reflectance alone may use when its degree is chosen.
-const REFLECTANCE_SHARE: f64 = 0.3;
+const REFLECTANCE_SHARE: f64 = 0.5;
 
-/// Sweeps of the masked factorisation that splits the fluorescence into components.
-const FACTOR_SWEEPS: usize = 60;
+/// Largest κ of an added component at the start, relative to the parent's.
+const EXTRA_COMPONENT_SHARE: f64 = 0.1;
+
+/// Length of L-BFGS's first step in parameter space.
+const FIRST_STEP: f64 = 0.1;
 
 /// Largest κ a start may have (κ = sin²t is stationary at 1).
 const START_KAPPA_CAP: f64 = 0.98;
@@ -203,9 +209,10 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         ),
     };
 
+    let reference = measured_xyz(m, &data, &base, lights);
     let mut candidates: Vec<Candidate> = Vec::new();
     let mut fitted: Vec<(Material, f64)> = Vec::new();
-    let mut one_component: Option<(ModelSpec, Vec<f64>)> = None;
+    let mut one_component: Vec<(ModelSpec, Vec<f64>)> = Vec::new();
     let mut chosen: Option<usize> = None;
     for (components, absorption_bands, emission_bands) in specs {
         let spec = ModelSpec {
@@ -216,8 +223,15 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
             domain,
         };
         let t0 = Instant::now();
-        let problem = Problem::new(&data, spec, lights, options.colour_weight);
-        let result = start(&problem, &base, one_component.as_ref(), sigma)
+        let problem = Problem::new(&data, spec, lights, &reference, options.colour_weight);
+        // K > 1 starts from the one-component fit with the same bands (or the last).
+        let parent = one_component
+            .iter()
+            .find(|(p, _)| {
+                p.absorption_bands == absorption_bands && p.emission_bands == emission_bands
+            })
+            .or(one_component.last());
+        let result = start(&problem, &base, parent, sigma)
             .and_then(|theta0| refine(&problem, &theta0, options))
             .and_then(|(theta, refined)| {
                 let material = problem.material(&theta, &m.name)?;
@@ -266,7 +280,7 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
                 }
                 material.fit = Some(report);
                 if components == 1 {
-                    one_component = Some((spec, theta));
+                    one_component.push((spec, theta));
                 }
                 fitted.push((material, worst));
                 if let Some(bound) = budget
@@ -359,6 +373,43 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
     Ok(FitOutcome::Material(Box::new(material)))
 }
 
+/// XYZ of the measured patch under each light, as the accuracy report sees it: guard
+/// and missing cells taken from the tabulated fit.
+fn measured_xyz(
+    m: &Measurement,
+    data: &FitData,
+    base: &Material,
+    lights: &[crate::colour::Light],
+) -> Vec<crate::colour::Xyz> {
+    let fitted = crate::model::predict(
+        base,
+        &m.name,
+        &m.excitation_nm,
+        &m.emission_nm,
+        m.units,
+        m.has_diagonal,
+    )
+    .to_per_bin();
+    let mut measured = m.to_per_bin();
+    for i in 0..m.n_excitation() {
+        for j in 0..m.n_emission() {
+            if matches!(
+                m.cell_kind(i, j, data.guard_nm),
+                crate::measurement::CellKind::Missing | crate::measurement::CellKind::Guard
+            ) {
+                *measured.get_mut(i, j) = fitted.get(i, j);
+            }
+        }
+    }
+    lights
+        .iter()
+        .map(|light| {
+            crate::colour::PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm)
+                .xyz(&measured)
+        })
+        .collect()
+}
+
 /// The largest ΔE2000 over the lights.
 fn worst(delta_e: &std::collections::BTreeMap<String, f64>) -> f64 {
     delta_e.values().cloned().fold(0.0, f64::max)
@@ -383,8 +434,9 @@ fn reflectance_form(
     let nm = &base.reflectance.wavelength_nm;
     let r = &base.reflectance.value;
     let reference = colour_of(base, m, data, lights);
+    let weights = diagonal_weights(base);
     for degree in 1..=MAX_REFLECTANCE_DEGREE {
-        let Ok(fit) = fit_sigmoid_polynomial(nm, r, None, degree) else {
+        let Ok(fit) = fit_sigmoid_polynomial(nm, r, Some(&weights), degree) else {
             continue;
         };
         let mut candidate = base.clone();
@@ -394,15 +446,22 @@ fn reflectance_form(
             .iter()
             .zip(&lab)
             .all(|(a, b)| crate::colour::delta_e2000(*a, *b) <= budget);
-        if std::env::var("FLUORITE_DEBUG").is_ok() {
-            let des: Vec<f64> = reference.iter().zip(&lab).map(|(a, b)| crate::colour::delta_e2000(*a, *b)).collect();
-            eprintln!("degree {degree}: rms {:.4} ΔE {des:?}", fit.rms);
-        }
         if ok {
             return ReflectanceForm::Polynomial(degree);
         }
     }
     ReflectanceForm::Tabulated
+}
+
+/// Weights making a reflectance fit a fit of the diagonal d = (1 − Σc·a)·r: where the
+/// fluorophores absorb nearly everything r is barely observable.
+fn diagonal_weights(material: &Material) -> Vec<f64> {
+    material
+        .reflectance
+        .wavelength_nm
+        .iter()
+        .map(|&l| (1.0 - material.absorbed(l)).max(0.0).powi(2))
+        .collect()
 }
 
 /// CIELAB of a material's patch on the measurement's grids, per light.
@@ -451,18 +510,62 @@ fn start(
         let f = &base.fluorophores[0];
         vec![(
             f.concentration,
-            f.absorption.resample_zero_outside(&data.excitation_nm).value,
+            f.absorption
+                .resample_zero_outside(&data.excitation_nm)
+                .value,
             f.emission.resample_zero_outside(&data.emission_nm).value,
         )]
     } else {
-        split_components(problem, base, one_component, sigma)
+        split_components(problem, base, one_component, sigma, 0)
     };
-    let total: f64 = components.iter().map(|c| c.0).sum::<f64>();
-    theta[0] = total.clamp(1e-6, START_KAPPA_CAP).sqrt().asin();
-    for (k, (kappa, absorption, emission)) in components.iter().enumerate() {
-        if spec.components > 1 {
-            theta[1 + k] = (kappa / total.max(1e-300)).max(1e-6).sqrt();
+    // The parent's own parameters, when it has this model's bands: the start then costs
+    // what the parent's optimum costs plus a small extra component.
+    let copied = match one_component {
+        Some((parent_spec, parent_theta))
+            if spec.components > 1
+                && parent_spec.absorption_bands == spec.absorption_bands
+                && parent_spec.emission_bands == spec.emission_bands
+                && parent_spec.reflectance == spec.reflectance =>
+        {
+            let parent_layout = super::parametric::Layout::new(*parent_spec);
+            theta[0] = parent_theta[0];
+            theta[layout.absorption(0)].copy_from_slice(&parent_theta[parent_layout.absorption(0)]);
+            theta[layout.emission(0)].copy_from_slice(&parent_theta[parent_layout.emission(0)]);
+            theta[layout.reflectance()].copy_from_slice(&parent_theta[parent_layout.reflectance()]);
+            true
         }
+        _ => false,
+    };
+    let parent_kappa = theta[0].sin().powi(2);
+    for (k, (kappa, absorption, emission)) in components.iter().enumerate() {
+        if copied && k == 0 {
+            continue;
+        }
+        // An added component starts small and inside Σκ·a ≤ 1: the start then costs
+        // about what the parent's optimum costs, and the solver grows what helps.
+        let kappa = if copied {
+            // Room left where this component absorbs: Σκ·a ≤ 1 with the parent's κ·a.
+            let parent_absorbed: Vec<f64> = match one_component {
+                Some((parent_spec, parent_theta)) => {
+                    let p = Problem::new(data, *parent_spec, &[], &[], 0.0);
+                    let gm = p.grid_model(parent_theta);
+                    gm.absorption[0].iter().map(|a| gm.kappa[0] * a).collect()
+                }
+                None => vec![parent_kappa; absorption.len()],
+            };
+            let room = absorption
+                .iter()
+                .zip(&parent_absorbed)
+                .filter(|(a, _)| **a > 1e-3)
+                .map(|(a, taken)| (1.0 - taken).max(0.0) / a)
+                .fold(1.0, f64::min);
+            kappa
+                .min(EXTRA_COMPONENT_SHARE * parent_kappa)
+                .min(0.9 * room)
+        } else {
+            *kappa
+        };
+        theta[k] = kappa.clamp(1e-6, START_KAPPA_CAP).sqrt().asin();
         let a = fit_bands(
             &data.excitation_nm,
             absorption,
@@ -470,24 +573,33 @@ fn start(
             spec.absorption_bands,
         )?;
         theta[layout.absorption(k)].copy_from_slice(&a.bands.params());
-        let e = fit_bands(&data.emission_nm, emission, spec.domain, spec.emission_bands)?;
+        let e = fit_bands(
+            &data.emission_nm,
+            emission,
+            spec.domain,
+            spec.emission_bands,
+        )?;
         theta[layout.emission(k)].copy_from_slice(&e.bands.params());
     }
-    if let ReflectanceForm::Polynomial(degree) = spec.reflectance {
+    if let ReflectanceForm::Polynomial(degree) = spec.reflectance
+        && !copied
+    {
         let nm = &base.reflectance.wavelength_nm;
-        let coefficients = match fit_sigmoid_polynomial(nm, &base.reflectance.value, None, degree)
-        {
-            Ok(fit) => fit.form.coefficients,
-            Err(_) => {
-                let mean = base.reflectance.value.iter().sum::<f64>()
-                    / base.reflectance.value.len().max(1) as f64;
-                let mut c = vec![0.0; degree + 1];
-                c[0] = logit(mean);
-                c
-            }
-        };
+        let weights = diagonal_weights(base);
+        let coefficients =
+            match fit_sigmoid_polynomial(nm, &base.reflectance.value, Some(&weights), degree) {
+                Ok(fit) => fit.form.coefficients,
+                Err(_) => {
+                    let mean = base.reflectance.value.iter().sum::<f64>()
+                        / base.reflectance.value.len().max(1) as f64;
+                    let mut c = vec![0.0; degree + 1];
+                    c[0] = logit(mean);
+                    c
+                }
+            };
         theta[layout.reflectance()].copy_from_slice(&coefficients);
     }
+    problem.clamp_to_box(&mut theta);
     Ok(theta)
 }
 
@@ -498,6 +610,7 @@ fn split_components(
     base: &Material,
     one_component: Option<&(ModelSpec, Vec<f64>)>,
     sigma: f64,
+    split_sweeps: usize,
 ) -> Vec<(f64, Vec<f64>, Vec<f64>)> {
     let data = problem.data;
     let k_count = problem.layout.spec.components;
@@ -510,7 +623,7 @@ fn split_components(
     // The first component: the one-component fit (parametric if fitted, else tabulated).
     let (row0, column0) = match one_component {
         Some((spec, theta)) => {
-            let p = Problem::new(data, *spec, &[], 0.0);
+            let p = Problem::new(data, *spec, &[], &[], 0.0);
             let gm = p.grid_model(theta);
             let row: Vec<f64> = gm.absorption[0].iter().map(|a| a * gm.scale[0]).collect();
             let column: Vec<f64> = gm.emission[0]
@@ -542,9 +655,12 @@ fn split_components(
     };
     let mut rows = vec![row0];
     let mut columns = vec![column0];
-    // Each further component starts as the rank-1 part of what the others leave.
+    // Each further component starts as the weighted rank-1 part of what the others leave,
+    // weighted by 1/(model + 3σ)²: a weak second emitter (a brightener's blue under UV)
+    // hides in cells the first leaves near zero, not in the first's relative misfit.
     for _ in 1..k_count {
         let mut residual = data.clone();
+        let mut weights = Vec::with_capacity(residual.off_diagonal.len());
         for c in residual.off_diagonal.iter_mut() {
             let explained: f64 = rows
                 .iter()
@@ -552,13 +668,31 @@ fn split_components(
                 .map(|(r, col)| r[c.row] * col[c.column])
                 .sum();
             c.value -= explained;
+            weights.push((explained.abs() + 3.0 * sigma).powi(-2));
         }
-        let extra = rank_one(&residual, 50);
+        let (row, column) = weighted_rank_one(&residual, &weights, 50);
+        // Its size: the plain least-squares projection of the residual on its shape (the
+        // weighted fit would inflate it where the model is small).
+        let (mut num, mut den) = (0.0, 0.0);
+        for c in &residual.off_diagonal {
+            let shape = row[c.row] * column[c.column];
+            num += c.value * shape;
+            den += shape * shape;
+        }
+        let size = if den > 0.0 {
+            (num / den).max(1e-3)
+        } else {
+            1e-3
+        };
         let floor = sigma * 1e-3;
-        rows.push(extra.row.iter().map(|v| v.max(floor)).collect());
-        columns.push(extra.column.iter().map(|v| v.max(floor)).collect());
+        rows.push(row.iter().map(|v| (v * size).max(floor)).collect());
+        columns.push(column.iter().map(|v| v.max(floor)).collect());
     }
-    let factors = masked_nmf(data, Factors { rows, columns }, FACTOR_SWEEPS);
+    let factors = if split_sweeps > 0 {
+        masked_nmf(data, Factors { rows, columns }, split_sweeps)
+    } else {
+        Factors { rows, columns }
+    };
     factors
         .rows
         .iter()
@@ -601,21 +735,82 @@ fn split_components(
         .collect()
 }
 
+/// Non-negative rank-1 fit of the off-diagonal cells with per-cell weights (alternating
+/// weighted least squares, started from the positive column mass).
+fn weighted_rank_one(data: &FitData, weights: &[f64], sweeps: usize) -> (Vec<f64>, Vec<f64>) {
+    let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
+    let mut column = vec![0.0; n_em];
+    for (c, w) in data.off_diagonal.iter().zip(weights) {
+        column[c.column] += w * c.value.max(0.0);
+    }
+    let mut row = vec![0.0; n_ex];
+    for _ in 0..sweeps {
+        let (mut num, mut den) = (vec![0.0; n_ex], vec![0.0; n_ex]);
+        for (c, w) in data.off_diagonal.iter().zip(weights) {
+            num[c.row] += w * c.value * column[c.column];
+            den[c.row] += w * column[c.column] * column[c.column];
+        }
+        for i in 0..n_ex {
+            row[i] = if den[i] > 0.0 {
+                (num[i] / den[i]).max(0.0)
+            } else {
+                0.0
+            };
+        }
+        let (mut num, mut den) = (vec![0.0; n_em], vec![0.0; n_em]);
+        for (c, w) in data.off_diagonal.iter().zip(weights) {
+            num[c.column] += w * c.value * row[c.row];
+            den[c.column] += w * row[c.row] * row[c.row];
+        }
+        for j in 0..n_em {
+            column[j] = if den[j] > 0.0 {
+                (num[j] / den[j]).max(0.0)
+            } else {
+                0.0
+            };
+        }
+    }
+    (row, column)
+}
+
 /// L-BFGS on the candidate's objective.
 fn refine(
     problem: &Problem<'_>,
     theta0: &[f64],
     options: &FitOptions,
 ) -> Result<(Vec<f64>, solve::Refined)> {
-    let function = |theta: &[f64]| problem.cost_gradient(theta);
     let (start_cost, start_gradient) = problem.cost_gradient(theta0);
+    if !start_cost.is_finite() || start_gradient.iter().any(|g| !g.is_finite()) {
+        return Err(Error::Fit(
+            "the start has a non-finite cost or gradient".into(),
+        ));
+    }
     let gradient_norm = start_gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
+    // L-BFGS's first step is the raw gradient: scale the cost so that step moves the
+    // parameters (each of order one) by FIRST_STEP, not by whatever the data's units
+    // make it (a step of 10³ overflows the bands). Later steps are scale-free.
+    let scale = if gradient_norm > 0.0 {
+        FIRST_STEP / gradient_norm
+    } else {
+        1.0
+    };
+    let ceiling = 1e12 * start_cost.max(1e-300) * scale;
+    let function = |theta: &[f64]| {
+        let (cost, gradient) = problem.cost_gradient(theta);
+        if cost.is_finite() && gradient.iter().all(|g| g.is_finite()) {
+            (cost * scale, gradient.iter().map(|g| g * scale).collect())
+        } else {
+            // Far outside the data's reach: a high wall the line search backs off from.
+            (ceiling, vec![0.0; theta.len()])
+        }
+    };
     let stopping = solve::Stopping {
         max_iterations: options.max_iterations.max(2000),
-        gradient_tolerance: options.tolerance * gradient_norm.max(1e-300),
-        cost_tolerance: options.tolerance * start_cost.max(1e-300),
+        gradient_tolerance: options.tolerance * FIRST_STEP,
+        cost_tolerance: options.tolerance * start_cost.max(1e-300) * scale,
     };
-    let refined = solve::lbfgs_function(&function, theta0, stopping).map_err(Error::Fit)?;
+    let mut refined = solve::lbfgs_function(&function, theta0, stopping).map_err(Error::Fit)?;
+    refined.cost_history.iter_mut().for_each(|c| *c /= scale);
     if refined.theta.iter().any(|t| !t.is_finite()) {
         return Err(Error::Fit(
             "the solver left the parameter space (non-finite parameters)".into(),
