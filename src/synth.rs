@@ -8,6 +8,9 @@ use crate::error::{Error, Result};
 use crate::material::{Fluorophore, Material};
 use crate::measurement::{Measurement, Units};
 use crate::model::predict;
+use crate::parametric::{
+    BandDomain, FluorophoreForms, GaussianBand, GaussianBands, MaterialForms, SpectralForm,
+};
 use crate::spectrum::{Spectrum, bin_widths, uniform_grid};
 
 /// A small, fast, reproducible random generator (SplitMix64). Synthetic data must be
@@ -291,23 +294,9 @@ impl SynthSpec {
             })
             .collect();
         let reflectance = Spectrum::new(self.emission_nm.clone(), reflectance, "reflectance")?;
-        let first = SynthComponent {
-            absorption: self.absorption.clone(),
-            emission: self.emission.clone(),
-            concentration: self.concentration,
-            yield_fraction_of_limit: self.yield_fraction_of_limit,
-        };
         let mut fluorophores = Vec::new();
-        for (n, component) in std::iter::once(&first).chain(&self.components).enumerate() {
-            if component.absorption.is_empty() || component.concentration == 0.0 {
-                continue;
-            }
-            let place = if n == 0 {
-                "synth".to_string()
-            } else {
-                format!("synth.components[{}]", n - 1)
-            };
-            fluorophores.push(self.fluorophore(component, &place)?);
+        for (component, place) in self.active_components() {
+            fluorophores.push(self.fluorophore(&component, &place)?.0);
         }
         if fluorophores.is_empty() {
             return Ok(Material::new(self.name.clone(), reflectance, vec![]));
@@ -317,9 +306,74 @@ impl SynthSpec {
         Ok(material)
     }
 
+    /// The components that make fluorophores (absorption bands and c > 0), in order, with
+    /// their place in the spec for errors.
+    fn active_components(&self) -> Vec<(SynthComponent, String)> {
+        let first = SynthComponent {
+            absorption: self.absorption.clone(),
+            emission: self.emission.clone(),
+            concentration: self.concentration,
+            yield_fraction_of_limit: self.yield_fraction_of_limit,
+        };
+        std::iter::once(first)
+            .chain(self.components.iter().cloned())
+            .enumerate()
+            .filter(|(_, c)| !c.absorption.is_empty() && c.concentration != 0.0)
+            .map(|(n, c)| {
+                let place = if n == 0 {
+                    "synth".to_string()
+                } else {
+                    format!("synth.components[{}]", n - 1)
+                };
+                (c, place)
+            })
+            .collect()
+    }
+
+    /// The ground truth with a `forms` block (model `synth`): per fluorophore the
+    /// Gaussian bands (in wavelength, zero outside the spec's grids) that generate its
+    /// spectra, scaled exactly as its samples are. The reflectance stays tabulated.
+    pub fn truth_with_forms(&self) -> Result<Material> {
+        let mut material = self.truth()?;
+        let mut fluorophores = Vec::new();
+        for (component, place) in self.active_components() {
+            let (_, peak, area) = self.fluorophore(&component, &place)?;
+            let form = |bands: &[Band], scale: f64, grid: &[f64]| {
+                SpectralForm::GaussianBands(GaussianBands {
+                    domain: BandDomain::Wavelength,
+                    support_nm: [grid[0], grid[grid.len() - 1]],
+                    bands: bands
+                        .iter()
+                        .map(|b| GaussianBand {
+                            centre_nm: b.centre_nm,
+                            width: b.width_nm,
+                            height: b.weight / scale,
+                        })
+                        .collect(),
+                })
+            };
+            fluorophores.push(FluorophoreForms {
+                absorption: form(&component.absorption, peak, &self.excitation_nm),
+                emission: form(&component.emission, area, &self.emission_nm),
+            });
+        }
+        material.forms = Some(MaterialForms {
+            model: "synth".to_string(),
+            reflectance: None,
+            fluorophores,
+        });
+        material.validate()?;
+        Ok(material)
+    }
+
     /// One component sampled on the spec's grids: a normalised to max 1, e to ∫e = 1, and
-    /// Q the given fraction of the photon limit λmin/λ̄e. `place` names it in errors.
-    fn fluorophore(&self, component: &SynthComponent, place: &str) -> Result<Fluorophore> {
+    /// Q the given fraction of the photon limit λmin/λ̄e; with the absorption peak and
+    /// emission area divided out. `place` names it in errors.
+    fn fluorophore(
+        &self,
+        component: &SynthComponent,
+        place: &str,
+    ) -> Result<(Fluorophore, f64, f64)> {
         let sample = |bands: &[Band], grid: &[f64]| -> Vec<f64> {
             grid.iter()
                 .map(|&l| bands.iter().map(|b| b.eval(l)).sum())
@@ -360,13 +414,14 @@ impl SynthSpec {
             .map(|i| self.excitation_nm[i.saturating_sub(1)])
             .unwrap_or(self.excitation_nm[0]);
         let limit = (shortest / emission.mean_wavelength_nm()).min(1.0);
-        Ok(Fluorophore {
+        let fluorophore = Fluorophore {
             concentration: component.concentration,
             quantum_yield: component.yield_fraction_of_limit * limit,
             concentration_range: None,
             absorption,
             emission,
-        })
+        };
+        Ok((fluorophore, peak, area))
     }
 
     /// The synthetic measurement (per 10 nm-style bin) and its ground truth.

@@ -251,3 +251,45 @@ fn bad_components_are_errors_not_panics() {
     spec.components[0].concentration = 0.0;
     assert_eq!(spec.truth().unwrap().fluorophores.len(), 1);
 }
+
+#[test]
+fn truth_with_forms_holds_the_generating_bands() {
+    let spec = SynthSpec::preset("two-dyes").unwrap();
+    let material = spec.truth_with_forms().unwrap();
+    material.validate().unwrap();
+    let forms = material.forms.as_ref().unwrap();
+    assert_eq!(forms.model, "synth");
+    assert!(forms.reflectance.is_none());
+    assert_eq!(forms.fluorophores.len(), 2);
+    // Without the block it is the plain truth.
+    let mut bare = material.clone();
+    bare.forms = None;
+    assert_eq!(bare, spec.truth().unwrap());
+    // Off the grid the form is the bands' sum divided by the grid peak (absorption) or
+    // the trapezoid area (emission).
+    let bands = &spec.components[0];
+    let f = &material.fluorophores[1];
+    let peak = spec
+        .excitation_nm
+        .iter()
+        .map(|&l| gauss(&bands.absorption, l))
+        .fold(0.0, f64::max);
+    let a = forms.fluorophores[1].absorption.eval(545.0);
+    assert!((a - gauss(&bands.absorption, 545.0) / peak).abs() < 1e-12);
+    assert!(a > 1.0, "the band centre lies between samples: {a}");
+    let area: f64 = spec
+        .emission_nm
+        .iter()
+        .zip(bin_widths(&spec.emission_nm))
+        .map(|(&l, w)| gauss(&bands.emission, l) * w)
+        .sum();
+    let e = forms.fluorophores[1].emission.eval(613.0);
+    assert!((e - gauss(&bands.emission, 613.0) / area).abs() < 1e-15);
+    assert!(
+        (forms.fluorophores[1].emission.eval(610.0) - f.emission.eval_zero_outside(610.0)).abs()
+            < 1e-15
+    );
+    // Zero outside the grids, like the samples.
+    assert_eq!(forms.fluorophores[0].absorption.eval(299.0), 0.0);
+    assert_eq!(forms.fluorophores[0].emission.eval(379.0), 0.0);
+}
