@@ -997,9 +997,9 @@ fn two_fluorophore_heat_map_and_swatches_sum_the_components() {
             .sum()
     };
     let mut value_max = 0.0f64;
-    for i in 0..ex.len() {
-        for j in 0..em.len() {
-            if (em[j] - ex[i]).abs() > 10.0 + 1e-6 {
+    for (i, li) in ex.iter().enumerate() {
+        for (j, lo) in em.iter().enumerate() {
+            if (lo - li).abs() > 10.0 + 1e-6 {
                 value_max = value_max.max(cell(i, j));
             }
         }

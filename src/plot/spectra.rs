@@ -209,6 +209,9 @@ impl SpectraPanel {
     }
 }
 
+/// A curve to draw: its points, its look and its legend text.
+type Line = (Vec<(f64, f64)>, Glyph, String);
+
 /// What a legend entry's sample looks like.
 #[derive(Clone, Copy)]
 enum Glyph {
@@ -367,7 +370,7 @@ impl Draw for SpectraFigure<'_> {
 
         // Curves, in plot coordinates.
         let mut legend: Vec<(Glyph, String)> = Vec::new();
-        let mut lines: Vec<(Vec<(f64, f64)>, Glyph, String)> = Vec::new();
+        let mut lines: Vec<Line> = Vec::new();
         let several = material.fluorophores.len() > 1;
         for (n, f) in material.fluorophores.iter().enumerate() {
             let (abs_glyph, em_glyph, tag) = if several {
@@ -388,8 +391,8 @@ impl Draw for SpectraFigure<'_> {
             let e: Vec<(f64, f64)> = e.into_iter().map(|(l, v)| (l, v * e_scale)).collect();
             let a_label = format!("a{tag}(λ) absorption");
             let e_label = format!("e{tag}(λ) emission ÷ {} /nm", format_significant(e_max, 3));
-            legend.push((abs_glyph.clone(), a_label.clone()));
-            legend.push((em_glyph.clone(), e_label.clone()));
+            legend.push((abs_glyph, a_label.clone()));
+            legend.push((em_glyph, e_label.clone()));
             lines.push((a, abs_glyph, a_label));
             lines.push((e, em_glyph, e_label));
         }
