@@ -17,7 +17,8 @@ use serde::Serialize;
 use serde_json::Value;
 
 use crate::error::{Error, Result};
-use crate::material::{BOUND_TOLERANCE, Material, NORMALISATION_TOLERANCE, SCHEMA};
+use crate::material::{BOUND_TOLERANCE, FORM_TOLERANCE, Material, NORMALISATION_TOLERANCE, SCHEMA};
+use crate::parametric::{MaterialForms, SpectralForm};
 use crate::spectrum::{Spectrum, bin_widths};
 
 /// The laws a material must satisfy.
@@ -49,11 +50,15 @@ pub enum Law {
     Energy,
     /// Q·λ̄e/λ ≤ 1 wherever a(λ) > 0.
     Photons,
+    /// The `forms` block (when present) parses, has one entry per fluorophore, finite
+    /// parameters, and reproduces the tabulated samples within
+    /// [`FORM_TOLERANCE`] of each spectrum's peak.
+    Forms,
 }
 
 impl Law {
     /// Every law, in report order.
-    pub const ALL: [Law; 12] = [
+    pub const ALL: [Law; 13] = [
         Law::Schema,
         Law::FiniteNonNegative,
         Law::SortedWavelengths,
@@ -66,6 +71,7 @@ impl Law {
         Law::TotalAbsorption,
         Law::Energy,
         Law::Photons,
+        Law::Forms,
     ];
 
     /// The law's short name (as in the JSON report).
@@ -83,6 +89,7 @@ impl Law {
             Law::TotalAbsorption => "total-absorption",
             Law::Energy => "energy",
             Law::Photons => "photons",
+            Law::Forms => "forms",
         }
     }
 
@@ -103,6 +110,7 @@ impl Law {
             Law::TotalAbsorption => "Σ c·a(λ) ≤ 1",
             Law::Energy => "ρ(λ) = (1 − Σc·a)·r + Σc·Q·a·∫e ≤ 1",
             Law::Photons => "Q·λ̄e/λ ≤ 1 wherever a(λ) > 0",
+            Law::Forms => "forms = samples (relative to the peak)",
         }
     }
 
@@ -110,6 +118,7 @@ impl Law {
     pub fn tolerance(self) -> f64 {
         match self {
             Law::AbsorptionPeak | Law::EmissionIntegral => NORMALISATION_TOLERANCE,
+            Law::Forms => FORM_TOLERANCE,
             _ => BOUND_TOLERANCE,
         }
     }
@@ -173,6 +182,23 @@ pub struct FluorophoreSummary {
     pub photon_yield_range: Option<[f64; 2]>,
 }
 
+/// What the `forms` block holds and how well it reproduces the samples.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FormsSummary {
+    /// The model name (`gaussian:1x2`, …; empty when the block gives none).
+    pub model: String,
+    /// Number of forms (reflectance, and absorption and emission per fluorophore).
+    pub forms: usize,
+    /// Free parameters of all forms together.
+    pub parameters: usize,
+    /// Largest |form(λ) − sample| over every sample, relative to its spectrum's peak
+    /// (NaN when the block could not be compared).
+    pub worst_deviation: f64,
+    /// Remarks that break no law, e.g. an absorption form rising above 1 between samples
+    /// (everything downstream uses the samples).
+    pub notes: Vec<String>,
+}
+
 /// The full report of [`check`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CheckReport {
@@ -182,10 +208,14 @@ pub struct CheckReport {
     pub source: Option<String>,
     /// True when no law fails.
     pub valid: bool,
+    /// The model of the material's continuous forms (None: tabulated spectra only).
+    pub model: Option<String>,
     /// Every law, in [`Law::ALL`] order.
     pub laws: Vec<LawResult>,
     /// Per fluorophore: k, λ̄e and the photon quantum yield range.
     pub fluorophores: Vec<FluorophoreSummary>,
+    /// The `forms` block, when the material has one.
+    pub forms: Option<FormsSummary>,
 }
 
 impl CheckReport {
@@ -247,11 +277,17 @@ impl CheckReport {
                 l.law,
                 Law::Schema | Law::FiniteNonNegative | Law::SortedWavelengths
             );
-            if !structural && l.status != Status::NotEvaluated && !l.margin.is_nan() {
+            if l.law == Law::Forms && l.status == Status::Pass && self.forms.is_none() {
+                line.push_str(" (no forms block: tabulated spectra)");
+            } else if !structural && l.status != Status::NotEvaluated && !l.margin.is_nan() {
                 // `+ 0.0` turns −0 into 0 for printing.
                 line.push_str(&format!(" margin {:+.3e}", l.margin + 0.0));
                 if let Some(at) = &l.worst_at {
-                    line.push_str(&format!(" worst {} = {:.6}", at, l.worst_value));
+                    if l.law == Law::Forms {
+                        line.push_str(&format!(" worst {} off by {:.3e}", at, l.worst_value));
+                    } else {
+                        line.push_str(&format!(" worst {} = {:.6}", at, l.worst_value));
+                    }
                 }
                 if let Some(nm) = l.worst_nm {
                     line.push_str(&format!(" at {nm} nm"));
@@ -276,6 +312,33 @@ impl CheckReport {
                 ));
             }
             out.push('\n');
+        }
+        if let Some(f) = &self.forms {
+            let model = if f.model.is_empty() {
+                "(no model name)"
+            } else {
+                &f.model
+            };
+            let agreement = if f.worst_deviation.is_nan() {
+                "not compared with the samples".to_string()
+            } else if f.worst_deviation <= FORM_TOLERANCE {
+                format!(
+                    "samples match within {:.1e} of the peak (tolerance {FORM_TOLERANCE:.0e})",
+                    f.worst_deviation
+                )
+            } else {
+                format!(
+                    "samples DO NOT match: off by up to {:.3e} of the peak (tolerance {FORM_TOLERANCE:.0e})",
+                    f.worst_deviation
+                )
+            };
+            out.push_str(&format!(
+                "  forms: {model}, {} forms with {} parameters, {agreement}\n",
+                f.forms, f.parameters
+            ));
+            for note in &f.notes {
+                out.push_str(&format!("  note: {note}\n"));
+            }
         }
         out
     }
@@ -303,6 +366,17 @@ pub struct RawFluorophore {
     pub emission: RawSpectrum,
 }
 
+/// The `forms` block as found in the file.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RawForms {
+    /// The model name as written (empty when missing).
+    pub model: String,
+    /// The forms, when the block reads as [`MaterialForms`].
+    pub forms: Option<MaterialForms>,
+    /// Why the block does not read, when it does not.
+    pub error: Option<String>,
+}
+
 /// A material as found in the file: the shape of [`Material`] without its invariants.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RawMaterial {
@@ -314,6 +388,8 @@ pub struct RawMaterial {
     pub reflectance: RawSpectrum,
     /// The fluorophores.
     pub fluorophores: Vec<RawFluorophore>,
+    /// The continuous forms, when the file has a `forms` block.
+    pub forms: Option<RawForms>,
 }
 
 impl From<&Spectrum> for RawSpectrum {
@@ -341,6 +417,11 @@ impl From<&Material> for RawMaterial {
                     emission: (&f.emission).into(),
                 })
                 .collect(),
+            forms: m.forms.as_ref().map(|f| RawForms {
+                model: f.model.clone(),
+                forms: Some(f.clone()),
+                error: None,
+            }),
         }
     }
 }
@@ -431,11 +512,32 @@ impl RawMaterial {
                 emission: spectrum(f.get("emission"), &format!("{p}.emission"))?,
             });
         }
+        // A malformed forms block is a broken law (reported), not an unreadable file.
+        let forms = obj.get("forms").filter(|v| !v.is_null()).map(|v| {
+            let model = v
+                .get("model")
+                .and_then(Value::as_str)
+                .unwrap_or("")
+                .to_string();
+            match serde_json::from_value::<MaterialForms>(v.clone()) {
+                Ok(forms) => RawForms {
+                    model,
+                    forms: Some(forms),
+                    error: None,
+                },
+                Err(e) => RawForms {
+                    model,
+                    forms: None,
+                    error: Some(e.to_string()),
+                },
+            }
+        });
         Ok(RawMaterial {
             schema,
             name,
             reflectance,
             fluorophores,
+            forms,
         })
     }
 }
@@ -795,6 +897,8 @@ pub fn check(m: &RawMaterial) -> CheckReport {
         photons.evaluated = false;
     }
 
+    let (forms_law, forms) = check_forms(m);
+
     let laws = vec![
         schema.result(),
         finite.result(),
@@ -808,15 +912,143 @@ pub fn check(m: &RawMaterial) -> CheckReport {
         total.result(),
         energy.result(),
         photons.result(),
+        forms_law.result(),
     ];
     let valid = laws.iter().all(|l| l.status != Status::Fail);
     CheckReport {
         material: m.name.clone(),
         source: None,
         valid,
+        model: m.forms.as_ref().map(|f| f.model.clone()),
         laws,
         fluorophores: summaries,
+        forms,
     }
+}
+
+/// Spacing (nm) at which absorption forms are searched for values above 1 between
+/// samples.
+const FORM_SCAN_STEP_NM: f64 = 0.5;
+
+/// The [`Law::Forms`] tracker and the forms summary: every form compared with its
+/// spectrum's samples (all violations named, one per spectrum).
+fn check_forms(m: &RawMaterial) -> (Tracker, Option<FormsSummary>) {
+    let mut law = Tracker::new(Law::Forms);
+    let Some(raw) = &m.forms else {
+        return (law, None);
+    };
+    let mut summary = FormsSummary {
+        model: raw.model.clone(),
+        forms: 0,
+        parameters: 0,
+        worst_deviation: f64::NAN,
+        notes: Vec::new(),
+    };
+    let Some(forms) = &raw.forms else {
+        let error = raw.error.clone().unwrap_or_default();
+        law.observe_if(true, f64::NAN, f64::NAN, "forms", None, || {
+            format!("the forms block does not read: {error}; fix it or drop the block (everything downstream uses the samples)")
+        });
+        return (law, Some(summary));
+    };
+    if forms.fluorophores.len() != m.fluorophores.len() {
+        law.observe_if(true, f64::NAN, f64::NAN, "forms.fluorophores", None, || {
+            format!(
+                "forms.fluorophores has {} entries for {} fluorophores; give one per fluorophore, in order, or drop the forms block",
+                forms.fluorophores.len(),
+                m.fluorophores.len()
+            )
+        });
+    }
+    let mut pairs: Vec<(&SpectralForm, &RawSpectrum, String)> = Vec::new();
+    if let Some(r) = &forms.reflectance {
+        pairs.push((r, &m.reflectance, "reflectance".to_string()));
+    }
+    for (n, (ff, f)) in forms.fluorophores.iter().zip(&m.fluorophores).enumerate() {
+        pairs.push((
+            &ff.absorption,
+            &f.absorption,
+            format!("fluorophores[{n}].absorption"),
+        ));
+        pairs.push((
+            &ff.emission,
+            &f.emission,
+            format!("fluorophores[{n}].emission"),
+        ));
+    }
+    summary.forms = pairs.len();
+    summary.parameters = pairs.iter().map(|(f, _, _)| f.n_params()).sum();
+    let mut worst = 0.0f64;
+    let mut compared = false;
+    for (form, samples, what) in pairs {
+        let place = format!("forms.{what}");
+        if let Err(e) = form.validate(&place) {
+            law.observe_if(true, f64::NAN, f64::NAN, &place, None, || {
+                format!("{e}; fix the parameters or drop the forms block")
+            });
+            continue;
+        }
+        if !usable(samples) {
+            // The structural laws report the samples; nothing to compare with.
+            law.evaluated = false;
+            continue;
+        }
+        compared = true;
+        let peak = samples
+            .value
+            .iter()
+            .fold(0.0f64, |p, v| p.max(v.abs()))
+            .max(1e-300);
+        let mut spectrum_worst: Option<(f64, f64, f64, f64)> = None;
+        let mut broken = 0usize;
+        for (&l, &v) in samples.wavelength_nm.iter().zip(&samples.value) {
+            let f = form.eval(l);
+            let deviation = (f - v).abs() / peak;
+            let deviation = if deviation.is_nan() {
+                f64::INFINITY
+            } else {
+                deviation
+            };
+            if deviation > FORM_TOLERANCE {
+                broken += 1;
+            }
+            if spectrum_worst.is_none_or(|w| deviation > w.0) {
+                spectrum_worst = Some((deviation, l, f, v));
+            }
+        }
+        if let Some((deviation, l, f, v)) = spectrum_worst {
+            worst = worst.max(deviation);
+            law.observe(-deviation, deviation, &place, Some(l), || {
+                format!(
+                    "{place} gives {f} at {l} nm where {what} has the sample {v} ({broken} of {} samples differ by more than {FORM_TOLERANCE:.0e} of the peak); re-tabulate the samples from the form or drop the forms block",
+                    samples.value.len()
+                )
+            });
+        }
+        // Between samples an absorption form may exceed 1 though its samples do not.
+        if what.ends_with(".absorption")
+            && let (Some(&lo), Some(&hi)) =
+                (samples.wavelength_nm.first(), samples.wavelength_nm.last())
+        {
+            let steps = ((hi - lo) / FORM_SCAN_STEP_NM).ceil().min(1e6) as usize;
+            let (top_nm, top) = (0..=steps)
+                .map(|i| lo + (i as f64 * FORM_SCAN_STEP_NM).min(hi - lo))
+                .map(|l| (l, form.eval(l)))
+                .fold(
+                    (lo, f64::NEG_INFINITY),
+                    |a, b| if b.1 > a.1 { b } else { a },
+                );
+            if top > 1.0 + NORMALISATION_TOLERANCE {
+                summary.notes.push(format!(
+                    "{place} reaches {top:.4} at {top_nm} nm between samples (the samples, which everything uses, stay ≤ 1); sample it more finely to follow the form"
+                ));
+            }
+        }
+    }
+    if compared {
+        summary.worst_deviation = worst;
+    }
+    (law, Some(summary))
 }
 
 /// Shortest and longest wavelength where a > 0: a is linear between samples, so a

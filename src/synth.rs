@@ -8,6 +8,9 @@ use crate::error::{Error, Result};
 use crate::material::{Fluorophore, Material};
 use crate::measurement::{Measurement, Units};
 use crate::model::predict;
+use crate::parametric::{
+    BandDomain, FluorophoreForms, GaussianBand, GaussianBands, MaterialForms, SpectralForm,
+};
 use crate::spectrum::{Spectrum, bin_widths, uniform_grid};
 
 /// A small, fast, reproducible random generator (SplitMix64). Synthetic data must be
@@ -60,6 +63,19 @@ impl Band {
     }
 }
 
+/// One further fluorescent component of a [`SynthSpec`], defined like the spec's own.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SynthComponent {
+    /// Absorption bands (normalised to max 1 on the excitation grid).
+    pub absorption: Vec<Band>,
+    /// Emission bands (normalised to ∫e = 1 on the emission grid).
+    pub emission: Vec<Band>,
+    /// Concentration c.
+    pub concentration: f64,
+    /// Quantum yield as a fraction of its photon limit λmin/λ̄e.
+    pub yield_fraction_of_limit: f64,
+}
+
 /// Everything that defines a synthetic measurement.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SynthSpec {
@@ -86,6 +102,10 @@ pub struct SynthSpec {
     pub concentration: f64,
     /// Quantum yield as a fraction of its photon limit λmin/λ̄e (so it is always valid).
     pub yield_fraction_of_limit: f64,
+    /// Further fluorescent components beside the one above (absent in one-fluorophore
+    /// specs). The truth lists the first component first, then these in order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub components: Vec<SynthComponent>,
     /// Gaussian noise σ added to every cell (radiance-factor units).
     pub noise_sigma: f64,
     /// Crosstalk: the cells one guard step off the diagonal get this fraction of the
@@ -100,7 +120,9 @@ pub struct SynthSpec {
 impl SynthSpec {
     /// A BFC-450-like spec (excitation 300–780, emission 380–780, 10 nm) of a named
     /// preset: `green-dye` (fluorescein-like), `red-pigment` (cerise-like), `brightener`
-    /// (optical brightener: UV absorption, blue emission), `plain` (no fluorescence).
+    /// (optical brightener: UV absorption, blue emission), `two-dyes` (two fluorophores:
+    /// a brightener absorbing at 365 nm and emitting at 440 nm, and an orange-red dye
+    /// absorbing at 545 nm and emitting at 610 nm), `plain` (no fluorescence).
     pub fn preset(name: &str) -> Result<SynthSpec> {
         let mut spec = SynthSpec {
             name: name.to_string(),
@@ -114,6 +136,7 @@ impl SynthSpec {
             reflectance_width_nm: 20.0,
             concentration: 0.8,
             yield_fraction_of_limit: 0.9,
+            components: vec![],
             noise_sigma: MEASURED_NOISE_SIGMA,
             crosstalk: 0.02,
             missing_fraction: 0.0,
@@ -192,6 +215,53 @@ impl SynthSpec {
                 spec.reflectance_edge_nm = 400.0;
                 spec.concentration = 0.7;
             }
+            "two-dyes" => {
+                // An optical brightener (UV absorption, blue emission) and an orange-red
+                // dye (green absorption, orange-red emission) in a white base.
+                spec.absorption = vec![Band {
+                    centre_nm: 365.0,
+                    width_nm: 15.0,
+                    weight: 1.0,
+                }];
+                spec.emission = vec![
+                    Band {
+                        centre_nm: 440.0,
+                        width_nm: 15.0,
+                        weight: 1.0,
+                    },
+                    Band {
+                        centre_nm: 465.0,
+                        width_nm: 20.0,
+                        weight: 0.35,
+                    },
+                ];
+                spec.concentration = 0.6;
+                spec.yield_fraction_of_limit = 0.8;
+                spec.components = vec![SynthComponent {
+                    absorption: vec![Band {
+                        centre_nm: 545.0,
+                        width_nm: 18.0,
+                        weight: 1.0,
+                    }],
+                    emission: vec![
+                        Band {
+                            centre_nm: 610.0,
+                            width_nm: 17.0,
+                            weight: 1.0,
+                        },
+                        Band {
+                            centre_nm: 640.0,
+                            width_nm: 25.0,
+                            weight: 0.3,
+                        },
+                    ],
+                    concentration: 0.7,
+                    yield_fraction_of_limit: 0.85,
+                }];
+                spec.reflectance_low = 0.55;
+                spec.reflectance_high = 0.9;
+                spec.reflectance_edge_nm = 400.0;
+            }
             "plain" => {
                 spec.absorption = vec![];
                 spec.emission = vec![];
@@ -211,7 +281,8 @@ impl SynthSpec {
     }
 
     /// The ground-truth material, sampled on the spec's grids (so the tabulated model
-    /// represents it exactly).
+    /// represents it exactly): the spec's own fluorophore (unless it has no absorption
+    /// bands or zero concentration), then one per entry of `components`, in order.
     pub fn truth(&self) -> Result<Material> {
         let reflectance: Vec<f64> = self
             .emission_nm
@@ -223,23 +294,116 @@ impl SynthSpec {
             })
             .collect();
         let reflectance = Spectrum::new(self.emission_nm.clone(), reflectance, "reflectance")?;
-        if self.absorption.is_empty() || self.concentration == 0.0 {
+        let mut fluorophores = Vec::new();
+        for (component, place) in self.active_components() {
+            fluorophores.push(self.fluorophore(&component, &place)?.0);
+        }
+        if fluorophores.is_empty() {
             return Ok(Material::new(self.name.clone(), reflectance, vec![]));
         }
+        let material = Material::new(self.name.clone(), reflectance, fluorophores);
+        material.validate()?;
+        Ok(material)
+    }
+
+    /// The components that make fluorophores (absorption bands and c > 0), in order, with
+    /// their place in the spec for errors.
+    fn active_components(&self) -> Vec<(SynthComponent, String)> {
+        let first = SynthComponent {
+            absorption: self.absorption.clone(),
+            emission: self.emission.clone(),
+            concentration: self.concentration,
+            yield_fraction_of_limit: self.yield_fraction_of_limit,
+        };
+        std::iter::once(first)
+            .chain(self.components.iter().cloned())
+            .enumerate()
+            .filter(|(_, c)| !c.absorption.is_empty() && c.concentration != 0.0)
+            .map(|(n, c)| {
+                let place = if n == 0 {
+                    "synth".to_string()
+                } else {
+                    format!("synth.components[{}]", n - 1)
+                };
+                (c, place)
+            })
+            .collect()
+    }
+
+    /// The ground truth with a `forms` block (model `synth`): per fluorophore the
+    /// Gaussian bands (in wavelength, zero outside the spec's grids) that generate its
+    /// spectra, scaled exactly as its samples are. The reflectance stays tabulated.
+    pub fn truth_with_forms(&self) -> Result<Material> {
+        let mut material = self.truth()?;
+        let mut fluorophores = Vec::new();
+        for (component, place) in self.active_components() {
+            let (_, peak, area) = self.fluorophore(&component, &place)?;
+            let form = |bands: &[Band], scale: f64, grid: &[f64]| {
+                SpectralForm::GaussianBands(GaussianBands {
+                    domain: BandDomain::Wavelength,
+                    support_nm: [grid[0], grid[grid.len() - 1]],
+                    bands: bands
+                        .iter()
+                        .map(|b| GaussianBand {
+                            centre_nm: b.centre_nm,
+                            width: b.width_nm,
+                            height: b.weight / scale,
+                        })
+                        .collect(),
+                })
+            };
+            fluorophores.push(FluorophoreForms {
+                absorption: form(&component.absorption, peak, &self.excitation_nm),
+                emission: form(&component.emission, area, &self.emission_nm),
+            });
+        }
+        material.forms = Some(MaterialForms {
+            model: "synth".to_string(),
+            reflectance: None,
+            fluorophores,
+        });
+        material.validate()?;
+        Ok(material)
+    }
+
+    /// One component sampled on the spec's grids: a normalised to max 1, e to ∫e = 1, and
+    /// Q the given fraction of the photon limit λmin/λ̄e; with the absorption peak and
+    /// emission area divided out. `place` names it in errors.
+    fn fluorophore(
+        &self,
+        component: &SynthComponent,
+        place: &str,
+    ) -> Result<(Fluorophore, f64, f64)> {
         let sample = |bands: &[Band], grid: &[f64]| -> Vec<f64> {
             grid.iter()
                 .map(|&l| bands.iter().map(|b| b.eval(l)).sum())
                 .collect()
         };
-        let mut a = sample(&self.absorption, &self.excitation_nm);
+        let mut a = sample(&component.absorption, &self.excitation_nm);
         let peak = a.iter().cloned().fold(0.0, f64::max);
+        if !(peak.is_finite() && peak > 0.0) {
+            return Err(Error::invalid(
+                format!("{place}.absorption"),
+                format!(
+                    "peaks at {peak} on the excitation grid; give bands with positive weight inside it"
+                ),
+            ));
+        }
         a.iter_mut().for_each(|x| *x /= peak);
-        let mut e = sample(&self.emission, &self.emission_nm);
+        let mut e = sample(&component.emission, &self.emission_nm);
         let area: f64 = e
             .iter()
             .zip(bin_widths(&self.emission_nm))
             .map(|(x, w)| x * w)
             .sum();
+        if !(area.is_finite() && area > 0.0) {
+            return Err(Error::invalid(
+                format!("{place}.emission"),
+                format!(
+                    "integrates to {area} on the emission grid; give bands with positive weight inside it"
+                ),
+            ));
+        }
         e.iter_mut().for_each(|x| *x /= area);
         let absorption = Spectrum::new(self.excitation_nm.clone(), a, "absorption")?;
         let emission = Spectrum::new(self.emission_nm.clone(), e, "emission")?;
@@ -251,15 +415,13 @@ impl SynthSpec {
             .unwrap_or(self.excitation_nm[0]);
         let limit = (shortest / emission.mean_wavelength_nm()).min(1.0);
         let fluorophore = Fluorophore {
-            concentration: self.concentration,
-            quantum_yield: self.yield_fraction_of_limit * limit,
+            concentration: component.concentration,
+            quantum_yield: component.yield_fraction_of_limit * limit,
             concentration_range: None,
             absorption,
             emission,
         };
-        let material = Material::new(self.name.clone(), reflectance, vec![fluorophore]);
-        material.validate()?;
-        Ok(material)
+        Ok((fluorophore, peak, area))
     }
 
     /// The synthetic measurement (per 10 nm-style bin) and its ground truth.
@@ -298,4 +460,10 @@ impl SynthSpec {
 pub const MEASURED_NOISE_SIGMA: f64 = 0.0006;
 
 /// Names accepted by [`SynthSpec::preset`].
-pub const PRESETS: [&str; 4] = ["green-dye", "red-pigment", "brightener", "plain"];
+pub const PRESETS: [&str; 5] = [
+    "green-dye",
+    "red-pigment",
+    "brightener",
+    "two-dyes",
+    "plain",
+];

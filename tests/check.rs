@@ -8,6 +8,7 @@ use fluorite::check::{Law, Status, check_file, check_material};
 use fluorite::fit::{FitOptions, FitOutcome, fit};
 use fluorite::formats::{ReadOptions, read};
 use fluorite::material::{Fluorophore, Material};
+use fluorite::parametric::SpectralForm;
 use fluorite::spectrum::Spectrum;
 use fluorite::synth::{PRESETS, SynthSpec};
 
@@ -196,6 +197,18 @@ fn violating() -> Vec<(Law, String, String)> {
     m.fluorophores[0].quantum_yield = 0.9;
     push(Law::Photons, "Q·λ̄e/λ = 1.54", m);
 
+    // Forms that no longer match their samples (one band 1 % higher): nothing else moves.
+    let mut m = SynthSpec::preset("two-dyes")
+        .unwrap()
+        .truth_with_forms()
+        .unwrap();
+    if let Some(forms) = &mut m.forms
+        && let SpectralForm::GaussianBands(bands) = &mut forms.fluorophores[1].emission
+    {
+        bands.bands[0].height *= 1.01;
+    }
+    push(Law::Forms, "emission form 1 % off its samples", m);
+
     // A null value (not a number): only finiteness breaks (derived laws not evaluated).
     let text = json(&base()).replacen("0.5", "null", 1);
     cases.push((Law::FiniteNonNegative, "null reflectance".into(), text));
@@ -364,5 +377,153 @@ fn cli_exit_codes() {
             "{stderr}"
         );
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+// ---- several fluorophores and continuous forms ----------------------------------------
+
+fn two_dyes() -> SynthSpec {
+    SynthSpec::preset("two-dyes").unwrap()
+}
+
+#[test]
+fn two_fluorophores_are_checked_per_component() {
+    let spec = two_dyes();
+    let m = spec.truth().unwrap();
+    let report = check_material(&m);
+    assert!(report.valid, "{}", report.to_text());
+    assert_eq!(report.model, None);
+    assert!(report.forms.is_none());
+    assert_eq!(report.fluorophores.len(), 2);
+    for (summary, f) in report.fluorophores.iter().zip(&m.fluorophores) {
+        assert_eq!(summary.k, f.concentration * f.quantum_yield);
+    }
+    // Photons: each yield is its fraction of the limit λmin/λ̄e, so Q·λ̄e/λmin is the
+    // fraction itself; the dye's 0.85 is the worst.
+    let photons = report.law(Law::Photons);
+    assert_eq!(photons.worst_at.as_deref(), Some("fluorophores[1]"));
+    assert!((photons.worst_value - spec.components[0].yield_fraction_of_limit).abs() < 1e-12);
+    assert_eq!(photons.worst_nm, Some(300.0));
+    let b = &report.fluorophores[0];
+    let [_, high] = b.photon_yield_range.unwrap();
+    assert!((high - spec.yield_fraction_of_limit).abs() < 1e-12);
+    // Total absorption: the dye (c = 0.7) peaks where the brightener barely absorbs.
+    let total = report.law(Law::TotalAbsorption);
+    let expected = (0.7f64 + 0.6 * m.fluorophores[0].absorption.eval_zero_outside(540.0))
+        .max(0.7 + 0.6 * m.fluorophores[0].absorption.eval_zero_outside(550.0));
+    assert!((total.worst_value - expected).abs() < 1e-12, "{total:?}");
+    let text = report.to_text();
+    assert!(text.contains("fluorophores[0]: k = c·Q") && text.contains("fluorophores[1]: k = c·Q"));
+    assert!(
+        text.contains("(no forms block: tabulated spectra)"),
+        "{text}"
+    );
+
+    // Breaking one component's law names that component and only it.
+    let mut m2 = m.clone();
+    m2.fluorophores[1].quantum_yield = 0.9;
+    let report = check_material(&m2);
+    assert_eq!(report.failed(), vec![Law::Photons]);
+    let photons = report.law(Law::Photons);
+    assert_eq!(photons.violations.len(), 1, "{:?}", photons.violations);
+    assert!(photons.violations[0].starts_with("fluorophores[1] "));
+    // Two components that each absorb ≤ 1 but together more.
+    let mut m3 = m.clone();
+    m3.fluorophores[1].absorption = m3.fluorophores[0].absorption.clone();
+    m3.fluorophores[1].concentration = 0.5;
+    let report = check_material(&m3);
+    assert!(
+        report.failed().contains(&Law::TotalAbsorption),
+        "{}",
+        report.to_text()
+    );
+    let total = report.law(Law::TotalAbsorption);
+    assert!((total.worst_value - 1.1).abs() < 1e-12);
+}
+
+#[test]
+fn forms_are_compared_with_their_samples_and_named() {
+    let m = two_dyes().truth_with_forms().unwrap();
+    let report = check_material(&m);
+    assert!(report.valid, "{}", report.to_text());
+    assert_eq!(report.model.as_deref(), Some("synth"));
+    let forms = report.forms.as_ref().unwrap();
+    assert_eq!(forms.model, "synth");
+    // Two fluorophores × (absorption, emission); bands: 1 + 2 and 1 + 2, 3 numbers each.
+    assert_eq!(forms.forms, 4);
+    assert_eq!(forms.parameters, 18);
+    assert!(forms.worst_deviation < 1e-12, "{}", forms.worst_deviation);
+    let law = report.law(Law::Forms);
+    assert_eq!(law.status, Status::Pass);
+    assert!(law.margin <= 0.0 && law.margin > -1e-12);
+    // Both absorption bands are centred between 10 nm samples (365 and 545 nm), so the
+    // forms rise above the samples' max 1 there: 1/exp(−½(5/15)²) and 1/exp(−½(5/18)²).
+    assert_eq!(forms.notes.len(), 2, "{:?}", forms.notes);
+    let brightener = 1.0 / (-0.5f64 * (5.0 / 15.0f64).powi(2)).exp();
+    assert!(
+        forms.notes[0].starts_with(&format!(
+            "forms.fluorophores[0].absorption reaches {brightener:.4} at 365 nm"
+        )),
+        "{:?}",
+        forms.notes
+    );
+    let text = report.to_text();
+    assert!(
+        text.contains("forms: synth, 4 forms with 18 parameters, samples match within"),
+        "{text}"
+    );
+    assert!(text.contains("note: forms.fluorophores[1].absorption reaches"));
+
+    // Through the CLI: text and JSON name the model.
+    let dir = temp_dir("forms");
+    let path = dir.join("forms.json");
+    m.save(&path).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .args(["check", "--json"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["model"], "synth");
+    assert_eq!(json["forms"]["model"], "synth");
+    assert_eq!(json["forms"]["parameters"], 18);
+    assert_eq!(json["fluorophores"].as_array().unwrap().len(), 2);
+    let forms_law = json["laws"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|l| l["law"] == "forms")
+        .unwrap();
+    assert_eq!(forms_law["status"], "pass");
+
+    // A forms block that does not read, or has the wrong number of entries, breaks the
+    // forms law (exit 1), not the reading (exit 2).
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    value["forms"]["fluorophores"] = serde_json::json!("oops");
+    let broken = dir.join("broken-forms.json");
+    std::fs::write(&broken, serde_json::to_string(&value).unwrap()).unwrap();
+    let report = check_file(&broken).unwrap();
+    assert_eq!(report.failed(), vec![Law::Forms], "{}", report.to_text());
+    assert!(report.law(Law::Forms).violations[0].contains("does not read"));
+    let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    value["forms"]["fluorophores"].as_array_mut().unwrap().pop();
+    std::fs::write(&broken, serde_json::to_string(&value).unwrap()).unwrap();
+    let report = check_file(&broken).unwrap();
+    assert_eq!(report.failed(), vec![Law::Forms]);
+    assert!(
+        report.law(Law::Forms).violations[0].contains("has 1 entries for 2 fluorophores"),
+        "{:?}",
+        report.law(Law::Forms).violations
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .arg("check")
+        .arg(&broken)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(stdout.contains("VIOLATES forms"), "{stdout}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -9,6 +9,7 @@ use fluorite::export::{ExportFormat, ExportOptions, export};
 use fluorite::fit::{FitOptions, FitOutcome, fit};
 use fluorite::formats::{ReadOptions, read};
 use fluorite::material::Material;
+use fluorite::parametric::SpectralForm;
 use fluorite::synth::SynthSpec;
 
 const VERSION: &str = env!("CARGO_PKG_VERSION");
@@ -245,14 +246,18 @@ fn widths(grid: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// The model's matrix cell from the material's spectra, independently of `model`.
+/// The model's matrix cell from the material's spectra, independently of `model`: the
+/// fluorescence of every fluorophore summed, plus (1 − Σc·a)·r on the diagonal.
 fn cell(m: &Material, li: f64, lo: f64, width: f64) -> f64 {
-    let f = &m.fluorophores[0];
-    let a = |l: f64| f.absorption.eval_zero_outside(l);
-    let mut v =
-        f.concentration * f.quantum_yield * a(li) * f.emission.eval_zero_outside(lo) * width;
+    let mut v = 0.0;
+    let mut absorbed = 0.0;
+    for f in &m.fluorophores {
+        let a = f.absorption.eval_zero_outside(li);
+        v += f.concentration * f.quantum_yield * a * f.emission.eval_zero_outside(lo) * width;
+        absorbed += f.concentration * a;
+    }
     if (li - lo).abs() < 1e-9 {
-        v += (1.0 - f.concentration * a(li)) * m.reflectance.eval_clamped(li);
+        v += (1.0 - absorbed) * m.reflectance.eval_clamped(li);
     }
     v
 }
@@ -638,5 +643,295 @@ fn bad_input_is_a_one_line_error_and_writes_nothing() {
             "green-dye_reradiation.csv"
         ]
     );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+// ---- several fluorophores and continuous forms -----------------------------------------
+
+fn two_dyes() -> Material {
+    SynthSpec::preset("two-dyes").unwrap().truth().unwrap()
+}
+
+/// A BFC-450 file parsed by hand: (excitation, emission, rows of values per emission).
+fn parse_bfc(text: &str) -> (Vec<f64>, Vec<f64>, Vec<Vec<f64>>) {
+    let lines: Vec<&str> = text.split("\r\n").collect();
+    assert_eq!(lines[1], "BFC-450 Matrix File");
+    let grid = numbers(lines[10], "\t");
+    let em = uniform(grid[0], grid[1], grid[2]);
+    let ex = numbers(&lines[11]["r:c:".len()..], "\t");
+    assert_eq!(ex.len(), grid[3] as usize);
+    let rows = lines[12..12 + em.len()]
+        .iter()
+        .enumerate()
+        .map(|(j, line)| {
+            let v = numbers(line, "\t");
+            assert_eq!(v[0], em[j]);
+            v[1..].to_vec()
+        })
+        .collect();
+    assert_eq!(lines[12 + em.len()], "EOD");
+    (ex, em, rows)
+}
+
+#[test]
+fn every_format_keeps_both_fluorophores() {
+    let m = two_dyes();
+    assert_eq!(m.fluorophores.len(), 2);
+    // Independent truth: both components fluoresce in the matrix.
+    assert!(cell(&m, 360.0, 440.0, 10.0) > 0.05 && cell(&m, 550.0, 610.0, 10.0) > 0.05);
+
+    // csv: a and e columns per fluorophore, c and Q per fluorophore in the header.
+    let files = render(&m, ExportFormat::Csv);
+    let (header, data) = split_header(file(&files, "two-dyes.csv"), "#");
+    assert_eq!(
+        data[0],
+        "wavelength_nm,absorption_0,emission_0,absorption_1,emission_1,reflectance"
+    );
+    for (k, f) in m.fluorophores.iter().enumerate() {
+        let scalar = |key: String| -> f64 {
+            header
+                .iter()
+                .find_map(|h| h.strip_prefix(key.as_str()))
+                .unwrap_or_else(|| panic!("{key} missing"))
+                .split_whitespace()
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap()
+        };
+        assert_eq!(scalar(format!("concentration_{k}: c = ")), f.concentration);
+        assert_eq!(scalar(format!("quantum_yield_{k}: Q = ")), f.quantum_yield);
+        let mut area = 0.0;
+        let mut previous: Option<(f64, f64)> = None;
+        for line in &data[1..] {
+            let v = numbers(line, ",");
+            assert_eq!(v[1 + 2 * k], f.absorption.eval_zero_outside(v[0]));
+            assert_eq!(v[2 + 2 * k], f.emission.eval_zero_outside(v[0]));
+            // ∫e over e's own samples (outside them e is zero, and the linear ramp
+            // from the last zero of the union grid is not part of the density).
+            let sampled = v[0] >= f.emission.wavelength_nm[0];
+            if let Some((l, e)) = previous
+                && sampled
+            {
+                area += 0.5 * (e + v[2 + 2 * k]) * (v[0] - l);
+            }
+            previous = sampled.then_some((v[0], v[2 + 2 * k])).or(previous);
+        }
+        assert!((area - 1.0).abs() < 1e-9, "e_{k}: {area}");
+    }
+
+    // matrix and bfc: every cell is the sum over both fluorophores.
+    for per_nm in [false, true] {
+        let options = ExportOptions {
+            units: if per_nm { Units::PerNm } else { Units::PerBin },
+            ..ExportOptions::new(ExportFormat::Matrix)
+        };
+        let files = export(&m, &options).unwrap();
+        let text = std::str::from_utf8(&files[0].contents).unwrap();
+        check_wide_matrix(text, &m, per_nm);
+        assert!(text.contains("summed over the 2 fluorophores"), "{text}");
+        assert!(text.contains("d = (1 − Σc·a)·r"));
+    }
+    let files = render(&m, ExportFormat::Bfc);
+    let text = file(&files, "two-dyes.BFC");
+    assert!(text.contains(";fluorescence summed over 2 fluorophores\r\n"));
+    assert!(text.contains(";diagonal: reflectance factor d = (1 - Σc*a)*r\r\n"));
+    let (ex, em, rows) = parse_bfc(text);
+    let w = widths(&em);
+    for (j, row) in rows.iter().enumerate() {
+        for (i, &li) in ex.iter().enumerate() {
+            assert!(close(row[i], cell(&m, li, em[j], w[j])), "{li} {}", em[j]);
+        }
+    }
+
+    // mitsuba and pbrt: one excitation and emission file per fluorophore, the albedo
+    // (1 − Σc·a)·r, the full matrix, and a snippet naming every lobe.
+    let albedo = |l: f64| {
+        let absorbed: f64 = m
+            .fluorophores
+            .iter()
+            .map(|f| f.concentration * f.absorption.eval_zero_outside(l))
+            .sum();
+        (1.0 - absorbed) * m.reflectance.eval_clamped(l)
+    };
+    for format in [ExportFormat::Mitsuba, ExportFormat::Pbrt] {
+        let files = render(&m, format);
+        let mut names: Vec<&str> = files.iter().map(|f| f.0.as_str()).collect();
+        names.sort();
+        let snippet = if format == ExportFormat::Mitsuba {
+            "two-dyes.xml"
+        } else {
+            "two-dyes.pbrt"
+        };
+        let mut expected = vec![
+            snippet,
+            "two-dyes_albedo.spd",
+            "two-dyes_emission_0.spd",
+            "two-dyes_emission_1.spd",
+            "two-dyes_excitation_0.spd",
+            "two-dyes_excitation_1.spd",
+            "two-dyes_reflectance.spd",
+            "two-dyes_reradiation.csv",
+        ];
+        expected.sort();
+        assert_eq!(names, expected, "{format:?}");
+        check_spd(
+            file(&files, "two-dyes_albedo.spd"),
+            &m,
+            "non-fluorescent albedo (1 - Σ c_k*a_k(λ))*r(λ)",
+            "dimensionless",
+            albedo,
+        );
+        for (k, f) in m.fluorophores.iter().enumerate() {
+            let n = check_spd(
+                file(&files, &format!("two-dyes_excitation_{k}.spd")),
+                &m,
+                "excitation c*Q*a(λ)",
+                "dimensionless",
+                |l| f.concentration * f.quantum_yield * f.absorption.eval_zero_outside(l),
+            );
+            assert_eq!(n, f.absorption.len());
+            check_spd(
+                file(&files, &format!("two-dyes_emission_{k}.spd")),
+                &m,
+                "emission spectrum e(λ)",
+                "1/nm",
+                |l| f.emission.eval_zero_outside(l),
+            );
+        }
+        check_wide_matrix(file(&files, "two-dyes_reradiation.csv"), &m, false);
+        let text = file(&files, snippet);
+        assert!(text.contains("2 fluorescent components"), "{text}");
+        for k in 0..2 {
+            assert!(text.contains(&format!("two-dyes_excitation_{k}.spd")));
+            assert!(text.contains(&format!("two-dyes_emission_{k}.spd")));
+        }
+        if format == ExportFormat::Mitsuba {
+            assert!(text.contains("<integer name=\"lobes\" value=\"2\"/>"));
+            for (k, f) in m.fluorophores.iter().enumerate() {
+                assert!(text.contains(&format!(
+                    "<float name=\"quantum_yield_{k}\" value=\"{}\"/>",
+                    f.quantum_yield
+                )));
+            }
+        }
+    }
+}
+
+#[test]
+fn forms_are_sampled_and_their_parameters_kept() {
+    let m = SynthSpec::preset("two-dyes")
+        .unwrap()
+        .truth_with_forms()
+        .unwrap();
+    let forms = m.forms.clone().unwrap();
+    // csv: the samples, and one header line per form whose JSON reads back as the form.
+    let files = render(&m, ExportFormat::Csv);
+    let (header, data) = split_header(file(&files, "two-dyes.csv"), "#");
+    assert!(
+        header.iter().any(|h| h.starts_with("forms: model synth;")),
+        "{header:?}"
+    );
+    for (k, f) in forms.fluorophores.iter().enumerate() {
+        for (what, form) in [("absorption", &f.absorption), ("emission", &f.emission)] {
+            let key = format!("form {what}_{k}: ");
+            let json = header
+                .iter()
+                .find_map(|h| h.strip_prefix(key.as_str()))
+                .unwrap_or_else(|| panic!("{key} missing from {header:?}"));
+            // Exactly the form's JSON, which reads back as the form.
+            assert_eq!(json, serde_json::to_string(form).unwrap());
+            let back: SpectralForm = serde_json::from_str(json).unwrap();
+            for nm in [300.0, 365.0, 440.0, 545.0, 612.5, 780.0] {
+                assert!((back.eval(nm) - form.eval(nm)).abs() <= 1e-14 * form.eval(nm).max(1e-300));
+            }
+        }
+    }
+    // The sampled columns are the forms evaluated (within the forms tolerance).
+    for line in &data[1..] {
+        let v = numbers(line, ",");
+        for (k, f) in forms.fluorophores.iter().enumerate() {
+            if (300.0..=780.0).contains(&v[0]) {
+                assert!((v[1 + 2 * k] - f.absorption.eval(v[0])).abs() < 1e-9);
+            }
+            if (380.0..=780.0).contains(&v[0]) {
+                assert!((v[2 + 2 * k] - f.emission.eval(v[0])).abs() < 1e-9);
+            }
+        }
+    }
+    let files = render(&m, ExportFormat::Matrix);
+    let text = file(&files, "two-dyes.matrix.csv");
+    assert!(text.contains("# forms: model synth;") && text.contains("# form emission_1: {"));
+    check_wide_matrix(text, &m, false);
+    let files = render(&m, ExportFormat::Bfc);
+    assert!(
+        file(&files, "two-dyes.BFC")
+            .contains(";spectra from the continuous forms of model synth\r\n")
+    );
+    for format in [ExportFormat::Mitsuba, ExportFormat::Pbrt] {
+        let files = render(&m, format);
+        for (name, text) in &files {
+            if name.ends_with(".spd") {
+                assert!(
+                    text.contains("# spectra: samples of the continuous forms of model synth"),
+                    "{name}"
+                );
+            }
+        }
+    }
+
+    // Forms that do not reproduce their samples are refused, naming the law.
+    let mut bad = m.clone();
+    if let Some(forms) = &mut bad.forms
+        && let SpectralForm::GaussianBands(bands) = &mut forms.fluorophores[0].absorption
+    {
+        bands.bands[0].centre_nm += 3.0;
+    }
+    let err = export(&bad, &ExportOptions::new(ExportFormat::Csv))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("violates forms"), "{err}");
+}
+
+#[test]
+fn mitsuba_takes_a_grid_only_when_it_writes_the_matrix() {
+    let dir = temp_dir("mitsuba-grid");
+    truth().save(&dir.join("one.json")).unwrap();
+    two_dyes().save(&dir.join("two.json")).unwrap();
+    let (code, stderr) = run(
+        &[
+            "export",
+            "one.json",
+            "--to",
+            "mitsuba",
+            "--grid",
+            "300:780:20",
+            "-o",
+            "one/",
+        ],
+        &dir,
+    );
+    assert_ne!(code, Some(0), "{stderr}");
+    assert!(stderr.contains("fewer than two fluorophores"), "{stderr}");
+    assert!(!dir.join("one").exists());
+    let (code, stderr) = run(
+        &[
+            "export",
+            "two.json",
+            "--to",
+            "mitsuba",
+            "--grid",
+            "300:780:20",
+            "-o",
+            "two/",
+        ],
+        &dir,
+    );
+    assert_eq!(code, Some(0), "{stderr}");
+    let text = std::fs::read_to_string(dir.join("two/two-dyes_reradiation.csv")).unwrap();
+    let m = two_dyes();
+    check_wide_matrix(&text, &m, false);
+    let header = text.lines().find(|l| l.starts_with("ex_nm")).unwrap();
+    assert_eq!(header.split(',').count(), 1 + 25);
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -734,3 +734,332 @@ fn real_matrix_renders_with_noise_negatives_and_crosstalk() {
         as_array(viridis(0.0))
     );
 }
+
+// ---------------------------------------------------------------------------------------
+// Several fluorophores, and materials with continuous forms.
+
+use fluorite::parametric::{
+    BandDomain, FluorophoreForms, GaussianBand, GaussianBands, MaterialForms, SpectralForm,
+};
+use fluorite::synth::{Band, SynthSpec};
+
+/// The `two-dyes` preset's truth: a UV brightener (a at 365 nm, e at 440 nm) and an
+/// orange-red dye (a at 545 nm, e at 610 nm), on the BFC-450 grids.
+fn two_dyes() -> (SynthSpec, Material) {
+    let spec = SynthSpec::preset("two-dyes").unwrap();
+    let truth = spec.truth().unwrap();
+    assert_eq!(truth.fluorophores.len(), 2);
+    (spec, truth)
+}
+
+/// `bands` (wavelength Gaussians) scaled so they equal `samples` at the sample points.
+fn form_of(bands: &[Band], samples: &Spectrum) -> SpectralForm {
+    let raw = |l: f64| -> f64 {
+        bands
+            .iter()
+            .map(|b| b.weight * (-0.5 * ((l - b.centre_nm) / b.width_nm).powi(2)).exp())
+            .sum()
+    };
+    // The samples are the bands divided by one constant (peak or area on the grid).
+    let (l, v) = samples
+        .wavelength_nm
+        .iter()
+        .zip(&samples.value)
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .unwrap();
+    let scale = v / raw(*l);
+    let grid = &samples.wavelength_nm;
+    SpectralForm::GaussianBands(GaussianBands {
+        domain: BandDomain::Wavelength,
+        support_nm: [grid[0], grid[grid.len() - 1]],
+        bands: bands
+            .iter()
+            .map(|b| GaussianBand {
+                centre_nm: b.centre_nm,
+                width: b.width_nm,
+                height: b.weight * scale,
+            })
+            .collect(),
+    })
+}
+
+/// The two-dyes truth with a `forms` block: the Gaussian bands that generated it.
+fn two_dyes_with_forms() -> (SynthSpec, Material) {
+    let (spec, mut material) = two_dyes();
+    let bands = [
+        (&spec.absorption, &spec.emission),
+        (&spec.components[0].absorption, &spec.components[0].emission),
+    ];
+    material.forms = Some(MaterialForms {
+        model: "gaussian:2x2".to_string(),
+        reflectance: None,
+        fluorophores: material
+            .fluorophores
+            .iter()
+            .zip(bands)
+            .map(|(f, (a, e))| FluorophoreForms {
+                absorption: form_of(a, &f.absorption),
+                emission: form_of(e, &f.emission),
+            })
+            .collect(),
+    });
+    material.validate().unwrap();
+    (spec, material)
+}
+
+/// Whether a pixel of colour `colour` lies within `radius` px of `at`.
+fn colour_near(rgb: &[u8], width: u32, at: (f64, f64), radius: i32, colour: [u8; 3]) -> bool {
+    let (x, y) = (at.0.round() as i32, at.1.round() as i32);
+    (-radius..=radius).any(|dy| {
+        (-radius..=radius).any(|dx| {
+            let (px, py) = (x + dx, y + dy);
+            px >= 0 && py >= 0 && pixel(rgb, width, (px, py)) == colour
+        })
+    })
+}
+
+fn spectra_figure(plots: &Plots) -> &plot::Figure {
+    plots
+        .figures
+        .iter()
+        .find(|f| f.kind == FigureKind::Spectra)
+        .unwrap()
+}
+
+#[test]
+fn two_fluorophore_spectra_show_each_component_in_its_own_colour() {
+    let (_, material) = two_dyes();
+    let plots = plot::plot(&material, None, &PlotOptions::default()).unwrap();
+    let figure = spectra_figure(&plots);
+    let panel = figure.layout.spectra.as_ref().unwrap();
+    assert_eq!(panel.forms_model, None);
+    let labels: Vec<&str> = panel.curves.iter().map(|c| c.label.as_str()).collect();
+    assert_eq!(labels.len(), 6, "{labels:?}");
+    for (k, prefix) in [
+        "a₁(λ)",
+        "e₁(λ)",
+        "a₂(λ)",
+        "e₂(λ)",
+        "r(λ)",
+        "d(λ) = (1 − Σc·a)",
+    ]
+    .iter()
+    .enumerate()
+    {
+        assert!(labels[k].starts_with(prefix), "{labels:?}");
+    }
+    let (a1, e1) = (panel.curve("a₁").unwrap(), panel.curve("e₁").unwrap());
+    let (a2, e2) = (panel.curve("a₂").unwrap(), panel.curve("e₂").unwrap());
+    // One colour per component: a and e share it (a solid, e dashed), components differ.
+    assert_eq!(a1.colour, e1.colour);
+    assert_eq!(a2.colour, e2.colour);
+    assert_ne!(a1.colour, a2.colour);
+    assert!(!a1.dashed && e1.dashed && !a2.dashed && e2.dashed);
+    // The e legend gives the divisor that scales e to peak 1.
+    for (n, label) in [(0, &e1.label), (1, &e2.label)] {
+        let e_max = material.fluorophores[n].emission.max();
+        let shown: f64 = label
+            .split("÷ ")
+            .nth(1)
+            .and_then(|t| t.split(' ').next())
+            .and_then(|t| t.parse().ok())
+            .unwrap_or_else(|| panic!("{label}"));
+        assert!((shown / e_max - 1.0).abs() < 5e-3, "{label} vs {e_max}");
+    }
+
+    // Pixel probes at values taken from the truth material, not from the drawn curves.
+    let (w, _, rgb) = decode_png(&figure.bytes);
+    let [b, d] = [&material.fluorophores[0], &material.fluorophores[1]];
+    let scaled_e = |f: &Fluorophore, nm: f64| f.emission.eval_zero_outside(nm) / f.emission.max();
+    for (nm, value, colour, other, what) in [
+        (
+            360.0,
+            b.absorption.eval_zero_outside(360.0),
+            a1.colour,
+            a2.colour,
+            "a₁ peak",
+        ),
+        (
+            350.0,
+            b.absorption.eval_zero_outside(350.0),
+            a1.colour,
+            a2.colour,
+            "a₁ flank",
+        ),
+        (
+            550.0,
+            d.absorption.eval_zero_outside(550.0),
+            a2.colour,
+            a1.colour,
+            "a₂ peak",
+        ),
+        (
+            530.0,
+            d.absorption.eval_zero_outside(530.0),
+            a2.colour,
+            a1.colour,
+            "a₂ flank",
+        ),
+        (440.0, scaled_e(b, 440.0), e1.colour, e2.colour, "e₁ peak"),
+        (610.0, scaled_e(d, 610.0), e2.colour, e1.colour, "e₂ peak"),
+    ] {
+        assert!(value > 0.3, "{what}: {value}");
+        let at = panel.pixel(nm, value);
+        // Dashed emission: a dash is within half a gap of any point on the line.
+        assert!(
+            colour_near(&rgb, w, at, 5, colour),
+            "{what} ({nm} nm, {value:.3}) at pixel {at:?} lacks {colour:?}"
+        );
+        assert!(
+            !colour_near(&rgb, w, at, 5, other),
+            "{what} at pixel {at:?} shows the other component's colour {other:?}"
+        );
+    }
+    // The diagonal dips where each component absorbs: (1 − c·a)·r from the truth.
+    let diagonal = panel.curve("d(λ)").unwrap();
+    let at = panel.pixel(550.0, material.diagonal(550.0));
+    assert!(material.diagonal(550.0) < 0.4);
+    assert!(colour_near(&rgb, w, at, 4, diagonal.colour));
+}
+
+#[test]
+fn continuous_forms_are_drawn_every_nanometre_and_named() {
+    let (spec, material) = two_dyes_with_forms();
+    let options = PlotOptions::default();
+    let plots = plot::plot(&material, None, &options).unwrap();
+    let figure = spectra_figure(&plots);
+    let panel = figure.layout.spectra.as_ref().unwrap();
+    assert_eq!(panel.forms_model.as_deref(), Some("gaussian:2x2"));
+    let a2 = panel.curve("a₂").unwrap();
+    // Every nanometre over the sampled range 300–780 nm.
+    assert_eq!(a2.points.len(), 481);
+    assert!(
+        a2.points
+            .windows(2)
+            .all(|p| (p[1].0 - p[0].0 - 1.0).abs() < 1e-9)
+    );
+    // Between the 10 nm samples the form rises above their straight line: at 545 nm
+    // (the band centre, halfway between the samples at 540 and 550 nm, both 1) the form
+    // is 1 / exp(−½(5/18)²).
+    let band = spec.components[0].absorption[0];
+    assert_eq!(band.centre_nm, 545.0);
+    let form_545 = 1.0 / (-0.5 * (5.0 / band.width_nm).powi(2)).exp();
+    let drawn = a2.points.iter().find(|p| p.0 == 545.0).unwrap().1;
+    assert!((drawn - form_545).abs() < 1e-9, "{drawn} vs {form_545}");
+    let linear = material.fluorophores[1].absorption.eval_zero_outside(545.0);
+    assert!((linear - 1.0).abs() < 1e-9);
+    let (w, _, rgb) = decode_png(&figure.bytes);
+    let (form_px, linear_px) = (panel.pixel(545.0, form_545), panel.pixel(545.0, linear));
+    assert!(form_px.1 < linear_px.1 - 8.0, "{form_px:?} {linear_px:?}");
+    assert!(colour_near(&rgb, w, form_px, 2, a2.colour));
+    assert!(!colour_near(&rgb, w, linear_px, 2, a2.colour));
+
+    // The title and the legend name the model (SVG keeps the text).
+    let svg = plot::plot(
+        &material,
+        None,
+        &PlotOptions {
+            format: ImageFormat::Svg,
+            guard_nm: None,
+        },
+    )
+    .unwrap();
+    let text = std::str::from_utf8(&spectra_figure(&svg).bytes).unwrap();
+    assert!(text.contains("two-dyes: fitted spectra (gaussian:2x2)"));
+    assert!(text.contains("model gaussian:2x2: forms drawn every 1 nm"));
+
+    // Without forms the same material draws its samples.
+    let mut samples_only = material.clone();
+    samples_only.forms = None;
+    let plots = plot::plot(&samples_only, None, &options).unwrap();
+    let panel = spectra_figure(&plots).layout.spectra.clone().unwrap();
+    assert_eq!(panel.curve("a₂").unwrap().points.len(), 49);
+}
+
+#[test]
+fn two_fluorophore_heat_map_and_swatches_sum_the_components() {
+    let (spec, material) = two_dyes();
+    let ex = &spec.excitation_nm;
+    let em = &spec.emission_nm;
+    let measured = model::predict(&material, "two-dyes", ex, em, Units::PerBin, true);
+    let plots = plot::plot(&material, Some(&measured), &PlotOptions::default()).unwrap();
+    let residuals = &plots.figures[0];
+    assert_eq!(residuals.kind, FigureKind::Residuals);
+    let (w, _, rgb) = decode_png(&residuals.bytes);
+    let panels = &residuals.layout.heatmaps;
+    let widths = bin_widths(em);
+    // Independent of `predict`: Σ c·Q·a(λi)·e(λo)·Δλo from the spectra's samples.
+    let cell = |i: usize, j: usize| -> f64 {
+        material
+            .fluorophores
+            .iter()
+            .map(|f| f.k() * f.absorption.value[i] * f.emission.value[j] * widths[j])
+            .sum()
+    };
+    let mut value_max = 0.0f64;
+    for (i, li) in ex.iter().enumerate() {
+        for (j, lo) in em.iter().enumerate() {
+            if (lo - li).abs() > 10.0 + 1e-6 {
+                value_max = value_max.max(cell(i, j));
+            }
+        }
+    }
+    assert!((panels[1].scale.max - value_max).abs() < 1e-12);
+    let idx = |nm: f64, grid: &[f64]| grid.iter().position(|&g| g == nm).unwrap();
+    for (ex_nm, em_nm) in [
+        (360.0, 440.0),
+        (550.0, 610.0),
+        (370.0, 620.0),
+        (540.0, 450.0),
+    ] {
+        let (i, j) = (idx(ex_nm, ex), idx(em_nm, em));
+        let v = cell(i, j);
+        for panel in &panels[..2] {
+            assert_eq!(
+                pixel(&rgb, w, panel.cell_centre_px(i, j)),
+                as_array(viridis(v / value_max)),
+                "{} ({ex_nm}, {em_nm})",
+                panel.title
+            );
+        }
+    }
+    // Both components fluoresce visibly: each peak cell is in the top half of the map.
+    assert!(cell(idx(360.0, ex), idx(440.0, em)) > 0.5 * value_max);
+    assert!(cell(idx(550.0, ex), idx(610.0, em)) > 0.5 * value_max);
+
+    // Swatches: the model's own matrix matches exactly; data without the brightener do
+    // not, least of all under UV light, which only the brightener turns into blue.
+    let colour = plots
+        .figures
+        .iter()
+        .find(|f| f.kind == FigureKind::Colour)
+        .unwrap();
+    let (w, _, rgb) = decode_png(&colour.bytes);
+    for s in &colour.layout.swatches {
+        assert!(s.pair.delta_e2000 < 1e-9, "{}", s.pair.light);
+        let rect = s.fitted_rect_px;
+        let centre = ((rect[0] + rect[2]) / 2, (rect[1] + rect[3]) / 2);
+        assert_eq!(pixel(&rgb, w, centre), s.pair.fitted_srgb);
+    }
+    let mut dye_only = material.clone();
+    dye_only.fluorophores.remove(0);
+    let without = model::predict(&dye_only, "dye only", ex, em, Units::PerBin, true);
+    let plots = plot::plot(&material, Some(&without), &PlotOptions::default()).unwrap();
+    let colour = plots
+        .figures
+        .iter()
+        .find(|f| f.kind == FigureKind::Colour)
+        .unwrap();
+    let uv = colour
+        .layout
+        .swatches
+        .iter()
+        .find(|s| s.pair.light == "uv")
+        .unwrap();
+    let d65 = &colour.layout.swatches[0];
+    assert!(uv.pair.delta_e2000 > 5.0, "UV ΔE {}", uv.pair.delta_e2000);
+    assert!(uv.pair.delta_e2000 > d65.pair.delta_e2000);
+    // Under UV the fitted (both components) swatch is bluer than the dye-only data.
+    let (fitted, data) = (uv.pair.fitted_srgb, uv.pair.measured_srgb);
+    assert!(fitted[2] as i32 - fitted[0] as i32 > data[2] as i32 - data[0] as i32);
+}

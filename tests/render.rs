@@ -309,6 +309,103 @@ fn furnace_fluorescence_is_resolved_not_hidden_in_the_error_bars() {
     );
 }
 
+/// The `two-dyes` synthetic truth: a UV brightener (a at 365 nm, e at 440 nm) and an
+/// orange-red dye (a at 545 nm, e at 610 nm).
+fn two_dyes() -> Material {
+    fluorite::synth::SynthSpec::preset("two-dyes")
+        .unwrap()
+        .truth()
+        .unwrap()
+}
+
+#[test]
+fn furnace_matches_exact_radiance_for_the_two_dyes_preset() {
+    let dir = tempfile::tempdir().unwrap();
+    let material = two_dyes();
+    assert_eq!(material.fluorophores.len(), 2);
+    let mut lights = vec![
+        Light::builtin("d65").unwrap(),
+        Light::builtin("uv").unwrap(),
+    ];
+    lights.push(uv_lamp(dir.path()));
+    for light in lights {
+        check_furnace(&material, &light);
+    }
+}
+
+#[test]
+fn furnace_resolves_both_dyes_of_the_two_dyes_preset() {
+    // Under D65 each component adds its own emission: at 440 nm the brightener's (from UV
+    // and violet light) and at 610 nm the dye's (from green light). Each rendered value
+    // exceeds what the material would show with that component removed by many standard
+    // errors and matches the exact furnace value with it.
+    let material = two_dyes();
+    let light = Light::builtin("d65").unwrap();
+    let settings = RenderSettings {
+        width: 64,
+        height: 64,
+        samples_per_pixel: 256,
+        seed: 5,
+    };
+    let scene = Scene::build(SceneKind::Furnace, &material, &light, false, 1.0).unwrap();
+    let scale = scene.light().scale;
+    let wavelengths = [440.0, 610.0];
+    let est = spectral_radiance(
+        &scene,
+        &settings,
+        PixelRegion::centre(&settings, 6),
+        &wavelengths,
+    )
+    .unwrap();
+    for (i, (&lo, component)) in wavelengths.iter().zip([0usize, 1]).enumerate() {
+        let mut without = material.clone();
+        without.fluorophores.remove(component);
+        let exact = exact_furnace(&material, &light, scale, lo);
+        let missing_one = exact_furnace(&without, &light, scale, lo);
+        assert!(
+            est.mean[i] > missing_one + 20.0 * est.std_error[i],
+            "{lo} nm: {} ± {} vs {missing_one} without fluorophores[{component}]",
+            est.mean[i],
+            est.std_error[i]
+        );
+        assert!(
+            (est.mean[i] - exact).abs() <= 5.0 * est.std_error[i] + 2e-3 * exact,
+            "{lo} nm: {} ± {} vs exact {exact}",
+            est.mean[i],
+            est.std_error[i]
+        );
+    }
+}
+
+#[test]
+fn a_forms_block_changes_nothing_in_a_render() {
+    // The renderer reads the tabulated samples; the continuous forms beside them are for
+    // plots and checks. Same seed, same samples: the same estimate.
+    let spec = fluorite::synth::SynthSpec::preset("two-dyes").unwrap();
+    let with_forms = spec.truth_with_forms().unwrap();
+    assert!(with_forms.forms.is_some());
+    let light = Light::builtin("uv").unwrap();
+    let settings = RenderSettings {
+        width: 16,
+        height: 16,
+        samples_per_pixel: 16,
+        seed: 2,
+    };
+    let estimate = |m: &Material| {
+        let scene = Scene::build(SceneKind::Furnace, m, &light, false, 1.0).unwrap();
+        spectral_radiance(
+            &scene,
+            &settings,
+            PixelRegion::centre(&settings, 4),
+            &[440.0, 610.0],
+        )
+        .unwrap()
+    };
+    let (a, b) = (estimate(&with_forms), estimate(&two_dyes()));
+    assert_eq!(a.mean, b.mean);
+    assert_eq!(a.std_error, b.std_error);
+}
+
 #[test]
 fn furnace_matches_exact_radiance_for_a_material_built_from_dye_spectra() {
     let Some(material) = dye_material() else {

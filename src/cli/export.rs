@@ -19,9 +19,10 @@ pub struct ExportArgs {
     /// mitsuba and pbrt (created if missing).
     #[arg(short, long)]
     pub out: PathBuf,
-    /// Excitation and emission grid of the matrix (matrix, bfc, pbrt): start:end:step in
-    /// nm, or comma-separated segments (300:400:10,405:780:5). Default: the material's
-    /// own samples (for a fit, the measurement's grids).
+    /// Excitation and emission grid of the matrix (matrix, bfc, pbrt, and mitsuba for
+    /// materials with several fluorophores): start:end:step in nm, or comma-separated
+    /// segments (300:400:10,405:780:5). Default: the material's own samples (for a fit,
+    /// the measurement's grids).
     #[arg(long)]
     pub grid: Option<String>,
     /// Excitation grid alone (overrides --grid for the rows).
@@ -44,21 +45,30 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     let both = grid(&args.grid, "--grid")?;
     let excitation = grid(&args.excitation_grid, "--excitation-grid")?.or(both.clone());
     let emission = grid(&args.emission_grid, "--emission-grid")?.or(both);
+    let matrix_options = excitation.is_some() || emission.is_some() || args.per_nm;
+    let refuse = |what: &str| {
+        Error::invalid(
+            "--grid/--per-nm",
+            format!("apply to the matrix formats (matrix, bfc, pbrt), not to {what}"),
+        )
+    };
     let has_matrix = matches!(
         format,
         ExportFormat::Matrix | ExportFormat::Bfc | ExportFormat::Pbrt
     );
-    if !has_matrix && (excitation.is_some() || emission.is_some() || args.per_nm) {
-        return Err(Error::invalid(
-            "--grid/--per-nm",
-            format!(
-                "apply to the matrix formats (matrix, bfc, pbrt), not to {}",
-                args.to
-            ),
-        )
-        .into());
+    // Mitsuba exports carry the matrix only for several fluorophores: decided once the
+    // material is read.
+    if !has_matrix && format != ExportFormat::Mitsuba && matrix_options {
+        return Err(refuse(&args.to).into());
     }
     let material = Material::load(&args.material)?;
+    if format == ExportFormat::Mitsuba && material.fluorophores.len() < 2 && matrix_options {
+        return Err(refuse(&format!(
+            "{} with fewer than two fluorophores (only then does it include the matrix)",
+            args.to
+        ))
+        .into());
+    }
     let options = ExportOptions {
         format,
         excitation_nm: excitation,

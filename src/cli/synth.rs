@@ -17,7 +17,7 @@ pub struct SynthArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Presets to write, comma-separated (default: all of green-dye, red-pigment,
-    /// brightener, plain).
+    /// brightener, two-dyes, plain).
     #[arg(long, value_delimiter = ',')]
     pub preset: Vec<String>,
     /// Gaussian noise σ per cell (radiance-factor units). Default: 0.0006, what the real BFC-450 files show.

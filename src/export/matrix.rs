@@ -27,7 +27,7 @@ pub fn default_grids(material: &Material) -> (Vec<f64>, Vec<f64>) {
     (merge(ex), merge(em))
 }
 
-/// The matrix `material` predicts on the grids, with the diagonal d = (1 − c·a)·r where
+/// The matrix `material` predicts on the grids, with the diagonal d = (1 − Σc·a)·r where
 /// both grids share a wavelength. The grids are checked (positive, strictly increasing).
 pub fn matrix(
     material: &Material,
@@ -55,14 +55,28 @@ pub fn matrix(
     Ok(m)
 }
 
-fn quantity(units: Units) -> &'static str {
+fn quantity(units: Units, components: usize) -> String {
+    let (sum, k) = if components > 1 {
+        ("Σ", format!(" summed over the {components} fluorophores"))
+    } else {
+        ("", String::new())
+    };
     match units {
-        Units::PerBin => {
-            "bispectral radiance factor per emission bin (dimensionless; off the diagonal k·a(λi)·e(λo)·Δλo with trapezoid bin widths Δλo)"
-        }
-        Units::PerNm => {
-            "bispectral radiance factor density per nm of emission (1/nm; off the diagonal k·a(λi)·e(λo)); read back with `fluorite fit --per-nm`"
-        }
+        Units::PerBin => format!(
+            "bispectral radiance factor per emission bin (dimensionless; off the diagonal {sum}k·a(λi)·e(λo)·Δλo with trapezoid bin widths Δλo{k})"
+        ),
+        Units::PerNm => format!(
+            "bispectral radiance factor density per nm of emission (1/nm; off the diagonal {sum}k·a(λi)·e(λo){k}); read back with `fluorite fit --per-nm`"
+        ),
+    }
+}
+
+/// The diagonal's formula: `(1 − c·a)·r`, or `(1 − Σc·a)·r` for several fluorophores.
+fn diagonal_formula(material: &Material, times: &str, minus: &str) -> String {
+    if material.fluorophores.len() > 1 {
+        format!("(1 {minus} Σc{times}a){times}r")
+    } else {
+        format!("(1 {minus} c{times}a){times}r")
     }
 }
 
@@ -78,9 +92,16 @@ pub(super) fn wide(
         "# fluorite {VERSION} export of material \"{}\": model reradiation matrix (Jung et al. 2018)\n",
         one_line(&material.name)
     );
-    out.push_str(&format!("# quantity: {}\n", quantity(units)));
-    out.push_str("# diagonal (λo = λi): reflectance factor d = (1 − c·a)·r (dimensionless) plus the fluorescence emitted at the same wavelength\n");
+    out.push_str(&format!(
+        "# quantity: {}\n",
+        quantity(units, material.fluorophores.len())
+    ));
+    out.push_str(&format!(
+        "# diagonal (λo = λi): reflectance factor d = {} (dimensionless) plus the fluorescence emitted at the same wavelength\n",
+        diagonal_formula(material, "·", "−")
+    ));
     out.push_str("# rows: excitation wavelength λi (nm); columns: emission wavelength λo (nm)\n");
+    out.push_str(&super::spectra::forms_header(material, "# "));
     out.push_str(&write_wide_csv(&m, RowsAre::Excitation));
     Ok(out)
 }
@@ -105,10 +126,24 @@ pub(super) fn bfc(
                 Units::PerNm => "radiance factor density per nm of emission (1/nm)",
             }
         ),
-        ";diagonal: reflectance factor d = (1 - c*a)*r".to_string(),
+        format!(
+            ";diagonal: reflectance factor d = {}",
+            diagonal_formula(material, "*", "-")
+        ),
         ";rows: emission nm; columns: excitation nm".to_string(),
+        match material.fluorophores.len() {
+            0 | 1 => String::new(),
+            n => format!(";fluorescence summed over {n} fluorophores"),
+        },
+        match &material.forms {
+            Some(f) => format!(
+                ";spectra from the continuous forms of model {}",
+                one_line(&f.model)
+            ),
+            None => String::new(),
+        },
     ];
-    let mut info = info.into_iter();
+    let mut info = info.into_iter().filter(|line| !line.is_empty());
     let mut out = String::with_capacity(text.len() + 512);
     for line in text.split_inclusive("\r\n") {
         if line == ";<none>\r\n"

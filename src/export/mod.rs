@@ -6,11 +6,13 @@
 //! | [`ExportFormat::Csv`] | `NAME.csv` | wavelength, a, e, r columns; c and Q in the header |
 //! | [`ExportFormat::Matrix`] | `NAME.matrix.csv` | the model's reradiation matrix as a wide CSV fluorite reads |
 //! | [`ExportFormat::Bfc`] | `NAME.BFC` | the same matrix in the BFC-450 layout |
-//! | [`ExportFormat::Mitsuba`] | `NAME_*.spd`, `NAME.xml` | Mitsuba 3 spectra and a scene snippet |
+//! | [`ExportFormat::Mitsuba`] | `NAME_*.spd`, `NAME.xml` (and `NAME_reradiation.csv` for several fluorophores) | Mitsuba 3 spectra and a scene snippet |
 //! | [`ExportFormat::Pbrt`] | `NAME_*.spd`, `NAME_reradiation.csv`, `NAME.pbrt` | pbrt-v4 spectra, the matrix and a scene snippet |
 //!
 //! Every file states in its header the quantity and units it holds, the material's name
-//! and the fluorite version. Exports are rendered in memory first ([`export`]) and then
+//! and the fluorite version. Every fluorophore of a material is exported (per-component
+//! columns or files, and the matrices sum them); a material with continuous forms has
+//! them sampled, and the `csv` and matrix headers carry the forms' parameters. Exports are rendered in memory first ([`export`]) and then
 //! written all-or-nothing ([`write_files`]), so a failure leaves no partial output.
 
 mod grid;
@@ -211,10 +213,22 @@ pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<Export
                 matrix::bfc(material, &ex, &em, options.units)?,
             )]
         }
-        ExportFormat::Mitsuba => renderers::mitsuba(material, &stem)
-            .into_iter()
-            .map(|(n, s)| text(n, s))
-            .collect(),
+        ExportFormat::Mitsuba => {
+            let mut files: Vec<ExportFile> = renderers::mitsuba(material, &stem)
+                .into_iter()
+                .map(|(n, s)| text(n, s))
+                .collect();
+            // A fluorescent BSDF holds one lobe in most plugins: with several
+            // fluorophores the full matrix keeps every one of them.
+            if material.fluorophores.len() > 1 {
+                let (ex, em) = grids()?;
+                files.push(text(
+                    format!("{stem}_reradiation.csv"),
+                    matrix::wide(material, &ex, &em, options.units)?,
+                ));
+            }
+            files
+        }
         ExportFormat::Pbrt => {
             let (ex, em) = grids()?;
             let mut files: Vec<ExportFile> = renderers::pbrt(material, &stem)

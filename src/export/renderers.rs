@@ -1,10 +1,14 @@
 //! Mitsuba 3 and pbrt-v4: spectrum files and scene snippets.
 //!
 //! Neither renderer ships a fluorescent BSDF, so the export gives what one needs: the
-//! non-fluorescent albedo (1 − c·a)·r for a plain `diffuse` BSDF (correct for everything
-//! except the reradiation), and the fluorescent lobe's excitation c·Q·a and normalised
+//! non-fluorescent albedo (1 − Σc·a)·r for a plain `diffuse` BSDF (correct for everything
+//! except the reradiation), and each fluorescent lobe's excitation c·Q·a and normalised
 //! emission e for a fluorescent diffuse BSDF (the model's
-//! f = [δ(λi − λo)·(1 − c·a(λi))·r(λi) + c·Q·a(λi)·e(λo)] / π).
+//! f = [δ(λi − λo)·(1 − Σc·a(λi))·r(λi) + Σ c·Q·a(λi)·e(λo)] / π).
+//!
+//! A material with several fluorophores keeps every one: one excitation and emission
+//! file per component (`_0`, `_1`, …), a snippet that names all lobes in one BSDF, and
+//! the full reradiation matrix (all components summed) for matrix-based renderers.
 
 use crate::material::Material;
 
@@ -20,12 +24,20 @@ fn spectra(material: &Material, stem: &str) -> Vec<SpectrumFile> {
     let produced = format!("fluorite {VERSION} export of material \"{name}\"");
     let grid = union_grid(material);
     let n = material.fluorophores.len();
+    let albedo = if n > 1 {
+        format!(
+            "quantity: non-fluorescent albedo (1 - Σ c_k*a_k(λ))*r(λ) over the {n} fluorophores, dimensionless (diagonal reflectance)"
+        )
+    } else {
+        "quantity: non-fluorescent albedo (1 - c*a(λ))*r(λ), dimensionless (diagonal reflectance)"
+            .to_string()
+    };
     let mut out = vec![
         (
             format!("{stem}_albedo.spd"),
             vec![
                 produced.clone(),
-                "quantity: non-fluorescent albedo (1 - c*a(λ))*r(λ), dimensionless (diagonal reflectance)".into(),
+                albedo,
                 "columns: wavelength (nm), value".into(),
             ],
             grid.iter().map(|&l| (l, material.diagonal(l))).collect(),
@@ -80,6 +92,37 @@ fn spectra(material: &Material, stem: &str) -> Vec<SpectrumFile> {
                 .collect(),
         ));
     }
+    if let Some(forms) = &material.forms {
+        let note = format!(
+            "spectra: samples of the continuous forms of model {} (parameters in the material's JSON forms block)",
+            one_line(&forms.model)
+        );
+        for (_, header, _) in &mut out {
+            header.insert(1, note.clone());
+        }
+    }
+    out
+}
+
+/// The suffix of fluorophore `i`'s files: none for a single fluorophore, `_i` otherwise.
+fn lobe_suffix(material: &Material, i: usize) -> String {
+    if material.fluorophores.len() > 1 {
+        format!("_{i}")
+    } else {
+        String::new()
+    }
+}
+
+/// The comment lines listing each lobe's files, for the Mitsuba snippet.
+fn lobe_files(material: &Material, stem: &str) -> String {
+    let mut out = String::new();
+    for i in 0..material.fluorophores.len() {
+        let s = lobe_suffix(material, i);
+        out.push_str(&format!(
+            "{stem}_excitation{s}.spd   c·Q·a{s}, dimensionless: fraction of energy at λi re-emitted\n\
+             {stem}_emission{s}.spd     e{s} in 1/nm, ∫e dλ = 1: where the re-emitted energy goes\n"
+        ));
+    }
     out
 }
 
@@ -94,34 +137,61 @@ fn render_spectra(material: &Material, stem: &str) -> Vec<(String, String)> {
 pub(super) fn mitsuba(material: &Material, stem: &str) -> Vec<(String, String)> {
     let mut files = render_spectra(material, stem);
     let name = one_line(&material.name).replace("--", "- -");
+    let n = material.fluorophores.len();
+    let sum = if n > 1 { "Σ" } else { "" };
+    let lobes = lobe_files(material, stem);
+    let several = if n > 1 {
+        format!(
+            "{stem}_reradiation.csv  the full reradiation matrix, all {n} fluorophores summed\n\
+     This material has {n} fluorescent components: a fluorescent BSDF with a single\n\
+     excitation/emission pair cannot hold it. Give the BSDF every lobe (below: f adds\n\
+     excitation_k(λi)·emission_k(λo)/π for each k), or use the reradiation matrix.\n"
+        )
+    } else {
+        String::new()
+    };
+    let forms = match &material.forms {
+        Some(f) => format!(
+            "\nThe spectra are samples of the continuous forms of model {} (see the material JSON).",
+            one_line(&f.model).replace("--", "- -")
+        ),
+        None => String::new(),
+    };
     let mut xml = format!(
         "<!-- fluorite {VERSION} export of material \"{name}\" for Mitsuba 3 (spectral variant, e.g. scalar_spectral).\n\
      The diffuse fluorescent BBRRDF (Jung et al. 2018):\n\
-       f(λi, λo) = [ δ(λi - λo)·(1 - c·a(λi))·r(λi) + c·Q·a(λi)·e(λo) ] / π\n\
+       f(λi, λo) = [ δ(λi - λo)·(1 - {sum}c·a(λi))·r(λi) + {sum}c·Q·a(λi)·e(λo) ] / π\n\
      Files (two columns: wavelength in nm, value):\n\
-       {stem}_albedo.spd       (1 - c·a)·r, dimensionless: the non-fluorescent diffuse albedo\n\
+       {stem}_albedo.spd       (1 - {sum}c·a)·r, dimensionless: the non-fluorescent diffuse albedo\n\
        {stem}_reflectance.spd  r, dimensionless\n\
-       {stem}_excitation.spd   c·Q·a, dimensionless: fraction of energy at λi re-emitted\n\
-       {stem}_emission.spd     e in 1/nm, ∫e dλ = 1: where the re-emitted energy goes\n\
+{lobes}{several}\
      Mapping onto a fluorescent diffuse BSDF: the plain `diffuse` BSDF below with the albedo\n\
      is exact for the reflected part. A fluorescent diffuse BSDF adds, for light arriving at\n\
      λi, the energy excitation(λi) re-emitted at λo with density emission(λo), both lobes\n\
      cosine-distributed. Sampling (model.md §6): on camera paths (λo known) sample λi ∝ a\n\
-     and choose fluorescence with P = k·A·e(λo) / (k·A·e(λo) + albedo(λo)), A = ∫a dλ, k = c·Q. -->\n"
+     and choose fluorescence with P = k·A·e(λo) / (k·A·e(λo) + albedo(λo)), A = ∫a dλ, k = c·Q.{forms} -->\n"
     );
     xml.push_str(&format!(
         "<bsdf type=\"diffuse\" id=\"{}\">\n    <spectrum name=\"reflectance\" filename=\"{stem}_albedo.spd\"/>\n</bsdf>\n",
         super::file_stem(&material.name)
     ));
-    for (i, f) in material.fluorophores.iter().enumerate() {
-        let s = if material.fluorophores.len() > 1 {
-            format!("_{i}")
-        } else {
-            String::new()
-        };
+    if n > 1 {
+        let mut lobes = String::new();
+        for (i, f) in material.fluorophores.iter().enumerate() {
+            lobes.push_str(&format!(
+                "    <spectrum name=\"excitation_{i}\" filename=\"{stem}_excitation_{i}.spd\"/>\n    <spectrum name=\"emission_{i}\" filename=\"{stem}_emission_{i}.spd\"/>\n    <float name=\"concentration_{i}\" value=\"{}\"/>\n    <float name=\"quantum_yield_{i}\" value=\"{}\"/>\n",
+                f.concentration, f.quantum_yield
+            ));
+        }
         xml.push_str(&format!(
-            "<!-- fluorescent lobe{s} for a fluorescent diffuse BSDF plugin (not part of stock Mitsuba 3):\n\
-<bsdf type=\"fluorescent_diffuse\">\n    <spectrum name=\"albedo\" filename=\"{stem}_albedo.spd\"/>\n    <spectrum name=\"excitation\" filename=\"{stem}_excitation{s}.spd\"/>\n    <spectrum name=\"emission\" filename=\"{stem}_emission{s}.spd\"/>\n    <float name=\"concentration\" value=\"{}\"/>\n    <float name=\"quantum_yield\" value=\"{}\"/>\n</bsdf> -->\n",
+            "<!-- {n} fluorescent lobes for a fluorescent diffuse BSDF plugin (not part of stock Mitsuba 3):\n\
+<bsdf type=\"fluorescent_diffuse\">\n    <spectrum name=\"albedo\" filename=\"{stem}_albedo.spd\"/>\n    <integer name=\"lobes\" value=\"{n}\"/>\n{lobes}</bsdf> -->\n"
+        ));
+    }
+    if let [f] = material.fluorophores.as_slice() {
+        xml.push_str(&format!(
+            "<!-- fluorescent lobe for a fluorescent diffuse BSDF plugin (not part of stock Mitsuba 3):\n\
+<bsdf type=\"fluorescent_diffuse\">\n    <spectrum name=\"albedo\" filename=\"{stem}_albedo.spd\"/>\n    <spectrum name=\"excitation\" filename=\"{stem}_excitation.spd\"/>\n    <spectrum name=\"emission\" filename=\"{stem}_emission.spd\"/>\n    <float name=\"concentration\" value=\"{}\"/>\n    <float name=\"quantum_yield\" value=\"{}\"/>\n</bsdf> -->\n",
             f.concentration, f.quantum_yield
         ));
     }
@@ -133,14 +203,43 @@ pub(super) fn mitsuba(material: &Material, stem: &str) -> Vec<(String, String)> 
 pub(super) fn pbrt(material: &Material, stem: &str) -> Vec<(String, String)> {
     let mut files = render_spectra(material, stem);
     let name = one_line(&material.name);
+    let n = material.fluorophores.len();
+    let sum = if n > 1 { "Σ" } else { "" };
+    let lobes: String = (0..n)
+        .map(|i| {
+            let s = lobe_suffix(material, i);
+            format!("# {stem}_excitation{s}.spd (c·Q·a{s}, dimensionless), {stem}_emission{s}.spd (e{s}, 1/nm, ∫e dλ = 1),\n")
+        })
+        .collect();
+    let summed = if n > 1 {
+        format!(", all {n} fluorophores summed")
+    } else {
+        String::new()
+    };
+    let several = if n > 1 {
+        format!(
+            "# This material has {n} fluorescent components (the lobes below): a fluorescent material\n\
+# with a single excitation/emission pair cannot hold it; give it every lobe, or use the matrix.\n"
+        )
+    } else {
+        String::new()
+    };
+    let forms = match &material.forms {
+        Some(f) => format!(
+            "# The spectra are samples of the continuous forms of model {} (see the material JSON).\n",
+            one_line(&f.model)
+        ),
+        None => String::new(),
+    };
     let mut scene = format!(
         "# fluorite {VERSION} export of material \"{name}\" for pbrt-v4.\n\
 # The diffuse fluorescent BBRRDF (Jung et al. 2018):\n\
-#   f(λi, λo) = [ δ(λi - λo)·(1 - c·a(λi))·r(λi) + c·Q·a(λi)·e(λo) ] / π\n\
-# Files: {stem}_albedo.spd ((1 - c·a)·r, dimensionless), {stem}_reflectance.spd (r),\n\
-# {stem}_excitation.spd (c·Q·a, dimensionless), {stem}_emission.spd (e, 1/nm, ∫e dλ = 1),\n\
-# {stem}_reradiation.csv (the full reradiation matrix, rows excitation, columns emission,\n\
+#   f(λi, λo) = [ δ(λi - λo)·(1 - {sum}c·a(λi))·r(λi) + {sum}c·Q·a(λi)·e(λo) ] / π\n\
+# Files: {stem}_albedo.spd ((1 - {sum}c·a)·r, dimensionless), {stem}_reflectance.spd (r),\n\
+{lobes}\
+# {stem}_reradiation.csv (the full reradiation matrix{summed}, rows excitation, columns emission,\n\
 # for matrix-based renderers; see its header for units).\n\
+{several}{forms}\
 # Stock pbrt-v4 has no fluorescent material: the diffuse material below is exact for the\n\
 # reflected part; a fluorescent diffuse material adds excitation(λi)·emission(λo)/π.\n"
     );
@@ -149,11 +248,7 @@ pub(super) fn pbrt(material: &Material, stem: &str) -> Vec<(String, String)> {
         name.replace('"', "'")
     ));
     for (i, f) in material.fluorophores.iter().enumerate() {
-        let s = if material.fluorophores.len() > 1 {
-            format!("_{i}")
-        } else {
-            String::new()
-        };
+        let s = lobe_suffix(material, i);
         scene.push_str(&format!(
             "# fluorescent lobe{s}: c = {}, Q = {}, excitation \"{stem}_excitation{s}.spd\", emission \"{stem}_emission{s}.spd\"\n",
             f.concentration, f.quantum_yield

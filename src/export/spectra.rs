@@ -36,6 +36,7 @@ pub(super) fn csv(material: &Material) -> String {
     out.push_str(
         "# reflectance: r(λ), dimensionless reflectance of the non-fluorescent part, end values held outside the samples\n",
     );
+    out.push_str(&forms_header(material, "# "));
     out.push_str("wavelength_nm");
     for i in 0..n {
         let s = suffix(i);
@@ -52,6 +53,42 @@ pub(super) fn csv(material: &Material) -> String {
             ));
         }
         out.push_str(&format!(",{}\n", material.reflectance.eval_clamped(l)));
+    }
+    out
+}
+
+/// Header lines (each starting with `prefix`) describing the material's continuous forms:
+/// the model and every form's parameters as compact JSON, so that an export of a
+/// parametric fit keeps its forms. Empty without a forms block.
+pub(super) fn forms_header(material: &Material, prefix: &str) -> String {
+    let Some(forms) = &material.forms else {
+        return String::new();
+    };
+    let mut out = format!(
+        "{prefix}forms: model {}; the sampled spectra are these continuous forms evaluated (parameters as in the material's JSON forms block)\n",
+        one_line(&forms.model)
+    );
+    let json = |f: &crate::parametric::SpectralForm| {
+        serde_json::to_string(f).unwrap_or_else(|e| format!("(not serialisable: {e})"))
+    };
+    if let Some(r) = &forms.reflectance {
+        out.push_str(&format!("{prefix}form reflectance: {}\n", json(r)));
+    }
+    let n = forms.fluorophores.len();
+    for (i, f) in forms.fluorophores.iter().enumerate() {
+        let s = if n > 1 {
+            format!("_{i}")
+        } else {
+            String::new()
+        };
+        out.push_str(&format!(
+            "{prefix}form absorption{s}: {}\n",
+            json(&f.absorption)
+        ));
+        out.push_str(&format!(
+            "{prefix}form emission{s}: {}\n",
+            json(&f.emission)
+        ));
     }
     out
 }

@@ -2,6 +2,7 @@
 //! against each swept condition.
 
 use plotters::coord::Shift;
+use plotters::coord::combinators::BindKeyPoints;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
@@ -35,7 +36,13 @@ fn colour(k: usize) -> RGBColor {
     PALETTE[k % PALETTE.len()]
 }
 
-/// Draws marker number `shape` (one per method) at `at` on any drawing area.
+/// Number of distinct method markers (they repeat after this many methods).
+pub const MARKER_SHAPES: usize = 9;
+
+/// Draws marker number `shape` (one per method) at `at` on any drawing area: filled
+/// circle, filled triangle, ×, filled square, ring, hollow diamond, +, hollow square,
+/// hollow downward triangle. Outlines are drawn as paths, so every hollow marker really
+/// is hollow (plotters' `TriangleMarker` fills regardless of the style).
 fn marker<DB: DrawingBackend, CT: CoordTranslate>(
     area: &DrawingArea<DB, CT>,
     at: CT::From,
@@ -46,16 +53,80 @@ where
     CT::From: Clone + 'static,
 {
     let s = 7;
-    match shape % 7 {
+    let outline = |points: Vec<(i32, i32)>| {
+        let mut closed = points.clone();
+        closed.push(points[0]);
+        EmptyElement::at(at.clone()) + PathElement::new(closed, c.stroke_width(2))
+    };
+    match shape % MARKER_SHAPES {
         0 => area.draw(&Circle::new(at, s, c.filled())),
         1 => area.draw(&TriangleMarker::new(at, s + 2, c.filled())),
         2 => area.draw(&Cross::new(at, s, c.stroke_width(3))),
         3 => area.draw(&(EmptyElement::at(at) + Rectangle::new([(-s, -s), (s, s)], c.filled()))),
         4 => area.draw(&Circle::new(at, s, c.stroke_width(2))),
-        5 => area.draw(&TriangleMarker::new(at, s + 2, c.stroke_width(2))),
-        _ => area
-            .draw(&(EmptyElement::at(at) + Rectangle::new([(-s, -s), (s, s)], c.stroke_width(2)))),
+        5 => {
+            let d = s + 2;
+            area.draw(&outline(vec![(0, -d), (d, 0), (0, d), (-d, 0)]))
+        }
+        6 => {
+            let d = s + 1;
+            area.draw(
+                &(EmptyElement::at(at)
+                    + PathElement::new(vec![(-d, 0), (d, 0)], c.stroke_width(3))
+                    + PathElement::new(vec![(0, -d), (0, d)], c.stroke_width(3))),
+            )
+        }
+        7 => area.draw(&outline(vec![(-s, -s), (s, -s), (s, s), (-s, s)])),
+        _ => {
+            let d = s + 2;
+            area.draw(&outline(vec![(-d, -d * 2 / 3), (d, -d * 2 / 3), (0, d)]))
+        }
     }
+}
+
+/// m·10ⁿ, exactly as the decimal literal (products with powi drift, 6 × 0.1 ≠ 0.6).
+fn decimal(m: u32, n: i32) -> f64 {
+    format!("{m}e{n}")
+        .parse()
+        .unwrap_or_else(|_| m as f64 * 10f64.powi(n))
+}
+
+/// Labelled ticks of a log axis over [lo, hi]: every decade, and 2 and 5 within each
+/// decade when the range spans less than two decades (every integer multiple when even
+/// that leaves fewer than three ticks).
+pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
+        return Vec::new();
+    }
+    let inside = |v: &f64| *v >= lo * (1.0 - 1e-12) && *v <= hi * (1.0 + 1e-12);
+    let first = lo.log10().floor() as i32;
+    let last = hi.log10().ceil() as i32;
+    let with = |multiples: &[u32]| -> Vec<f64> {
+        (first..=last)
+            .flat_map(|n| multiples.iter().map(move |&m| decimal(m, n)))
+            .filter(inside)
+            .collect()
+    };
+    let mut ticks = with(&[1]);
+    if hi / lo < 100.0 {
+        ticks = with(&[1, 2, 5]);
+    }
+    if ticks.len() < 3 {
+        ticks = with(&[1, 2, 3, 4, 5, 6, 7, 8, 9]);
+    }
+    ticks
+}
+
+/// Unlabelled grid lines of a log axis: every integer multiple of each decade in range.
+fn log_grid(lo: f64, hi: f64) -> Vec<f64> {
+    if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
+        return Vec::new();
+    }
+    let (first, last) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+    (first..=last)
+        .flat_map(|n| (1..10).map(move |m| decimal(m, n)))
+        .filter(|v| *v >= lo && *v <= hi)
+        .collect()
 }
 
 struct SpeedAccuracy<'a> {
@@ -129,7 +200,13 @@ impl Draw for SpeedAccuracy<'_> {
                 .margin(14)
                 .x_label_area_size(50)
                 .y_label_area_size(80)
-                .build_cartesian_2d((t_lo..t_hi).log_scale(), (e_lo..e_hi).log_scale())?;
+                .build_cartesian_2d(
+                    (t_lo..t_hi).log_scale(),
+                    (e_lo..e_hi)
+                        .log_scale()
+                        .with_key_points(log_ticks(e_lo, e_hi))
+                        .with_light_points(log_grid(e_lo, e_hi)),
+                )?;
             chart
                 .configure_mesh()
                 .light_line_style(RGBColor(235, 235, 235))
@@ -309,5 +386,72 @@ impl Draw for Stability<'_> {
             }
         }
         Ok(Layout::default())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The pixels marker `shape` paints, as offsets from its centre.
+    fn footprint(shape: usize) -> Vec<(i32, i32)> {
+        let size = 41u32;
+        let mut buffer = vec![255u8; (size * size * 3) as usize];
+        {
+            let root = BitMapBackend::with_buffer(&mut buffer, (size, size)).into_drawing_area();
+            marker(&root, (20, 20), shape, RGBColor(0, 0, 0)).unwrap();
+            root.present().unwrap();
+        }
+        buffer
+            .chunks(3)
+            .enumerate()
+            .filter(|(_, p)| p != &[255, 255, 255])
+            .map(|(k, _)| (k as i32 % size as i32 - 20, k as i32 / size as i32 - 20))
+            .collect()
+    }
+
+    #[test]
+    fn every_method_marker_has_its_own_shape() {
+        let prints: Vec<Vec<(i32, i32)>> = (0..MARKER_SHAPES).map(footprint).collect();
+        for (a, pa) in prints.iter().enumerate() {
+            assert!(pa.len() > 10, "marker {a} paints only {} pixels", pa.len());
+            for (b, pb) in prints.iter().enumerate().skip(a + 1) {
+                let differ = pa.iter().filter(|p| !pb.contains(p)).count()
+                    + pb.iter().filter(|p| !pa.contains(p)).count();
+                assert!(
+                    differ >= 15,
+                    "markers {a} and {b} differ in {differ} pixels"
+                );
+            }
+        }
+        // The hollow ones leave their centre white; the filled ones cover it.
+        for (shape, filled) in [(0, true), (1, true), (3, true), (4, false), (5, false)] {
+            assert_eq!(prints[shape].contains(&(0, 0)), filled, "marker {shape}");
+        }
+        for shape in [7, 8] {
+            assert!(!prints[shape].contains(&(0, 0)), "marker {shape}");
+        }
+        // lbfgs (the 2nd method) and nelder-mead (the 6th) of the benchmark's list.
+        let methods: Vec<String> = crate::evaluate::all_methods()
+            .into_iter()
+            .map(|m| m.name)
+            .collect();
+        let lbfgs = methods.iter().position(|m| m == "lbfgs").unwrap();
+        let nelder = methods.iter().position(|m| m == "nelder-mead").unwrap();
+        assert_ne!(lbfgs % MARKER_SHAPES, nelder % MARKER_SHAPES);
+        assert!(methods.len() <= MARKER_SHAPES);
+    }
+
+    #[test]
+    fn log_ticks_label_decades_and_fill_in_short_ranges() {
+        assert_eq!(log_ticks(3e-4, 40.0), vec![1e-3, 1e-2, 0.1, 1.0, 10.0]);
+        assert_eq!(log_ticks(0.3, 20.0), vec![0.5, 1.0, 2.0, 5.0, 10.0, 20.0]);
+        assert_eq!(log_ticks(0.011, 0.9), vec![0.02, 0.05, 0.1, 0.2, 0.5]);
+        assert_eq!(log_ticks(0.52, 0.95), vec![0.6, 0.7, 0.8, 0.9]);
+        assert!(log_ticks(0.0, 1.0).is_empty());
+        assert!(log_ticks(f64::NAN, 1.0).is_empty());
+        let grid = log_grid(0.05, 0.5);
+        assert_eq!(grid.first(), Some(&0.05));
+        assert_eq!(grid.len(), 10);
     }
 }

@@ -268,7 +268,7 @@ impl Draw for ResidualFigure<'_> {
         )?;
         Ok(Layout {
             heatmaps: panels,
-            swatches: Vec::new(),
+            ..Layout::default()
         })
     }
 }

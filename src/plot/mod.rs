@@ -2,7 +2,8 @@
 //!
 //! 1. residual map — measured matrix, fitted matrix and their difference as heat maps
 //!    ([`heatmap`]);
-//! 2. spectra — fitted a(λ), e(λ), r(λ) with the measured diagonal and the data's own
+//! 2. spectra — fitted a(λ), e(λ) of every fluorophore and r(λ) (the continuous forms
+//!    when the material has them) with the measured diagonal and the data's own
 //!    excitation and emission profiles ([`spectra`]);
 //! 3. colour — measured and fitted patch colour under each standard light, with ΔE2000
 //!    ([`swatches`]);
@@ -93,6 +94,8 @@ pub struct Layout {
     pub heatmaps: Vec<heatmap::HeatmapPanel>,
     /// Swatch pairs, one per light.
     pub swatches: Vec<swatches::SwatchPanel>,
+    /// The spectra chart: plotting area, axis ranges and curves.
+    pub spectra: Option<spectra::SpectraPanel>,
 }
 
 /// One rendered figure, held in memory until written.

@@ -1,7 +1,12 @@
 //! The spectra figure: fitted absorption a(λ), emission e(λ) (scaled to peak 1),
-//! reflectance r(λ) and diagonal d(λ) = (1 − c·a)·r, with the measured diagonal as points
+//! reflectance r(λ) and diagonal d(λ) = (1 − Σc·a)·r, with the measured diagonal as points
 //! and the data's own excitation and emission profiles, so a user sees whether the shapes
 //! agree.
+//!
+//! With several fluorophores each has one colour (absorption solid, emission dashed) and
+//! the legend numbers them a₁, e₁, a₂, e₂, …. When the material carries continuous forms
+//! (a parametric fit), the curves are those forms evaluated every nanometre and the title
+//! names the model.
 //!
 //! The data profiles are row and column sums of the measured Stokes cells (outside the
 //! guard band), each divided by the same sum over the fitted matrix and multiplied by the
@@ -21,6 +26,8 @@ use super::{Comparison, FigureKind, ImageFormat, Layout};
 use crate::error::Result;
 use crate::material::Material;
 use crate::measurement::CellKind;
+use crate::parametric::{FluorophoreForms, MaterialForms, SpectralForm};
+use crate::spectrum::Spectrum;
 
 /// Size of the spectra figure in pixels.
 pub const SIZE: (u32, u32) = (1000, 560);
@@ -28,11 +35,6 @@ pub const SIZE: (u32, u32) = (1000, 560);
 const TITLE_HEIGHT: i32 = 44;
 const CHART_WIDTH: i32 = 680;
 
-/// Colours of absorption and emission per fluorophore (cycled).
-const FLUOROPHORE_COLOURS: [(RGBColor, RGBColor); 2] = [
-    (RGBColor(31, 119, 180), RGBColor(214, 39, 40)),
-    (RGBColor(148, 103, 189), RGBColor(255, 127, 14)),
-];
 const REFLECTANCE_COLOUR: RGBColor = RGBColor(44, 160, 44);
 const DIAGONAL_COLOUR: RGBColor = RGBColor(70, 70, 70);
 
@@ -159,28 +161,204 @@ pub(crate) fn render(
     )
 }
 
+/// One curve of the spectra chart, as drawn.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpectraCurve {
+    /// The legend text (e.g. "a₂(λ) absorption").
+    pub label: String,
+    /// The line colour (RGB).
+    pub colour: [u8; 3],
+    /// Whether the line is dashed (with gaps) rather than solid.
+    pub dashed: bool,
+    /// The points drawn: (wavelength nm, plotted value).
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Where the spectra chart was drawn and what it shows, so callers (tests) can probe
+/// the pixels of each curve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpectraPanel {
+    /// Plotting area in pixels: left, top, right, bottom (right and bottom exclusive).
+    pub plot_area_px: [i32; 4],
+    /// The wavelength axis range (nm).
+    pub x_range_nm: [f64; 2],
+    /// The value axis range.
+    pub y_range: [f64; 2],
+    /// Every curve, in drawing order.
+    pub curves: Vec<SpectraCurve>,
+    /// The model name of the material's continuous forms when the curves are those forms
+    /// evaluated every nanometre; None when they are the tabulated samples.
+    pub forms_model: Option<String>,
+}
+
+impl SpectraPanel {
+    /// The pixel (fractional) of the point (`nm`, `value`).
+    pub fn pixel(&self, nm: f64, value: f64) -> (f64, f64) {
+        let [left, top, right, bottom] = self.plot_area_px;
+        let [x_lo, x_hi] = self.x_range_nm;
+        let [y_lo, y_hi] = self.y_range;
+        (
+            left as f64 + (nm - x_lo) / (x_hi - x_lo) * (right - 1 - left) as f64,
+            (bottom - 1) as f64 - (value - y_lo) / (y_hi - y_lo) * (bottom - 1 - top) as f64,
+        )
+    }
+
+    /// The curve whose label starts with `prefix`.
+    pub fn curve(&self, prefix: &str) -> Option<&SpectraCurve> {
+        self.curves.iter().find(|c| c.label.starts_with(prefix))
+    }
+}
+
+/// A curve to draw: its points, its look and its legend text.
+type Line = (Vec<(f64, f64)>, Glyph, String);
+
 /// What a legend entry's sample looks like.
+#[derive(Clone, Copy)]
 enum Glyph {
     Line(RGBColor),
+    Thin(RGBColor),
     Dashed(RGBColor),
+    LongDashed(RGBColor),
     Dot(RGBColor),
     Ring(RGBColor),
     Triangle(RGBColor),
 }
 
+/// `n` (from 1) in subscript digits: 1 → "₁", 12 → "₁₂".
+fn subscript(n: usize) -> String {
+    n.to_string()
+        .chars()
+        .map(|c| match c.to_digit(10) {
+            Some(d) => char::from_u32(0x2080 + d).unwrap_or(c),
+            None => c,
+        })
+        .collect()
+}
+
+/// Wavelengths every nanometre from `lo` to `hi`, both ends included.
+fn every_nm(lo: f64, hi: f64) -> Vec<f64> {
+    if !(lo.is_finite() && hi.is_finite() && hi >= lo) {
+        return Vec::new();
+    }
+    let mut grid = vec![lo];
+    let mut l = lo.floor() + 1.0;
+    // At most a few thousand points for any sensible spectrum.
+    while l < hi && grid.len() < 100_000 {
+        grid.push(l);
+        l += 1.0;
+    }
+    if hi > lo {
+        grid.push(hi);
+    }
+    grid
+}
+
+/// The range (nm) a spectrum is sampled over.
+fn sample_range(s: &Spectrum) -> (f64, f64) {
+    (
+        s.wavelength_nm.first().copied().unwrap_or(f64::NAN),
+        s.wavelength_nm.last().copied().unwrap_or(f64::NAN),
+    )
+}
+
+/// The curve of a spectrum: its form every nanometre over its sample range, zero outside
+/// (absorption, emission), or its samples when there is no form.
+fn curve_points(s: &Spectrum, form: Option<&SpectralForm>) -> Vec<(f64, f64)> {
+    match form {
+        Some(form) => {
+            let (lo, hi) = sample_range(s);
+            every_nm(lo, hi)
+                .into_iter()
+                .map(|l| (l, form.eval(l)))
+                .collect()
+        }
+        None => s
+            .wavelength_nm
+            .iter()
+            .copied()
+            .zip(s.value.iter().copied())
+            .collect(),
+    }
+}
+
+/// The material's spectra as continuous functions: the forms where present (absorption
+/// zero outside its samples like the tabulated model), else the samples.
+struct Curves<'a> {
+    material: &'a Material,
+    forms: Option<&'a MaterialForms>,
+}
+
+impl Curves<'_> {
+    fn fluorophore_forms(&self, n: usize) -> Option<&FluorophoreForms> {
+        self.forms.and_then(|f| f.fluorophores.get(n))
+    }
+
+    fn absorption(&self, n: usize, nm: f64) -> f64 {
+        let f = &self.material.fluorophores[n];
+        match self.fluorophore_forms(n) {
+            Some(forms) => {
+                let (lo, hi) = sample_range(&f.absorption);
+                if (lo..=hi).contains(&nm) {
+                    forms.absorption.eval(nm)
+                } else {
+                    0.0
+                }
+            }
+            None => f.absorption.eval_zero_outside(nm),
+        }
+    }
+
+    fn reflectance(&self, nm: f64) -> f64 {
+        match self.forms.and_then(|f| f.reflectance.as_ref()) {
+            Some(form) => form.eval(nm),
+            None => self.material.reflectance.eval_clamped(nm),
+        }
+    }
+
+    fn diagonal(&self, nm: f64) -> f64 {
+        let absorbed: f64 = (0..self.material.fluorophores.len())
+            .map(|n| self.material.fluorophores[n].concentration * self.absorption(n, nm))
+            .sum();
+        (1.0 - absorbed) * self.reflectance(nm)
+    }
+}
+
+/// Colours of absorption and emission for a material with one fluorophore.
+const SINGLE_COLOURS: (RGBColor, RGBColor) = (RGBColor(31, 119, 180), RGBColor(214, 39, 40));
+
+/// One colour per fluorophore when there are several (absorption solid, emission dashed).
+const COMPONENT_COLOURS: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(214, 39, 40),
+    RGBColor(140, 86, 75),
+    RGBColor(23, 190, 207),
+];
+
+/// Colour of the data profiles and their combined references when there are several
+/// fluorophores (the profiles then follow the sum over components, not one of them).
+const COMBINED_COLOUR: RGBColor = RGBColor(0, 0, 0);
+
 impl Draw for SpectraFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<Layout, DB> {
         let material = self.material;
         let (width, height) = SIZE;
+        // Forms are used only when they match the fluorophores one to one.
+        let forms = material
+            .forms
+            .as_ref()
+            .filter(|f| f.fluorophores.len() == material.fluorophores.len());
+        let model = forms.map(|f| format!(" ({})", f.model)).unwrap_or_default();
         let title = match self.comparison {
             Some(c) if c.measured.name != material.name => {
                 format!(
-                    "{}: fitted spectra vs data {}",
+                    "{}: fitted spectra vs data {}{model}",
                     material.name, c.measured.name
                 )
             }
-            Some(_) => format!("{}: fitted spectra vs measured data", material.name),
-            None => format!("{}: fitted spectra", material.name),
+            Some(_) => format!("{}: fitted spectra vs measured data{model}", material.name),
+            None => format!("{}: fitted spectra{model}", material.name),
         };
         draw_text(
             root,
@@ -188,41 +366,35 @@ impl Draw for SpectraFigure<'_> {
             (width as i32 / 2, TITLE_HEIGHT / 2 + 2),
             &anchored(bold(21.0), HPos::Center, VPos::Center),
         )?;
+        let curves = Curves { material, forms };
 
         // Curves, in plot coordinates.
         let mut legend: Vec<(Glyph, String)> = Vec::new();
-        let mut lines: Vec<(Vec<(f64, f64)>, Glyph)> = Vec::new();
+        let mut lines: Vec<Line> = Vec::new();
         let several = material.fluorophores.len() > 1;
         for (n, f) in material.fluorophores.iter().enumerate() {
-            let (abs_colour, em_colour) = FLUOROPHORE_COLOURS[n % FLUOROPHORE_COLOURS.len()];
-            let tag = if several {
-                format!("{}", n + 1)
+            let (abs_glyph, em_glyph, tag) = if several {
+                let c = COMPONENT_COLOURS[n % COMPONENT_COLOURS.len()];
+                (Glyph::Line(c), Glyph::LongDashed(c), subscript(n + 1))
             } else {
-                String::new()
+                (
+                    Glyph::Line(SINGLE_COLOURS.0),
+                    Glyph::Line(SINGLE_COLOURS.1),
+                    String::new(),
+                )
             };
-            let a: Vec<(f64, f64)> = f
-                .absorption
-                .wavelength_nm
-                .iter()
-                .copied()
-                .zip(f.absorption.value.iter().copied())
-                .collect();
-            let e_max = f.emission.max();
+            let ff = curves.fluorophore_forms(n);
+            let a = curve_points(&f.absorption, ff.map(|ff| &ff.absorption));
+            let e = curve_points(&f.emission, ff.map(|ff| &ff.emission));
+            let e_max = e.iter().map(|p| p.1).fold(0.0, f64::max);
             let e_scale = if e_max > 0.0 { 1.0 / e_max } else { 0.0 };
-            let e: Vec<(f64, f64)> = f
-                .emission
-                .wavelength_nm
-                .iter()
-                .copied()
-                .zip(f.emission.value.iter().map(|v| v * e_scale))
-                .collect();
-            lines.push((a, Glyph::Line(abs_colour)));
-            lines.push((e, Glyph::Line(em_colour)));
-            legend.push((Glyph::Line(abs_colour), format!("a{tag}(λ) absorption")));
-            legend.push((
-                Glyph::Line(em_colour),
-                format!("e{tag}(λ) emission ÷ {} /nm", format_significant(e_max, 3)),
-            ));
+            let e: Vec<(f64, f64)> = e.into_iter().map(|(l, v)| (l, v * e_scale)).collect();
+            let a_label = format!("a{tag}(λ) absorption");
+            let e_label = format!("e{tag}(λ) emission ÷ {} /nm", format_significant(e_max, 3));
+            legend.push((abs_glyph, a_label.clone()));
+            legend.push((em_glyph, e_label.clone()));
+            lines.push((a, abs_glyph, a_label));
+            lines.push((e, em_glyph, e_label));
         }
         // Without a diagonal in the data (solution EEMs) the fit cannot know r or d.
         let reflectance_known = match self.comparison {
@@ -233,35 +405,42 @@ impl Draw for SpectraFigure<'_> {
                     .any(|u| u.to_ascii_lowercase().contains("reflectance"))
             }),
         };
-        let r: Vec<(f64, f64)> = material
-            .reflectance
-            .wavelength_nm
-            .iter()
-            .copied()
-            .zip(material.reflectance.value.iter().copied())
-            .collect();
         if reflectance_known {
-            lines.push((r, Glyph::Line(REFLECTANCE_COLOUR)));
-            legend.push((
-                Glyph::Line(REFLECTANCE_COLOUR),
-                "r(λ) reflectance".to_string(),
-            ));
+            let r = curve_points(
+                &material.reflectance,
+                forms.and_then(|f| f.reflectance.as_ref()),
+            );
+            let label = "r(λ) reflectance".to_string();
+            legend.push((Glyph::Line(REFLECTANCE_COLOUR), label.clone()));
+            lines.push((r, Glyph::Line(REFLECTANCE_COLOUR), label));
         }
         if reflectance_known && !material.fluorophores.is_empty() {
-            let d: Vec<(f64, f64)> = material
-                .sample_wavelengths()
+            let samples = material.sample_wavelengths();
+            let wavelengths = match (forms, samples.first(), samples.last()) {
+                (Some(_), Some(&lo), Some(&hi)) => every_nm(lo, hi),
+                _ => samples,
+            };
+            let d: Vec<(f64, f64)> = wavelengths
                 .iter()
-                .map(|&l| (l, material.diagonal(l)))
+                .map(|&l| (l, curves.diagonal(l)))
                 .collect();
-            lines.push((d, Glyph::Dashed(DIAGONAL_COLOUR)));
-            legend.push((
-                Glyph::Dashed(DIAGONAL_COLOUR),
-                "d(λ) = (1 − c·a)·r, fitted diagonal".to_string(),
-            ));
+            let label = if several {
+                "d(λ) = (1 − Σc·a)·r, fitted diagonal"
+            } else {
+                "d(λ) = (1 − c·a)·r, fitted diagonal"
+            }
+            .to_string();
+            legend.push((Glyph::Dashed(DIAGONAL_COLOUR), label.clone()));
+            lines.push((d, Glyph::Dashed(DIAGONAL_COLOUR), label));
         }
 
         let mut diagonal_points = Vec::new();
         let mut profiles = Profiles::default();
+        let (ring, triangle) = if several {
+            (COMBINED_COLOUR, COMBINED_COLOUR)
+        } else {
+            SINGLE_COLOURS
+        };
         if let Some(c) = self.comparison {
             let m = &c.measured;
             diagonal_points = m
@@ -275,23 +454,40 @@ impl Draw for SpectraFigure<'_> {
                 legend.push((Glyph::Dot(BLACK), "measured diagonal".to_string()));
             }
             if !profiles.excitation.is_empty() {
-                legend.push((
-                    Glyph::Ring(FLUOROPHORE_COLOURS[0].0),
-                    "data excitation profile".to_string(),
-                ));
+                legend.push((Glyph::Ring(ring), "data excitation profile".to_string()));
             }
             if !profiles.emission.is_empty() {
                 legend.push((
-                    Glyph::Triangle(FLUOROPHORE_COLOURS[0].1),
+                    Glyph::Triangle(triangle),
                     "data emission profile".to_string(),
                 ));
+            }
+            // With several fluorophores the profiles follow the sums Σk·a and Σk·(Σa)·e,
+            // which no single curve shows: draw them thin.
+            if several && !(profiles.excitation.is_empty() && profiles.emission.is_empty()) {
+                let on = |grid: &[f64], v: Option<Vec<f64>>| -> Vec<(f64, f64)> {
+                    v.map(|v| grid.iter().copied().zip(v).collect())
+                        .unwrap_or_default()
+                };
+                let ex = on(
+                    &m.excitation_nm,
+                    excitation_reference(material, &m.excitation_nm),
+                );
+                let em = on(
+                    &m.emission_nm,
+                    emission_reference(material, &m.excitation_nm, &m.emission_nm),
+                );
+                let label = "Σk·a, Σk·e: what the profiles follow".to_string();
+                legend.push((Glyph::Thin(COMBINED_COLOUR), label.clone()));
+                lines.push((ex, Glyph::Thin(COMBINED_COLOUR), label.clone()));
+                lines.push((em, Glyph::Thin(COMBINED_COLOUR), label));
             }
         }
 
         // Axis ranges covering every curve and point.
         let all_points = lines
             .iter()
-            .flat_map(|(p, _)| p.iter())
+            .flat_map(|(p, _, _)| p.iter())
             .chain(diagonal_points.iter())
             .chain(profiles.excitation.iter())
             .chain(profiles.emission.iter())
@@ -332,21 +528,43 @@ impl Draw for SpectraFigure<'_> {
             .label_style(font(15.0))
             .axis_desc_style(font(16.0))
             .draw()?;
-        for (points, glyph) in lines {
-            match glyph {
+        let mut drawn = Vec::new();
+        for (points, glyph, label) in lines {
+            let (colour, dashed) = match glyph {
                 Glyph::Dashed(colour) => {
                     chart.draw_series(DashedLineSeries::new(
-                        points,
+                        points.clone(),
                         8,
                         5,
                         colour.stroke_width(2),
                     ))?;
+                    (colour, true)
+                }
+                Glyph::LongDashed(colour) => {
+                    chart.draw_series(DashedLineSeries::new(
+                        points.clone(),
+                        14,
+                        5,
+                        colour.stroke_width(3),
+                    ))?;
+                    (colour, true)
                 }
                 Glyph::Line(colour) => {
-                    chart.draw_series(LineSeries::new(points, colour.stroke_width(3)))?;
+                    chart.draw_series(LineSeries::new(points.clone(), colour.stroke_width(3)))?;
+                    (colour, false)
                 }
-                _ => {}
-            }
+                Glyph::Thin(colour) => {
+                    chart.draw_series(LineSeries::new(points.clone(), colour.stroke_width(1)))?;
+                    (colour, false)
+                }
+                _ => continue,
+            };
+            drawn.push(SpectraCurve {
+                label,
+                colour: [colour.0, colour.1, colour.2],
+                dashed,
+                points,
+            });
         }
         chart.draw_series(
             diagonal_points
@@ -357,30 +575,52 @@ impl Draw for SpectraFigure<'_> {
             profiles
                 .excitation
                 .iter()
-                .map(|&p| Circle::new(p, 4, FLUOROPHORE_COLOURS[0].0.stroke_width(2))),
+                .map(|&p| Circle::new(p, 4, ring.stroke_width(2))),
         )?;
         chart.draw_series(
             profiles
                 .emission
                 .iter()
-                .map(|&p| TriangleMarker::new(p, 5, FLUOROPHORE_COLOURS[0].1.filled())),
+                .map(|&p| TriangleMarker::new(p, 5, triangle.filled())),
         )?;
+        let (xs, ys) = chart.plotting_area().get_pixel_range();
+        let panel = SpectraPanel {
+            plot_area_px: [xs.start, ys.start, xs.end, ys.end],
+            x_range_nm: [x_lo, x_hi],
+            y_range: [y_lo, y_hi],
+            curves: drawn,
+            forms_model: forms.map(|f| f.model.clone()),
+        };
 
-        // Legend and parameters to the right of the chart.
+        // Legend and parameters to the right of the chart; lines close up when many
+        // fluorophores would otherwise run off the figure.
+        let parameters = parameter_lines(material, self.comparison);
         let x0 = CHART_WIDTH + 10;
-        let mut y = TITLE_HEIGHT + 30;
+        let top = TITLE_HEIGHT + 30;
+        let needed = 26 * legend.len() as i32 + 18 + 23 * parameters.len() as i32;
+        let available = height as i32 - top - 8;
+        let squeeze = if needed > available {
+            available as f64 / needed as f64
+        } else {
+            1.0
+        };
+        let step = |px: i32| ((px as f64 * squeeze).round() as i32).max(12);
+        let mut y = top;
         let style = anchored(font(15.0), HPos::Left, VPos::Center);
         for (glyph, text) in &legend {
             draw_glyph(root, glyph, (x0, y))?;
             draw_text(root, text, (x0 + 40, y), &style)?;
-            y += 26;
+            y += step(26);
         }
-        y += 18;
-        for line in parameter_lines(material, self.comparison) {
+        y += step(18);
+        for line in parameters {
             draw_text(root, &line, (x0, y), &style)?;
-            y += 23;
+            y += step(23);
         }
-        Ok(Layout::default())
+        Ok(Layout {
+            spectra: Some(panel),
+            ..Layout::default()
+        })
     }
 }
 
@@ -394,6 +634,10 @@ fn draw_glyph<DB: DrawingBackend>(
             vec![(x, y), (x + 30, y)],
             c.stroke_width(3),
         )),
+        Glyph::Thin(c) => root.draw(&PathElement::new(
+            vec![(x, y), (x + 30, y)],
+            c.stroke_width(1),
+        )),
         Glyph::Dashed(c) => {
             root.draw(&PathElement::new(
                 vec![(x, y), (x + 10, y)],
@@ -402,6 +646,16 @@ fn draw_glyph<DB: DrawingBackend>(
             root.draw(&PathElement::new(
                 vec![(x + 15, y), (x + 25, y)],
                 c.stroke_width(2),
+            ))
+        }
+        Glyph::LongDashed(c) => {
+            root.draw(&PathElement::new(
+                vec![(x, y), (x + 13, y)],
+                c.stroke_width(3),
+            ))?;
+            root.draw(&PathElement::new(
+                vec![(x + 18, y), (x + 31, y)],
+                c.stroke_width(3),
             ))
         }
         Glyph::Dot(c) => root.draw(&Circle::new((x + 15, y), 3, c.filled())),
@@ -414,12 +668,23 @@ fn draw_glyph<DB: DrawingBackend>(
 fn parameter_lines(material: &Material, comparison: Option<&Comparison>) -> Vec<String> {
     let mut lines = Vec::new();
     let several = material.fluorophores.len() > 1;
+    // Three lines per fluorophore fit beside the legend for up to two of them.
+    let compact = material.fluorophores.len() > 2;
     for (n, f) in material.fluorophores.iter().enumerate() {
         let tag = if several {
             format!("[{}] ", n + 1)
         } else {
             String::new()
         };
+        if compact {
+            lines.push(format!(
+                "{tag}k = {}, c = {}, Q = {}",
+                format_significant(f.k(), 3),
+                format_significant(f.concentration, 3),
+                format_significant(f.quantum_yield, 3)
+            ));
+            continue;
+        }
         lines.push(format!("{tag}k = c·Q = {}", format_significant(f.k(), 3)));
         let range = f
             .concentration_range
@@ -440,6 +705,11 @@ fn parameter_lines(material: &Material, comparison: Option<&Comparison>) -> Vec<
             format_significant(f.quantum_yield, 3),
             format_significant(f.emission_mean_nm(), 3)
         ));
+    }
+    if let Some(forms) = &material.forms
+        && forms.fluorophores.len() == material.fluorophores.len()
+    {
+        lines.push(format!("model {}: forms drawn every 1 nm", forms.model));
     }
     if let Some(fit) = &material.fit
         && !fit.gauge.is_empty()

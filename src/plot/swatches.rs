@@ -247,8 +247,8 @@ impl Draw for ColourFigure<'_> {
             y += 22;
         }
         Ok(Layout {
-            heatmaps: Vec::new(),
             swatches: panels,
+            ..Layout::default()
         })
     }
 }
