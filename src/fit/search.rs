@@ -39,6 +39,9 @@ pub const MAX_REFLECTANCE_DEGREE: usize = 12;
 /// Share of the ΔE2000 bound the reflectance alone may use when its degree is chosen.
 const REFLECTANCE_SHARE: f64 = 0.5;
 
+/// Sweeps of the masked factorisation behind the fresh split of K > 1 starts.
+const SPLIT_SWEEPS: usize = 100;
+
 /// Largest κ of an added component at the start, relative to the parent's.
 const EXTRA_COMPONENT_SHARE: f64 = 0.1;
 
@@ -231,8 +234,32 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
                 p.absorption_bands == absorption_bands && p.emission_bands == emission_bands
             })
             .or(one_component.last());
-        let result = start(&problem, &base, parent, sigma)
-            .and_then(|theta0| refine(&problem, &theta0, options))
+        // K > 1 has two starts: the parent plus a small extra component (a weak emitter
+        // the parent misses), and a fresh split of the matrix by a masked non-negative
+        // factorisation (separate fluorophores the parent averaged); the cheaper wins.
+        let starts: &[usize] = if components > 1 {
+            &[0, SPLIT_SWEEPS]
+        } else {
+            &[0]
+        };
+        let result = starts
+            .iter()
+            .map(|&sweeps| {
+                start(&problem, &base, parent, sigma, sweeps)
+                    .and_then(|theta0| refine(&problem, &theta0, options))
+            })
+            .reduce(|a, b| match (a, b) {
+                (Ok(a), Ok(b)) => Ok(
+                    if problem.cost_gradient(&b.0).0 < problem.cost_gradient(&a.0).0 {
+                        b
+                    } else {
+                        a
+                    },
+                ),
+                (Ok(a), Err(_)) => Ok(a),
+                (Err(_), b) => b,
+            })
+            .unwrap_or_else(|| Err(Error::Fit("no start".into())))
             .and_then(|(theta, refined)| {
                 let material = problem.material(&theta, &m.name)?;
                 material.validate().map_err(|e| {
@@ -499,6 +526,7 @@ fn start(
     base: &Material,
     one_component: Option<&(ModelSpec, Vec<f64>)>,
     sigma: f64,
+    split_sweeps: usize,
 ) -> Result<Vec<f64>> {
     let data = problem.data;
     let layout = problem.layout;
@@ -516,13 +544,14 @@ fn start(
             f.emission.resample_zero_outside(&data.emission_nm).value,
         )]
     } else {
-        split_components(problem, base, one_component, sigma, 0)
+        split_components(problem, base, one_component, sigma, split_sweeps)
     };
     // The parent's own parameters, when it has this model's bands: the start then costs
     // what the parent's optimum costs plus a small extra component.
     let copied = match one_component {
         Some((parent_spec, parent_theta))
             if spec.components > 1
+                && split_sweeps == 0
                 && parent_spec.absorption_bands == spec.absorption_bands
                 && parent_spec.emission_bands == spec.emission_bands
                 && parent_spec.reflectance == spec.reflectance =>
