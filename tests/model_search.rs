@@ -1,0 +1,269 @@
+//! Parametric models and the model search (`--model`, `--max-delta-e`): synthetic data
+//! with known component counts, the real surfaces of ../shared (skipped when absent),
+//! and the material's forms block.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use fluorite::Material;
+use fluorite::check::check_material;
+use fluorite::fit::parametric::ReflectanceForm;
+use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, ModelRequest, fit};
+use fluorite::formats::read;
+use fluorite::parametric::BandDomain;
+use fluorite::synth::SynthSpec;
+
+fn search_options(bound: f64) -> FitOptions {
+    FitOptions {
+        model: ModelChoice::Auto,
+        max_delta_e: Some(bound),
+        ..FitOptions::default()
+    }
+}
+
+fn material(outcome: FitOutcome) -> Material {
+    match outcome {
+        FitOutcome::Material(m) => *m,
+        FitOutcome::Shapes(_) => panic!("expected a material"),
+    }
+}
+
+fn worst(m: &Material) -> f64 {
+    m.fit
+        .as_ref()
+        .unwrap()
+        .delta_e2000
+        .values()
+        .cloned()
+        .fold(0.0, f64::max)
+}
+
+/// Fits, then checks what every search result must satisfy: a valid material whose
+/// forms reproduce its samples and whose report lists the candidates and the choice.
+fn searched(path: &Path, bound: f64) -> Material {
+    let m = read(path, &Default::default()).unwrap();
+    let material = material(fit(&m, &search_options(bound)).unwrap());
+    material.validate().unwrap();
+    let report = check_material(&material);
+    assert!(
+        report.failed().is_empty(),
+        "{}: laws failed: {:?}",
+        path.display(),
+        report.failed()
+    );
+    let fit = material.fit.as_ref().unwrap();
+    let search = fit.model_search.as_ref().expect("a search report");
+    assert_eq!(search.chosen, fit.model);
+    if search.met {
+        assert_eq!(search.candidates.last().unwrap().model, fit.model);
+    } else {
+        assert!(search.candidates.iter().any(|c| c.model == fit.model));
+    }
+    assert_eq!(material.forms.as_ref().unwrap().model, fit.model);
+    assert_eq!(
+        material.forms.as_ref().unwrap().fluorophores.len(),
+        material.fluorophores.len()
+    );
+    material
+}
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(name)
+}
+
+#[test]
+fn model_names_parse_and_bad_ones_are_refused() {
+    assert_eq!(
+        "tabulated".parse::<ModelChoice>().unwrap(),
+        ModelChoice::Tabulated
+    );
+    assert_eq!("auto".parse::<ModelChoice>().unwrap(), ModelChoice::Auto);
+    assert_eq!(
+        "gaussian:2x1".parse::<ModelChoice>().unwrap(),
+        ModelChoice::Fixed(ModelRequest {
+            components: 2,
+            absorption_bands: 1,
+            emission_bands: 1,
+            reflectance: None,
+            domain: BandDomain::Wavenumber,
+        })
+    );
+    assert_eq!(
+        "gaussian:1x3/2+r4@wavelength".parse::<ModelChoice>().unwrap(),
+        ModelChoice::Fixed(ModelRequest {
+            components: 1,
+            absorption_bands: 3,
+            emission_bands: 2,
+            reflectance: Some(ReflectanceForm::Polynomial(4)),
+            domain: BandDomain::Wavelength,
+        })
+    );
+    for bad in [
+        "gauss:1x1",
+        "gaussian:0x1",
+        "gaussian:1x",
+        "gaussian:1x1+q",
+        "gaussian:1x1@frequency",
+        "gaussian:7x1",
+    ] {
+        let e = bad.parse::<ModelChoice>().unwrap_err().to_string();
+        assert!(e.contains("--model") && e.contains(bad), "{bad}: {e}");
+    }
+}
+
+#[test]
+fn one_fluorophore_examples_choose_one_component() {
+    for name in ["green-dye", "brightener", "red-pigment"] {
+        let material = searched(&data(&format!("{name}.csv")), 1.0);
+        let fit = material.fit.as_ref().unwrap();
+        assert!(fit.model_search.as_ref().unwrap().met, "{name}");
+        assert!(worst(&material) <= 1.0, "{name}: {:?}", fit.delta_e2000);
+        assert_eq!(material.fluorophores.len(), 1, "{name}: chose {}", fit.model);
+    }
+}
+
+#[test]
+fn two_separated_fluorophores_choose_two_components() {
+    let material = searched(&data("two-dyes.csv"), 1.0);
+    let fit = material.fit.as_ref().unwrap();
+    assert!(fit.model_search.as_ref().unwrap().met);
+    assert_eq!(material.fluorophores.len(), 2, "chose {}", fit.model);
+    // Every one-component candidate tried before it missed the bound.
+    for c in &fit.model_search.as_ref().unwrap().candidates {
+        if c.model.starts_with("gaussian:1x") {
+            assert!(c.delta_e2000.values().cloned().fold(0.0, f64::max) > 1.0);
+        }
+    }
+    // The components are the generating dyes: absorption peaks and mean emissions.
+    let truth = Material::load(&data("two-dyes.truth.json")).unwrap();
+    let peak = |f: &fluorite::Fluorophore| {
+        let a = &f.absorption;
+        let i = (0..a.len())
+            .max_by(|&x, &y| a.value[x].total_cmp(&a.value[y]))
+            .unwrap();
+        a.wavelength_nm[i]
+    };
+    let mut fitted: Vec<(f64, f64, f64)> = material
+        .fluorophores
+        .iter()
+        .map(|f| (peak(f), f.emission_mean_nm(), f.k()))
+        .collect();
+    let mut expected: Vec<(f64, f64, f64)> = truth
+        .fluorophores
+        .iter()
+        .map(|f| (peak(f), f.emission_mean_nm(), f.k()))
+        .collect();
+    fitted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    expected.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for (f, t) in fitted.iter().zip(&expected) {
+        assert!((f.0 - t.0).abs() <= 10.0, "absorption peak {f:?} vs {t:?}");
+        assert!((f.1 - t.1).abs() <= 5.0, "mean emission {f:?} vs {t:?}");
+        assert!((f.2 - t.2).abs() <= 0.15 * t.2, "k {f:?} vs {t:?}");
+    }
+}
+
+#[test]
+fn fixed_model_gives_forms_that_survive_a_round_trip() {
+    let m = read(&data("two-dyes.csv"), &Default::default()).unwrap();
+    let options = FitOptions {
+        model: "gaussian:2x1+r4".parse().unwrap(),
+        ..FitOptions::default()
+    };
+    let material = material(fit(&m, &options).unwrap());
+    let forms = material.forms.clone().unwrap();
+    assert_eq!(forms.model, "gaussian:2x1+r4");
+    assert_eq!(material.fluorophores.len(), 2);
+    assert_eq!(material.fit.as_ref().unwrap().parameter_count, 2 * 5 + 5);
+    // The forms are exact between the samples too: evaluate off-sample.
+    for (f, ff) in material.fluorophores.iter().zip(&forms.fluorophores) {
+        for l in [401.5, 487.25, 612.75] {
+            let sampled = f.emission.eval_zero_outside(l);
+            let exact = ff.emission.eval(l);
+            assert!((sampled - exact).abs() <= 1e-3 * f.emission.max(), "{l}");
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("two.json");
+    material.save(&path).unwrap();
+    let loaded = Material::load(&path).unwrap();
+    assert_eq!(loaded.to_json(), material.to_json());
+    assert_eq!(loaded.forms, material.forms);
+}
+
+#[test]
+fn parametric_fit_without_diagonal_or_with_a_pin_is_refused() {
+    let m = read(&data("two-dyes.csv"), &Default::default()).unwrap();
+    let options = FitOptions {
+        model: ModelChoice::Auto,
+        quantum_yield: Some(0.5),
+        ..FitOptions::default()
+    };
+    let e = fit(&m, &options).unwrap_err().to_string();
+    assert!(e.contains("tabulated"), "{e}");
+}
+
+#[test]
+fn cli_reports_the_search_and_refuses_bad_models() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .args(["fit", "--max-delta-e", "1", "-o"])
+        .arg(dir.path().join("g.json"))
+        .arg(data("green-dye.csv"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("search (first model with ΔE2000 ≤ 1 under d65, a, f11, uv)"));
+    assert!(stdout.contains("gaussian:1x1"), "{stdout}");
+    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .args(["fit", "--model", "gaussian:9x1"])
+        .arg(data("green-dye.csv"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("gaussian:9x1"), "{stderr}");
+}
+
+fn shared_measured() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/measured");
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!(
+            "skipped: {} is absent (CI always has ../shared)",
+            dir.display()
+        );
+        None
+    }
+}
+
+/// The acceptance of the search on the real surfaces: five of the six meet ΔE2000 ≤ 1
+/// under D65, A, F11 and UV with every conservation law holding. HERPICER (a cerise
+/// pigment on a substrate with a weak blue emitter under UV) does not yet: the search
+/// must say so and keep the closest model, which still beats the tabulated fit under UV.
+#[test]
+fn measured_surfaces_meet_the_bound_or_say_they_do_not() {
+    let Some(dir) = shared_measured() else {
+        return;
+    };
+    for name in [
+        "CIBA12.BFC",
+        "POLGREE.BFC",
+        "TEXTYELL.BFC",
+        "postit_pink.csv",
+        "postit_yellow.csv",
+    ] {
+        let material = searched(&dir.join(name), 1.0);
+        let fit = material.fit.as_ref().unwrap();
+        assert!(fit.model_search.as_ref().unwrap().met, "{name}");
+        assert!(worst(&material) <= 1.0, "{name}: {:?}", fit.delta_e2000);
+        assert_eq!(fit.delta_e2000.len(), 4);
+    }
+    let material = searched(&dir.join("HERPICER.BFC"), 1.0);
+    let fit = material.fit.as_ref().unwrap();
+    assert!(!fit.model_search.as_ref().unwrap().met);
+    assert!(fit.warnings.iter().any(|w| w.contains("no model tried meets")));
+    assert!(fit.delta_e2000["uv"] < 4.0, "{:?}", fit.delta_e2000);
+}
