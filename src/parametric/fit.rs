@@ -474,8 +474,27 @@ impl LeastSquares for BandProblem {
         self.u.len()
     }
 
-    fn residual(&self, params: &[f64], i: usize, gradient: &mut [f64]) -> f64 {
-        bands_value_gradient(params, self.u[i], gradient) - self.y[i]
+    /// The same values and derivatives as [`bands_value_gradient`], band by band so that
+    /// each sample costs one exponential per band.
+    fn evaluate(&self, params: &[f64], residuals: &mut [f64], mut jacobian: Option<&mut [f64]>) {
+        let n = params.len();
+        for (r, &y) in residuals.iter_mut().zip(&self.y) {
+            *r = -y;
+        }
+        for (b, p) in params.chunks_exact(PARAMS_PER_BAND).enumerate() {
+            let (height, centre, inverse_width) = (p[0].exp(), p[1], (-p[2]).exp());
+            for (i, (&u, r)) in self.u.iter().zip(residuals.iter_mut()).enumerate() {
+                let z = (u - centre) * inverse_width;
+                let v = height * (-0.5 * z * z).exp();
+                *r += v;
+                if let Some(j) = jacobian.as_deref_mut() {
+                    let row = &mut j[i * n + b * PARAMS_PER_BAND..];
+                    row[0] = v;
+                    row[1] = v * z * inverse_width;
+                    row[2] = v * z * z;
+                }
+            }
+        }
     }
 
     fn project(&self, params: &mut [f64]) {
@@ -502,16 +521,21 @@ impl LeastSquares for SigmoidProblem<'_> {
         self.values.len()
     }
 
-    fn residual(&self, params: &[f64], i: usize, gradient: &mut [f64]) -> f64 {
-        let row = &self.basis[i * self.count..(i + 1) * self.count];
-        let p: f64 = row.iter().zip(params).map(|(b, c)| b * c).sum();
-        let s = sigmoid(p);
-        let w = self.root_weight[i];
-        let slope = w * s * (1.0 - s);
-        for (g, b) in gradient.iter_mut().zip(row) {
-            *g = slope * b;
+    fn evaluate(&self, params: &[f64], residuals: &mut [f64], mut jacobian: Option<&mut [f64]>) {
+        let count = self.count;
+        for (i, r) in residuals.iter_mut().enumerate() {
+            let row = &self.basis[i * count..(i + 1) * count];
+            let p: f64 = row.iter().zip(params).map(|(b, c)| b * c).sum();
+            let s = sigmoid(p);
+            let w = self.root_weight[i];
+            *r = w * (s - self.values[i]);
+            if let Some(j) = jacobian.as_deref_mut() {
+                let slope = w * s * (1.0 - s);
+                for (g, b) in j[i * count..(i + 1) * count].iter_mut().zip(row) {
+                    *g = slope * b;
+                }
+            }
         }
-        w * (s - self.values[i])
     }
 }
 
@@ -564,62 +588,70 @@ fn flat_start(mean: f64, count: usize) -> Vec<f64> {
 trait LeastSquares {
     /// The number of residuals.
     fn residual_count(&self) -> usize;
-    /// Residual `i` at `params`, writing ∂rᵢ/∂p to `gradient`.
-    fn residual(&self, params: &[f64], i: usize, gradient: &mut [f64]) -> f64;
+    /// Writes the residuals at `params` and, when asked, the Jacobian ∂rᵢ/∂pⱼ (row-major,
+    /// one row of `params.len()` per residual).
+    fn evaluate(&self, params: &[f64], residuals: &mut [f64], jacobian: Option<&mut [f64]>);
     /// Moves `params` into the feasible box (default: no bounds).
     fn project(&self, _params: &mut [f64]) {}
 }
 
-/// Σ r², JᵀJ (row-major) and Jᵀr at `params`.
-fn normal_equations(
-    problem: &impl LeastSquares,
-    params: &[f64],
-    gradient: &mut [f64],
-    jtj: &mut [f64],
-    jtr: &mut [f64],
-) -> f64 {
-    let n = params.len();
-    jtj.fill(0.0);
-    jtr.fill(0.0);
-    let mut cost = 0.0;
-    for i in 0..problem.residual_count() {
-        let r = problem.residual(params, i, gradient);
-        cost += r * r;
-        for j in 0..n {
-            let gj = gradient[j];
-            jtr[j] += gj * r;
-            for k in j..n {
-                jtj[j * n + k] += gj * gradient[k];
-            }
-        }
-    }
-    cost
+/// The solver's buffers: residuals, Jacobian and the normal equations JᵀJ, Jᵀr.
+struct Workspace {
+    residuals: Vec<f64>,
+    jacobian: Vec<f64>,
+    jtj: Vec<f64>,
+    jtr: Vec<f64>,
 }
 
-/// Σ r² at `params`.
-fn cost(problem: &impl LeastSquares, params: &[f64], gradient: &mut [f64]) -> f64 {
-    (0..problem.residual_count())
-        .map(|i| problem.residual(params, i, gradient).powi(2))
-        .sum()
+impl Workspace {
+    fn new(m: usize, n: usize) -> Self {
+        Workspace {
+            residuals: vec![0.0; m],
+            jacobian: vec![0.0; m * n],
+            jtj: vec![0.0; n * n],
+            jtr: vec![0.0; n],
+        }
+    }
+
+    /// Σ r² at `params`.
+    fn cost(&mut self, problem: &impl LeastSquares, params: &[f64]) -> f64 {
+        problem.evaluate(params, &mut self.residuals, None);
+        self.residuals.iter().map(|r| r * r).sum()
+    }
+
+    /// Σ r² at `params`, with JᵀJ (upper triangle, row-major) and Jᵀr.
+    fn linearise(&mut self, problem: &impl LeastSquares, params: &[f64]) -> f64 {
+        let n = params.len();
+        problem.evaluate(params, &mut self.residuals, Some(&mut self.jacobian));
+        self.jtj.fill(0.0);
+        self.jtr.fill(0.0);
+        for (row, &r) in self.jacobian.chunks_exact(n).zip(&self.residuals) {
+            for (j, &gj) in row.iter().enumerate() {
+                self.jtr[j] += gj * r;
+                for (a, &gk) in self.jtj[j * n + j..(j + 1) * n].iter_mut().zip(&row[j..]) {
+                    *a += gj * gk;
+                }
+            }
+        }
+        self.residuals.iter().map(|r| r * r).sum()
+    }
 }
 
 /// Minimises Σ r² from `params` (updated in place) by Levenberg–Marquardt with
 /// Marquardt's diagonal scaling and Nielsen's damping update; returns the final Σ r².
-/// Stops when a step gains less than a part in 10¹², when the damping shows no step
-/// can gain, or after `max_iterations` linear solves.
+/// Stops when a step gains less than a part in 10¹⁰ of the cost, when the damping shows
+/// no step can gain, or after `max_iterations` linear solves.
 fn levenberg_marquardt(
     problem: &impl LeastSquares,
     params: &mut [f64],
     max_iterations: usize,
 ) -> f64 {
     let n = params.len();
+    let mut work = Workspace::new(problem.residual_count(), n);
     if n == 0 {
-        return cost(problem, params, &mut []);
+        return work.cost(problem, params);
     }
-    let mut gradient = vec![0.0; n];
-    let mut jtj = vec![0.0; n * n];
-    let mut jtr = vec![0.0; n];
-    let mut current = normal_equations(problem, params, &mut gradient, &mut jtj, &mut jtr);
+    let mut current = work.linearise(problem, params);
     let mut trial = params.to_vec();
     let mut damping = 1e-3;
     let mut growth = 2.0;
@@ -627,6 +659,7 @@ fn levenberg_marquardt(
         if current.is_nan() || current <= 0.0 {
             break;
         }
+        let jtj = &work.jtj;
         let largest = (0..n).map(|j| jtj[j * n + j]).fold(0.0, f64::max);
         let floor = 1e-12 * largest + f64::MIN_POSITIVE;
         let scale: Vec<f64> = (0..n).map(|j| jtj[j * n + j].max(floor)).collect();
@@ -639,16 +672,16 @@ fn levenberg_marquardt(
             growth *= 2.0;
             continue;
         };
-        let step = cholesky.solve(&DVector::from_iterator(n, jtr.iter().map(|g| -g)));
+        let step = cholesky.solve(&DVector::from_iterator(n, work.jtr.iter().map(|g| -g)));
+        // Predicted gain of the linearised model: δᵀ(λDδ − Jᵀr), doubled for Σ r².
+        let predicted: f64 = (0..n)
+            .map(|j| step[j] * (damping * scale[j] * step[j] - work.jtr[j]))
+            .sum();
         for ((t, p), s) in trial.iter_mut().zip(params.iter()).zip(step.iter()) {
             *t = p + s;
         }
         problem.project(&mut trial);
-        let next = cost(problem, &trial, &mut gradient);
-        // Predicted gain of the linearised model: δᵀ(λDδ − Jᵀr), doubled for Σ r².
-        let predicted: f64 = (0..n)
-            .map(|j| step[j] * (damping * scale[j] * step[j] - jtr[j]))
-            .sum();
+        let next = work.cost(problem, &trial);
         if next < current {
             let gain = current - next;
             params.copy_from_slice(&trial);
@@ -659,8 +692,8 @@ fn levenberg_marquardt(
             };
             damping *= (1.0 - (2.0 * ratio - 1.0).powi(3)).max(1.0 / 3.0);
             growth = 2.0;
-            current = normal_equations(problem, params, &mut gradient, &mut jtj, &mut jtr);
-            if gain <= 1e-12 * next {
+            current = work.linearise(problem, params);
+            if gain <= STOP_GAIN * next {
                 break;
             }
         } else {
@@ -673,6 +706,10 @@ fn levenberg_marquardt(
     }
     current
 }
+
+/// The relative cost gain below which the solver stops: parameters are then settled far
+/// below any spectrum's measurement noise.
+const STOP_GAIN: f64 = 1e-10;
 
 #[cfg(test)]
 mod tests {
