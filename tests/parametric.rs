@@ -476,3 +476,80 @@ fn dye_spectra_need_the_measured_band_counts() {
     }
     assert_eq!(DEFAULT_BAND_DOMAIN, BandDomain::Wavenumber);
 }
+
+/// `fluorite bands` on a file of known bands: one per curve and domain in the JSON, the
+/// counts those of the bands written; bad input fails with one line.
+#[test]
+fn bands_command_reports_each_curve() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("dye.csv");
+    let nm = grid(300.0, 800.0, 501);
+    let domain = BandDomain::Wavenumber;
+    let excitation = bands(domain, [300.0, 800.0], &[(480.0, 60.0, 1.0)]);
+    let emission = bands(
+        domain,
+        [300.0, 800.0],
+        &[(520.0, 40.0, 1.0), (560.0, 60.0, 0.4)],
+    );
+    let mut text = String::from("wavelength_nm,excitation,emission\n");
+    for &l in &nm {
+        // Zero outside a measured range, as in the dye files.
+        let cut = |v: f64| if v < 1e-9 { 0.0 } else { v };
+        text += &format!(
+            "{l},{},{}\n",
+            cut(excitation.eval(l)),
+            cut(emission.eval(l))
+        );
+    }
+    std::fs::write(&path, text).unwrap();
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .arg("bands")
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let file = path.to_str().unwrap();
+    let out = run(&[file, "--json", "--tolerance", "0.001"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = rows.as_array().unwrap();
+    let found: Vec<(&str, &str, u64)> = rows
+        .iter()
+        .map(|r| {
+            (
+                r["curve"].as_str().unwrap(),
+                r["domain"].as_str().unwrap(),
+                r["bands_needed"].as_u64().unwrap_or(0),
+            )
+        })
+        .collect();
+    assert_eq!(found[0], ("excitation", "wavenumber", 1));
+    assert_eq!(found[2], ("emission", "wavenumber", 2));
+    assert_eq!(found.len(), 4);
+    assert!(rows.iter().all(|r| r["rel_rms"].as_f64().unwrap() <= 0.001));
+
+    let out = run(&[file, "--domain", "wavenumber"]);
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        table.contains("excitation") && table.contains("wavenumber"),
+        "{table}"
+    );
+    assert!(!table.contains("wavelength"), "{table}");
+
+    for args in [
+        vec!["missing.csv"],
+        vec![file, "--tolerance", "0"],
+        vec![file, "--max-bands", "0"],
+        vec![file, "--domain", "frequency"],
+    ] {
+        let out = run(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
+    }
+}
