@@ -445,6 +445,7 @@ impl BandProblem {
             let fwhm = match (left, right) {
                 (Some(a), Some(b)) => a + b,
                 (Some(a), None) | (None, Some(a)) => 2.0 * a,
+                // Above half everywhere: a band as wide as the samples' span.
                 (None, None) => self.upper[2].exp() / 4.0,
             };
             let ln_width = (fwhm / FWHM_PER_SIGMA)
@@ -456,8 +457,9 @@ impl BandProblem {
     }
 
     /// Replaces the heights by the non-negative least-squares heights for the current
-    /// centres and widths (coordinate descent on the normal equations, exact for the
-    /// handful of bands a spectrum has).
+    /// centres and widths: coordinate descent on the normal equations, which is cheap for
+    /// the handful of bands a spectrum has; the refinement that follows polishes what 100
+    /// sweeps leave.
     fn set_heights(&self, params: &mut [f64]) {
         let n = params.len() / PARAMS_PER_BAND;
         let shape = |b: usize, u: f64| {
