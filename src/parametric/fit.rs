@@ -196,7 +196,7 @@ pub fn fit_sigmoid_polynomial(
         root_weight: &root_weight,
         count,
     };
-    let cost = levenberg_marquardt(&problem, &mut coefficients, SOLVER_ITERATIONS);
+    let cost = levenberg_marquardt(&problem, &mut coefficients, STOP_GAIN, SOLVER_ITERATIONS);
     if !(cost.is_finite() && coefficients.iter().all(|c| c.is_finite())) {
         return Err(Error::Fit(
             "the reflectance fit diverged (non-finite coefficients); check that the values are a reflectance in about [0, 1]"
@@ -310,16 +310,20 @@ fn grow_bands(
             trial.extend_from_slice(&band);
             problem.set_heights(&mut trial);
             problem.project(&mut trial);
-            let cost = levenberg_marquardt(&problem, &mut trial, SOLVER_ITERATIONS);
+            let cost = levenberg_marquardt(&problem, &mut trial, SEED_STOP_GAIN, SOLVER_ITERATIONS);
             if best.as_ref().is_none_or(|(c, _)| cost < *c) {
                 best = Some((cost, trial));
             }
         }
-        let Some((_, refined)) = best else {
+        let Some((_, seed)) = best else {
             return Err(Error::Fit("no starting band could be placed".into()));
         };
-        params = refined;
-        let fit = problem.result(&params)?;
+        // The next count grows from the loosely converged seed, and every fit returned
+        // is polished from it, so fit_bands(…, n) equals the n-th fit of any search.
+        let mut polished = seed.clone();
+        levenberg_marquardt(&problem, &mut polished, STOP_GAIN, SOLVER_ITERATIONS);
+        params = seed;
+        let fit = problem.result(&polished)?;
         let accepted = done(&fit);
         fits.push(fit);
         if accepted {
@@ -673,10 +677,13 @@ trait LeastSquares {
     fn project(&self, _params: &mut [f64]) {}
 }
 
-/// The solver's buffers: residuals, Jacobian and the normal equations JᵀJ, Jᵀr.
+/// The solver's buffers: residuals and Jacobian at the current point and at the trial
+/// point, and the normal equations JᵀJ, Jᵀr at the current point.
 struct Workspace {
     residuals: Vec<f64>,
     jacobian: Vec<f64>,
+    trial_residuals: Vec<f64>,
+    trial_jacobian: Vec<f64>,
     jtj: Vec<f64>,
     jtr: Vec<f64>,
 }
@@ -686,21 +693,34 @@ impl Workspace {
         Workspace {
             residuals: vec![0.0; m],
             jacobian: vec![0.0; m * n],
+            trial_residuals: vec![0.0; m],
+            trial_jacobian: vec![0.0; m * n],
             jtj: vec![0.0; n * n],
             jtr: vec![0.0; n],
         }
     }
 
-    /// Σ r² at `params`.
-    fn cost(&mut self, problem: &impl LeastSquares, params: &[f64]) -> f64 {
-        problem.evaluate(params, &mut self.residuals, None);
-        self.residuals.iter().map(|r| r * r).sum()
+    /// Σ r² at the trial point `params`, keeping its Jacobian: most trials are accepted,
+    /// and the Jacobian costs little beside the residuals' exponentials.
+    fn evaluate_trial(&mut self, problem: &impl LeastSquares, params: &[f64]) -> f64 {
+        problem.evaluate(
+            params,
+            &mut self.trial_residuals,
+            Some(&mut self.trial_jacobian),
+        );
+        self.trial_residuals.iter().map(|r| r * r).sum()
     }
 
-    /// Σ r² at `params`, with JᵀJ (upper triangle, row-major) and Jᵀr.
-    fn linearise(&mut self, problem: &impl LeastSquares, params: &[f64]) -> f64 {
-        let n = params.len();
-        problem.evaluate(params, &mut self.residuals, Some(&mut self.jacobian));
+    /// Makes the trial point current and forms its normal equations.
+    fn accept_trial(&mut self) {
+        std::mem::swap(&mut self.residuals, &mut self.trial_residuals);
+        std::mem::swap(&mut self.jacobian, &mut self.trial_jacobian);
+        self.form_normal_equations();
+    }
+
+    /// JᵀJ (upper triangle, row-major) and Jᵀr of the current point.
+    fn form_normal_equations(&mut self) {
+        let n = self.jtr.len();
         self.jtj.fill(0.0);
         self.jtr.fill(0.0);
         for (row, &r) in self.jacobian.chunks_exact(n).zip(&self.residuals) {
@@ -711,25 +731,26 @@ impl Workspace {
                 }
             }
         }
-        self.residuals.iter().map(|r| r * r).sum()
     }
 }
 
 /// Minimises Σ r² from `params` (updated in place) by Levenberg–Marquardt with
 /// Marquardt's diagonal scaling and Nielsen's damping update; returns the final Σ r².
-/// Stops when a step gains less than a part in 10¹⁰ of the cost, when the damping shows
+/// Stops when a step gains less than `stop_gain` times the cost, when the damping shows
 /// no step can gain, or after `max_iterations` linear solves.
 fn levenberg_marquardt(
     problem: &impl LeastSquares,
     params: &mut [f64],
+    stop_gain: f64,
     max_iterations: usize,
 ) -> f64 {
     let n = params.len();
     let mut work = Workspace::new(problem.residual_count(), n);
+    let mut current = work.evaluate_trial(problem, params);
     if n == 0 {
-        return work.cost(problem, params);
+        return current;
     }
-    let mut current = work.linearise(problem, params);
+    work.accept_trial();
     let mut trial = params.to_vec();
     let mut damping = 1e-3;
     let mut growth = 2.0;
@@ -759,10 +780,12 @@ fn levenberg_marquardt(
             *t = p + s;
         }
         problem.project(&mut trial);
-        let next = work.cost(problem, &trial);
+        let next = work.evaluate_trial(problem, &trial);
         if next < current {
             let gain = current - next;
             params.copy_from_slice(&trial);
+            work.accept_trial();
+            current = next;
             let ratio = if predicted > 0.0 {
                 gain / predicted
             } else {
@@ -770,8 +793,7 @@ fn levenberg_marquardt(
             };
             damping *= (1.0 - (2.0 * ratio - 1.0).powi(3)).max(1.0 / 3.0);
             growth = 2.0;
-            current = work.linearise(problem, params);
-            if gain <= STOP_GAIN * next {
+            if gain <= stop_gain * next {
                 break;
             }
         } else {
@@ -785,9 +807,13 @@ fn levenberg_marquardt(
     current
 }
 
-/// The relative cost gain below which the solver stops: parameters are then settled far
-/// below any spectrum's measurement noise.
+/// The relative cost gain below which a fit stops: parameters are then settled far below
+/// any spectrum's measurement noise.
 const STOP_GAIN: f64 = 1e-10;
+
+/// The relative cost gain below which a fit that only seeds the next band count stops:
+/// the next band's start hardly depends on the last digits.
+const SEED_STOP_GAIN: f64 = 1e-4;
 
 #[cfg(test)]
 mod tests {
