@@ -579,13 +579,9 @@ impl LeastSquares for BandProblem {
         }
     }
 
-    fn project(&self, params: &mut [f64]) {
-        for band in params.chunks_exact_mut(PARAMS_PER_BAND) {
-            for (k, p) in band.iter_mut().enumerate() {
-                // NaN stays NaN and is rejected by the solver's cost comparison.
-                *p = p.clamp(self.lower[k], self.upper[k]);
-            }
-        }
+    fn bounds(&self, j: usize) -> (f64, f64) {
+        let k = j % PARAMS_PER_BAND;
+        (self.lower[k], self.upper[k])
     }
 }
 
@@ -673,8 +669,18 @@ trait LeastSquares {
     /// Writes the residuals at `params` and, when asked, the Jacobian ∂rᵢ/∂pⱼ (row-major,
     /// one row of `params.len()` per residual).
     fn evaluate(&self, params: &[f64], residuals: &mut [f64], jacobian: Option<&mut [f64]>);
-    /// Moves `params` into the feasible box (default: no bounds).
-    fn project(&self, _params: &mut [f64]) {}
+    /// The interval parameter `j` must lie in (default: unbounded).
+    fn bounds(&self, _j: usize) -> (f64, f64) {
+        (f64::NEG_INFINITY, f64::INFINITY)
+    }
+    /// Moves `params` into their bounds.
+    fn project(&self, params: &mut [f64]) {
+        for (j, p) in params.iter_mut().enumerate() {
+            let (lower, upper) = self.bounds(j);
+            // NaN stays NaN and is rejected by the solver's cost comparison.
+            *p = p.clamp(lower, upper);
+        }
+    }
 }
 
 /// The solver's buffers: residuals and Jacobian at the current point and at the trial
@@ -759,10 +765,23 @@ fn levenberg_marquardt(
             break;
         }
         let jtj = &work.jtj;
+        // A parameter on a bound that the gradient pushes outwards stays there: solving
+        // for it anyway would have every step clipped and the solver crawl along the
+        // bound.
+        let frozen: Vec<bool> = (0..n)
+            .map(|j| {
+                let (lower, upper) = problem.bounds(j);
+                (params[j] <= lower && work.jtr[j] > 0.0)
+                    || (params[j] >= upper && work.jtr[j] < 0.0)
+            })
+            .collect();
         let largest = (0..n).map(|j| jtj[j * n + j]).fold(0.0, f64::max);
         let floor = 1e-12 * largest + f64::MIN_POSITIVE;
         let scale: Vec<f64> = (0..n).map(|j| jtj[j * n + j].max(floor)).collect();
         let system = DMatrix::from_fn(n, n, |j, k| {
+            if frozen[j] || frozen[k] {
+                return if j == k { 1.0 } else { 0.0 };
+            }
             let v = jtj[j.min(k) * n + j.max(k)];
             if j == k { v + damping * scale[j] } else { v }
         });
@@ -771,9 +790,11 @@ fn levenberg_marquardt(
             growth *= 2.0;
             continue;
         };
-        let step = cholesky.solve(&DVector::from_iterator(n, work.jtr.iter().map(|g| -g)));
+        let gradient = (0..n).map(|j| if frozen[j] { 0.0 } else { -work.jtr[j] });
+        let step = cholesky.solve(&DVector::from_iterator(n, gradient));
         // Predicted gain of the linearised model: δᵀ(λDδ − Jᵀr), doubled for Σ r².
         let predicted: f64 = (0..n)
+            .filter(|&j| !frozen[j])
             .map(|j| step[j] * (damping * scale[j] * step[j] - work.jtr[j]))
             .sum();
         for ((t, p), s) in trial.iter_mut().zip(params.iter()).zip(step.iter()) {
