@@ -559,22 +559,31 @@ impl LeastSquares for BandProblem {
     /// The same values and derivatives as [`bands_value_gradient`], band by band so that
     /// each sample costs one exponential per band.
     fn evaluate(&self, params: &[f64], residuals: &mut [f64], mut jacobian: Option<&mut [f64]>) {
-        let n = params.len();
+        let m = self.u.len();
         for (r, &y) in residuals.iter_mut().zip(&self.y) {
             *r = -y;
         }
         for (b, p) in params.chunks_exact(PARAMS_PER_BAND).enumerate() {
             let (height, centre, inverse_width) = (p[0].exp(), p[1], (-p[2]).exp());
-            for (i, (&u, r)) in self.u.iter().zip(residuals.iter_mut()).enumerate() {
+            let band = |u: f64| {
                 let z = (u - centre) * inverse_width;
-                let v = height * (-0.5 * z * z).exp();
-                *r += v;
-                if let Some(j) = jacobian.as_deref_mut() {
-                    let row = &mut j[i * n + b * PARAMS_PER_BAND..];
-                    row[0] = v;
-                    row[1] = v * z * inverse_width;
-                    row[2] = v * z * z;
+                (z, height * (-0.5 * z * z).exp())
+            };
+            let Some(jacobian) = jacobian.as_deref_mut() else {
+                for (&u, r) in self.u.iter().zip(residuals.iter_mut()) {
+                    *r += band(u).1;
                 }
+                continue;
+            };
+            let columns = &mut jacobian[b * PARAMS_PER_BAND * m..(b + 1) * PARAMS_PER_BAND * m];
+            let (by_height, rest) = columns.split_at_mut(m);
+            let (by_centre, by_width) = rest.split_at_mut(m);
+            for (i, (&u, r)) in self.u.iter().zip(residuals.iter_mut()).enumerate() {
+                let (z, v) = band(u);
+                *r += v;
+                by_height[i] = v;
+                by_centre[i] = v * z * inverse_width;
+                by_width[i] = v * z * z;
             }
         }
     }
@@ -607,10 +616,10 @@ impl LeastSquares for SigmoidProblem<'_> {
             let s = sigmoid(p);
             let w = self.root_weight[i];
             *r = w * (s - self.values[i]);
-            if let Some(j) = jacobian.as_deref_mut() {
+            if let Some(jacobian) = jacobian.as_deref_mut() {
                 let slope = w * s * (1.0 - s);
-                for (g, b) in j[i * count..(i + 1) * count].iter_mut().zip(row) {
-                    *g = slope * b;
+                for (j, b) in row.iter().enumerate() {
+                    jacobian[j * self.values.len() + i] = slope * b;
                 }
             }
         }
@@ -666,8 +675,8 @@ fn flat_start(mean: f64, count: usize) -> Vec<f64> {
 trait LeastSquares {
     /// The number of residuals.
     fn residual_count(&self) -> usize;
-    /// Writes the residuals at `params` and, when asked, the Jacobian ∂rᵢ/∂pⱼ (row-major,
-    /// one row of `params.len()` per residual).
+    /// Writes the residuals at `params` and, when asked, the Jacobian ∂rᵢ/∂pⱼ by columns:
+    /// the derivatives by parameter j of all m residuals are at [j·m, (j + 1)·m).
     fn evaluate(&self, params: &[f64], residuals: &mut [f64], jacobian: Option<&mut [f64]>);
     /// The interval parameter `j` must lie in (default: unbounded).
     fn bounds(&self, _j: usize) -> (f64, f64) {
@@ -724,20 +733,37 @@ impl Workspace {
         self.form_normal_equations();
     }
 
-    /// JᵀJ (upper triangle, row-major) and Jᵀr of the current point.
+    /// JᵀJ (upper triangle, row-major) and Jᵀr of the current point, as dot products of
+    /// the Jacobian's contiguous columns.
     fn form_normal_equations(&mut self) {
         let n = self.jtr.len();
-        self.jtj.fill(0.0);
-        self.jtr.fill(0.0);
-        for (row, &r) in self.jacobian.chunks_exact(n).zip(&self.residuals) {
-            for (j, &gj) in row.iter().enumerate() {
-                self.jtr[j] += gj * r;
-                for (a, &gk) in self.jtj[j * n + j..(j + 1) * n].iter_mut().zip(&row[j..]) {
-                    *a += gj * gk;
-                }
+        let m = self.residuals.len();
+        let column = |j: usize| &self.jacobian[j * m..(j + 1) * m];
+        for j in 0..n {
+            self.jtr[j] = dot(column(j), &self.residuals);
+            for k in j..n {
+                self.jtj[j * n + k] = dot(column(j), column(k));
             }
         }
     }
+}
+
+/// Σ aᵢbᵢ, with four partial sums so that the additions overlap.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut partial = [0.0; 4];
+    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = a4
+        .remainder()
+        .iter()
+        .zip(b4.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in a4.zip(b4) {
+        for k in 0..4 {
+            partial[k] += x[k] * y[k];
+        }
+    }
+    partial.iter().sum::<f64>() + tail
 }
 
 /// Minimises Σ r² from `params` (updated in place) by Levenberg–Marquardt with
