@@ -63,40 +63,8 @@ const REFLECTANCE_COLUMNS: [&str; 3] = ["reflectance", "reflectance_factor", "r"
 /// file, line and column.
 pub fn read_spectrum(path: &Path, column: Option<&str>, preferred: &[&str]) -> Result<Spectrum> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let mut rows = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-    let (header_line, header) = rows.next().ok_or_else(|| {
-        Error::parse(path, 0, 0, "holds no data; expected a header row such as wavelength_nm,excitation,emission and one row per wavelength")
-    })?;
-    let split = |l: &str| -> Vec<String> {
-        if l.contains(',') {
-            l.split(',').map(|c| c.trim().to_string()).collect()
-        } else if l.contains(';') {
-            l.split(';').map(|c| c.trim().to_string()).collect()
-        } else {
-            l.split_whitespace().map(str::to_string).collect()
-        }
-    };
-    let names = split(header);
-    if names.len() < 2 {
-        return Err(Error::parse(
-            path,
-            header_line,
-            0,
-            "the header has fewer than two columns; give a wavelength column and a value column",
-        ));
-    }
-    if names[0].parse::<f64>().is_ok() {
-        return Err(Error::parse(
-            path,
-            header_line,
-            1,
-            "the first row holds numbers, not column names; add a header such as wavelength_nm,excitation,emission",
-        ));
-    }
+    let mut rows = data_rows(&text);
+    let (header_line, names) = header(path, &mut rows)?;
     let pick = match column {
         Some(c) => names
             .iter()
@@ -140,7 +108,7 @@ pub fn read_spectrum(path: &Path, column: Option<&str>, preferred: &[&str]) -> R
     let mut wavelength = Vec::new();
     let mut value = Vec::new();
     for (line, row) in rows {
-        let cells = split(row);
+        let cells = split_cells(row);
         if cells.len() != names.len() {
             return Err(Error::parse(
                 path,
@@ -204,6 +172,63 @@ pub fn read_spectrum(path: &Path, column: Option<&str>, preferred: &[&str]) -> R
         &format!("{} ({})", path.display(), names[pick]),
     )
     .map_err(|e| Error::parse(path, 0, 0, e.to_string()))
+}
+
+/// The names of the value columns (every column after the wavelength) of a spectrum
+/// file that [`read_spectrum`] reads, in file order.
+pub fn spectrum_columns(path: &Path) -> Result<Vec<String>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let (_, mut names) = header(path, &mut data_rows(&text))?;
+    names.remove(0);
+    Ok(names)
+}
+
+/// The non-empty, non-comment lines of `text` with their 1-based line numbers.
+fn data_rows(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
+}
+
+/// Splits a row at commas, else semicolons, else whitespace.
+fn split_cells(l: &str) -> Vec<String> {
+    if l.contains(',') {
+        l.split(',').map(|c| c.trim().to_string()).collect()
+    } else if l.contains(';') {
+        l.split(';').map(|c| c.trim().to_string()).collect()
+    } else {
+        l.split_whitespace().map(str::to_string).collect()
+    }
+}
+
+/// Takes the header row from `rows`: its line number and column names (at least two, the
+/// first naming the wavelength).
+fn header<'a>(
+    path: &Path,
+    rows: &mut impl Iterator<Item = (usize, &'a str)>,
+) -> Result<(usize, Vec<String>)> {
+    let (header_line, header) = rows.next().ok_or_else(|| {
+        Error::parse(path, 0, 0, "holds no data; expected a header row such as wavelength_nm,excitation,emission and one row per wavelength")
+    })?;
+    let names = split_cells(header);
+    if names.len() < 2 {
+        return Err(Error::parse(
+            path,
+            header_line,
+            0,
+            "the header has fewer than two columns; give a wavelength column and a value column",
+        ));
+    }
+    if names[0].parse::<f64>().is_ok() {
+        return Err(Error::parse(
+            path,
+            header_line,
+            1,
+            "the first row holds numbers, not column names; add a header such as wavelength_nm,excitation,emission",
+        ));
+    }
+    Ok((header_line, names))
 }
 
 /// Drops the zero samples beyond the support, keeping one zero at each end.

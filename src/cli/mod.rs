@@ -1,6 +1,7 @@
 //! Command-line interface: one file per subcommand, each parsing its arguments and
 //! calling the library.
 
+mod bands;
 mod bench;
 mod check;
 mod export;
@@ -45,6 +46,8 @@ enum Command {
     Bench(bench::BenchArgs),
     /// Map where each fitting method fails on synthetic data with known truth.
     Stability(stability::StabilityArgs),
+    /// Count the Gaussian bands each curve of spectrum files needs, per band domain.
+    Bands(bands::BandsArgs),
 }
 
 /// Parses the command line and runs the chosen subcommand.
@@ -76,5 +79,6 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::ImportSpectra(args) => import_spectra::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Stability(args) => stability::run(args),
+        Command::Bands(args) => bands::run(args),
     }
 }
