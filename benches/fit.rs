@@ -8,7 +8,7 @@ use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use fluorite::fit::{FitOptions, Solver, fit};
+use fluorite::fit::{FitOptions, ModelChoice, Solver, fit};
 use fluorite::formats::{ReadOptions, read};
 use fluorite::measurement::Measurement;
 use fluorite::synth::SynthSpec;
@@ -81,10 +81,29 @@ fn bench_batch(c: &mut Criterion) {
     group.finish();
 }
 
+/// The automatic model search (`--lights d65,a,f11,uv --max-delta-e 1`), tabulated start
+/// and ΔE reports included: the budget is 50 ms on a 49 × 41 matrix. TEXTYELL
+/// meets the bound with its first candidate; HERPICER tries all ten and meets none.
+fn bench_search(c: &mut Criterion) {
+    let options = FitOptions {
+        model: ModelChoice::Auto,
+        max_delta_e: Some(1.0),
+        ..FitOptions::default()
+    };
+    let mut group = c.benchmark_group("search");
+    group.sample_size(10);
+    for m in inputs() {
+        group.bench_function(format!("{}/auto", m.name), |b| {
+            b.iter(|| fit(black_box(&m), &options).unwrap())
+        });
+    }
+    group.finish();
+}
+
 criterion_group! {
     name = benches;
     // No plots: criterion's plotters backend would need a system font.
     config = Criterion::default().without_plots();
-    targets = bench_fit, bench_batch
+    targets = bench_fit, bench_batch, bench_search
 }
 criterion_main!(benches);

@@ -68,7 +68,9 @@ fn searched(path: &Path, bound: f64) -> Material {
 }
 
 fn data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("data")
+        .join(name)
 }
 
 #[test]
@@ -89,7 +91,9 @@ fn model_names_parse_and_bad_ones_are_refused() {
         })
     );
     assert_eq!(
-        "gaussian:1x3/2+r4@wavelength".parse::<ModelChoice>().unwrap(),
+        "gaussian:1x3/2+r4@wavelength"
+            .parse::<ModelChoice>()
+            .unwrap(),
         ModelChoice::Fixed(ModelRequest {
             components: 1,
             absorption_bands: 3,
@@ -118,7 +122,12 @@ fn one_fluorophore_examples_choose_one_component() {
         let fit = material.fit.as_ref().unwrap();
         assert!(fit.model_search.as_ref().unwrap().met, "{name}");
         assert!(worst(&material) <= 1.0, "{name}: {:?}", fit.delta_e2000);
-        assert_eq!(material.fluorophores.len(), 1, "{name}: chose {}", fit.model);
+        assert_eq!(
+            material.fluorophores.len(),
+            1,
+            "{name}: chose {}",
+            fit.model
+        );
     }
 }
 
@@ -211,7 +220,11 @@ fn cli_reports_the_search_and_refuses_bad_models() {
         .arg(data("green-dye.csv"))
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("search (first model with ΔE2000 ≤ 1 under d65, a, f11, uv)"));
     assert!(stdout.contains("gaussian:1x1"), "{stdout}");
@@ -264,6 +277,10 @@ fn measured_surfaces_meet_the_bound_or_say_they_do_not() {
     let material = searched(&dir.join("HERPICER.BFC"), 1.0);
     let fit = material.fit.as_ref().unwrap();
     assert!(!fit.model_search.as_ref().unwrap().met);
-    assert!(fit.warnings.iter().any(|w| w.contains("no model tried meets")));
+    assert!(
+        fit.warnings
+            .iter()
+            .any(|w| w.contains("no model tried meets"))
+    );
     assert!(fit.delta_e2000["uv"] < 4.0, "{:?}", fit.delta_e2000);
 }

@@ -214,7 +214,11 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                 if !args.quiet {
                     print!("{}", summary(input, out, &m, &outcome));
                 }
-                rows.push(table_row(&m, &outcome));
+                rows.push(if options.model == ModelChoice::Tabulated {
+                    table_row(&m, &outcome)
+                } else {
+                    model_table_row(&m, &outcome)
+                });
                 if let FitOutcome::Material(_) = outcome {
                     if args.plot {
                         crate::cli::plot::plot_fit_with(out, input, &read_options)
@@ -228,7 +232,15 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
             }
         }
     }
-    if args.table {
+    if args.table && options.model != ModelChoice::Tabulated {
+        println!(
+            "\n| material | model chosen | parameters | ΔE D65 | ΔE A | ΔE F11 | ΔE UV | bound met | conservation laws | candidates | fit time (ms) |"
+        );
+        println!("|---|---|---|---|---|---|---|---|---|---|---|");
+        for row in rows {
+            println!("{row}");
+        }
+    } else if args.table {
         println!(
             "\n| material | k = c·Q | c (feasible) | fluorescence residual | diagonal RMSE | ΔE D65 | ΔE A | ΔE F11 | ΔE UV | iterations | time (ms) |"
         );
@@ -382,6 +394,47 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
         let _ = writeln!(s, "  warning: {w}");
     }
     s
+}
+
+/// One Markdown table row for `--table` with a parametric model or the search.
+fn model_table_row(m: &Measurement, outcome: &FitOutcome) -> String {
+    let report = outcome.report();
+    let de = |l: &str| {
+        report
+            .delta_e2000
+            .get(l)
+            .map(|v| format!("{v:.2}"))
+            .unwrap_or_else(|| "–".into())
+    };
+    let laws = match outcome {
+        FitOutcome::Material(material) => {
+            let failed = fluorite::check::check_material(material).failed();
+            if failed.is_empty() {
+                "all hold".to_string()
+            } else {
+                format!("FAILED: {failed:?}")
+            }
+        }
+        FitOutcome::Shapes(_) => "–".into(),
+    };
+    let (met, tried) = match &report.model_search {
+        Some(search) => (
+            if search.met { "yes" } else { "no" },
+            search.candidates.len(),
+        ),
+        None => ("–", 1),
+    };
+    format!(
+        "| {} | {} | {} | {} | {} | {} | {} | {met} | {laws} | {tried} | {:.1} |",
+        m.name,
+        report.model,
+        report.parameter_count,
+        de("d65"),
+        de("a"),
+        de("f11"),
+        de("uv"),
+        1e3 * report.seconds
+    )
 }
 
 /// One Markdown table row for `--table`.
