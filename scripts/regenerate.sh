@@ -17,8 +17,20 @@ $fluorite fit data/*.csv -o fits/ --plot --render --table --timing-runs 21 | tee
 $fluorite bench data/*.csv --chart fits/speed-accuracy.svg --csv fits/speed-accuracy.csv -q
 $fluorite stability --chart fits/stability.svg --report fits/stability.md --csv fits/stability.csv
 
+# Models a scene needs: the search for the smallest parametric model meeting ΔE2000 ≤ 1
+# under D65, A, F11 and UV, on the examples and (below) on the real surfaces.
+mkdir -p fits/models
+$fluorite fit data/green-dye.csv data/red-pigment.csv data/brightener.csv data/two-dyes.csv \
+  -o fits/models/ --max-delta-e 1 --plot --table --timing-runs 5 | tee fits/models/data-table.txt
+
 shared=../shared/data/measured
+if [ -d ../shared/data/spectra ]; then
+  $fluorite bands ../shared/data/spectra/*.csv --domain both | tee fits/models/dye-bands.txt
+fi
 if [ -d "$shared" ]; then
+  mkdir -p fits/models/measured
+  $fluorite fit "$shared"/*.BFC "$shared"/*.csv -o fits/models/measured/ --max-delta-e 1 --plot \
+    --table --timing-runs 5 | tee fits/models/measured/table.txt
   mkdir -p fits/measured
   $fluorite fit "$shared"/*.BFC "$shared"/*.csv -o fits/measured/ --plot --table --timing-runs 21 | tee fits/measured/table.txt
   $fluorite bench "$shared"/*.BFC "$shared"/*.csv --chart fits/measured/speed-accuracy.svg \

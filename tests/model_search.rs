@@ -11,7 +11,6 @@ use fluorite::fit::parametric::ReflectanceForm;
 use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, ModelRequest, fit};
 use fluorite::formats::read;
 use fluorite::parametric::BandDomain;
-use fluorite::synth::SynthSpec;
 
 fn search_options(bound: f64) -> FitOptions {
     FitOptions {

@@ -487,6 +487,8 @@ impl<'a> Problem<'a> {
     }
 
     /// The objective and its gradient.
+    // The adjoint loops index several parallel per-component arrays by the same sample.
+    #[allow(clippy::needless_range_loop)]
     pub fn cost_gradient(&self, theta: &[f64]) -> (f64, Vec<f64>) {
         let data = self.data;
         let layout = &self.layout;
