@@ -697,7 +697,7 @@ impl<'a> Problem<'a> {
         (cost, gradient)
     }
 
-    /// Moves band parameters into the box of [`Problem::band_penalty`] (for starts).
+    /// Moves band parameters into the box the objective penalises leaving (for starts).
     pub fn clamp_to_box(&self, theta: &mut [f64]) {
         for (n, (low, high)) in self.band_box() {
             let p = &mut theta[n];
