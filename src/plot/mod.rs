@@ -218,17 +218,20 @@ impl Comparison {
 }
 
 /// Checks that `data` lies on the grids the material was fitted on: every fluorophore's
-/// absorption samples span the excitation grid and include each of its wavelengths, and
-/// likewise its emission samples the emission grid (parametric fits tabulate their forms
-/// on a finer grid that keeps the measurement's wavelengths).
+/// absorption samples equal the excitation grid and its emission samples the emission
+/// grid. A parametric material (with forms) tabulates them on a finer grid that keeps
+/// the measurement's wavelengths: there the samples must span the grid and include each
+/// of its wavelengths.
 pub fn check_grids(material: &Material, data: &Measurement) -> Result<()> {
     let same = |grid: &[f64], samples: &[f64]| {
         let close = |x: Option<&f64>, y: Option<&f64>| match (x, y) {
             (Some(x), Some(y)) => (x - y).abs() <= 1e-6,
             _ => false,
         };
+        let finer = material.forms.is_some();
         close(grid.first(), samples.first())
             && close(grid.last(), samples.last())
+            && (finer || grid.len() == samples.len())
             && grid.iter().all(|g| {
                 let i = samples.partition_point(|s| *s < g - 1e-6);
                 samples.get(i).is_some_and(|s| (s - g).abs() <= 1e-6)
