@@ -175,27 +175,12 @@ pub fn lbfgs(
     theta0: &[f64],
     stopping: Stopping,
 ) -> Result<Refined, String> {
-    let problem = Problem {
-        objective,
-        representation,
-        cache: RefCell::new(None),
-        prior: None,
+    let function = |theta: &[f64]| {
+        let sp = representation.spectra(theta);
+        let (cost, gk, ga, gv) = objective.cost_gradient(&sp);
+        (cost, representation.pull_back(theta, gk, &ga, &gv))
     };
-    let solver = LBFGS::new(MoreThuenteLineSearch::new(), LBFGS_MEMORY)
-        .with_tolerance_grad(stopping.gradient_tolerance)
-        .and_then(|s| s.with_tolerance_cost(stopping.cost_tolerance))
-        .map_err(|e| e.to_string())?;
-    let recorder = CostRecorder::default();
-    let result = Executor::new(problem, solver)
-        .configure(|state| {
-            state
-                .param(DVector::from_column_slice(theta0))
-                .max_iters(stopping.max_iterations)
-        })
-        .add_observer(recorder.clone(), ObserverMode::Always)
-        .run()
-        .map_err(|e| format!("L-BFGS: {e}"))?;
-    Ok(finish(&result.state, recorder, theta0))
+    lbfgs_function(&function, theta0, stopping)
 }
 
 /// Refines `theta0` with Gauss-Newton and a backtracking (Armijo) line search.
