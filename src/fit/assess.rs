@@ -57,22 +57,8 @@ pub fn accuracy(
     };
     let mut delta_e = BTreeMap::new();
     if m.has_diagonal && !m.arbitrary_scale {
-        // The measured patch: every measured cell outside the guard band. Guard cells hold
-        // instrument crosstalk (neither reflectance nor fluorescence) mixed with the
-        // fluorescence right next to the diagonal, and missing cells hold nothing: both are
-        // taken from the fit, so neither side is judged on what the data cannot tell.
-        let mut measured = m.to_per_bin();
         let fitted_per_bin = fitted.to_per_bin();
-        for i in 0..m.n_excitation() {
-            for j in 0..m.n_emission() {
-                if matches!(
-                    m.cell_kind(i, j, data.guard_nm),
-                    CellKind::Missing | CellKind::Guard
-                ) {
-                    *measured.get_mut(i, j) = fitted_per_bin.get(i, j);
-                }
-            }
-        }
+        let measured = measured_patch(m, &fitted_per_bin, data.guard_nm);
         for light in lights {
             let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
             let lab_m = xyz_to_lab(pc.xyz(&measured), pc.white);
@@ -86,6 +72,26 @@ pub fn accuracy(
         rms_off_diagonal: rms(&data.off_diagonal),
         delta_e2000: delta_e,
     }
+}
+
+/// The measured patch the colour is judged on, per bin: every measured cell outside the
+/// guard band. Guard cells hold instrument crosstalk (neither reflectance nor
+/// fluorescence) mixed with the fluorescence right next to the diagonal, and missing
+/// cells hold nothing: both are taken from `fitted_per_bin`, so neither side is judged
+/// on what the data cannot tell.
+pub fn measured_patch(m: &Measurement, fitted_per_bin: &Measurement, guard_nm: f64) -> Measurement {
+    let mut measured = m.to_per_bin();
+    for i in 0..m.n_excitation() {
+        for j in 0..m.n_emission() {
+            if matches!(
+                m.cell_kind(i, j, guard_nm),
+                CellKind::Missing | CellKind::Guard
+            ) {
+                *measured.get_mut(i, j) = fitted_per_bin.get(i, j);
+            }
+        }
+    }
+    measured
 }
 
 /// Wavelength ranges (`"300–350 nm"`) of the flagged samples of `grid`.

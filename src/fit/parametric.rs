@@ -1,7 +1,7 @@
 //! Parametric models: K fluorescent components whose absorption and emission are sums
 //! of Gaussian bands, and a reflectance that is a sigmoid of a Legendre polynomial (or
-//! tabulated), fitted to the matrix cells and to the patch spectra under the scene's
-//! lights (model.md §7).
+//! tabulated), fitted to the matrix cells and to the colour (CIELAB) of the flat patch
+//! under the scene's lights (model.md §7).
 //!
 //! The model on the grid is F_ij = Σk s_k·a_ik·e_jk·u_j off the diagonal, with
 //! s_k = κ_k/(γ_k·S_k) as in the tabulated objective (S_k normalises e, γ_k is the photon

@@ -26,10 +26,11 @@ pub const DEFAULT_DOMAIN: BandDomain = crate::parametric::fit::DEFAULT_BAND_DOMA
 
 /// Weight of the colour term ½·w·Σ ΔE76² (one term per light, see [`Problem::new`])
 /// against the matrix's ½·Σ r². At 0.01 a ΔE of 1 under one light costs as much as a
-/// residual of 0.1 in one cell, or the noise (σ ≈ 0.0006) over a whole 49 × 41 matrix
-/// ten times over. Measured on the six real surfaces (`fluorite fit … --max-delta-e 1
-/// --colour-weight w`): 0.01 meets the bound on five with one-component models; 0 (matrix
-/// only) needs larger models and 0.1 trades matrix fidelity for little colour gain.
+/// residual of 0.1 in one cell. Measured on the six real surfaces (`fluorite fit
+/// ../shared/data/measured/* --max-delta-e 1 --colour-weight w --table`): with 0 (matrix
+/// only) four meet the bound, with larger models (18–52 parameters, 3–10 candidates); 0.01
+/// and 0.1 both meet it on five with the same models, mostly the first candidate. 0.01 is
+/// the smaller weight that does, so the matrix term still decides the shapes.
 pub const DEFAULT_COLOUR_WEIGHT: f64 = 0.01;
 
 /// Highest degree of a sigmoid-polynomial reflectance the search tries before it falls
@@ -400,8 +401,8 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
     Ok(FitOutcome::Material(Box::new(material)))
 }
 
-/// XYZ of the measured patch under each light, as the accuracy report sees it: guard
-/// and missing cells taken from the tabulated fit.
+/// XYZ of the measured patch under each light, as the accuracy report sees it
+/// ([`assess::measured_patch`], guard and missing cells from the tabulated fit).
 fn measured_xyz(
     m: &Measurement,
     data: &FitData,
@@ -417,17 +418,7 @@ fn measured_xyz(
         m.has_diagonal,
     )
     .to_per_bin();
-    let mut measured = m.to_per_bin();
-    for i in 0..m.n_excitation() {
-        for j in 0..m.n_emission() {
-            if matches!(
-                m.cell_kind(i, j, data.guard_nm),
-                crate::measurement::CellKind::Missing | crate::measurement::CellKind::Guard
-            ) {
-                *measured.get_mut(i, j) = fitted.get(i, j);
-            }
-        }
-    }
+    let measured = assess::measured_patch(m, &fitted, data.guard_nm);
     lights
         .iter()
         .map(|light| {
