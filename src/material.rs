@@ -156,6 +156,9 @@ pub struct ModelSearch {
     pub max_delta_e: Option<f64>,
     /// Candidates in the order tried (smallest first).
     pub candidates: Vec<Candidate>,
+    /// Models the search did not try, and why (`one-component models: …`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skipped: Option<String>,
     /// The model chosen.
     pub chosen: String,
     /// Whether the chosen model meets the rule (false: none did; the closest was kept).
@@ -230,11 +233,25 @@ impl Material {
 
     /// ρ(λ): total energy albedo for excitation at `nm`.
     pub fn energy_albedo(&self, nm: f64) -> f64 {
+        self.energy_albedo_with(nm, &self.emission_integrals())
+    }
+
+    /// ∫e per fluorophore (1 for a valid material; computed, as checks run on any).
+    fn emission_integrals(&self) -> Vec<f64> {
+        self.fluorophores
+            .iter()
+            .map(|f| f.emission.integral())
+            .collect()
+    }
+
+    /// ρ(λ) with the emission integrals given (they cost a pass over each emission).
+    fn energy_albedo_with(&self, nm: f64, emission_integrals: &[f64]) -> f64 {
         self.diagonal(nm)
             + self
                 .fluorophores
                 .iter()
-                .map(|f| f.k() * f.absorption.eval_zero_outside(nm) * f.emission.integral())
+                .zip(emission_integrals)
+                .map(|(f, integral)| f.k() * f.absorption.eval_zero_outside(nm) * integral)
                 .sum::<f64>()
     }
 
@@ -321,9 +338,10 @@ impl Material {
         let samples = self.sample_wavelengths();
         let mut points = samples.clone();
         points.extend(samples.windows(2).map(|w| 0.5 * (w[0] + w[1])));
+        let integrals = self.emission_integrals();
         let max_energy_albedo = points
             .iter()
-            .map(|&l| self.energy_albedo(l))
+            .map(|&l| self.energy_albedo_with(l, &integrals))
             .fold(0.0, f64::max);
         let max_photon_ratio = self
             .fluorophores

@@ -292,6 +292,9 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
                     if search.met { "met" } else { "NOT met" },
                     search.lowest_bic
                 );
+                if let Some(skipped) = &search.skipped {
+                    let _ = writeln!(s, "    skipped {skipped}");
+                }
                 for c in &search.candidates {
                     let de: Vec<String> = c
                         .delta_e2000

@@ -226,6 +226,11 @@ pub struct Problem<'a> {
     diagonal_of_column: Vec<Option<usize>>,
     /// Weight of each excitation row's residuals (how much light the scene sends there).
     row_weight: Vec<f64>,
+    /// The off-diagonal cells, dense (row-major, excitation × emission): 1 where a cell
+    /// is fitted, 0 elsewhere, and the measured values (0 elsewhere). The objective runs
+    /// over whole rows, which vectorises; scattered cell lists did not.
+    cell_mask: Vec<f64>,
+    cell_value: Vec<f64>,
     patches: Vec<PatchLight>,
     colour_weight: f64,
     /// The reflectance's Legendre support (nm).
@@ -340,6 +345,13 @@ impl<'a> Problem<'a> {
             row_weight.iter_mut().for_each(|w| *w = 1.0);
         }
         let row_weight = row_weight.iter().map(|w| w.max(ROW_WEIGHT_FLOOR)).collect();
+        let n_em = data.n_emission();
+        let mut cell_mask = vec![0.0; data.n_excitation() * n_em];
+        let mut cell_value = vec![0.0; data.n_excitation() * n_em];
+        for c in &data.off_diagonal {
+            cell_mask[c.row * n_em + c.column] = 1.0;
+            cell_value[c.row * n_em + c.column] = c.value;
+        }
         Problem {
             data,
             layout: Layout::new(spec),
@@ -358,6 +370,8 @@ impl<'a> Problem<'a> {
             diagonal,
             diagonal_of_column,
             row_weight,
+            cell_mask,
+            cell_value,
             patches,
             colour_weight,
             reflectance_support,
@@ -496,11 +510,33 @@ impl<'a> Problem<'a> {
         let k_count = m.kappa.len();
         let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
         let n_lights = self.patches.len();
-        // Residuals, and the patch rows they add up to.
-        let off: Vec<f64> = data
-            .off_diagonal
+        // The model matrix, dense: F_ij = Σk s_k·a_ik·(e_jk·u_j).
+        let weighted_emission: Vec<Vec<f64>> = m
+            .emission
             .iter()
-            .map(|c| c.value - self.fluorescence(&m, c.row, c.column))
+            .map(|e| {
+                e.iter()
+                    .zip(&self.column_factor)
+                    .map(|(e, u)| e * u)
+                    .collect()
+            })
+            .collect();
+        let mut model = vec![0.0; n_ex * n_em];
+        for k in 0..k_count {
+            for (i, row) in model.chunks_exact_mut(n_em).enumerate() {
+                let sa = m.scale[k] * m.absorption[k][i];
+                for (f, ue) in row.iter_mut().zip(&weighted_emission[k]) {
+                    *f += sa * ue;
+                }
+            }
+        }
+        // Residuals (0 outside the cells), and the patch rows they add up to.
+        let residual: Vec<f64> = self
+            .cell_value
+            .iter()
+            .zip(&self.cell_mask)
+            .zip(&model)
+            .map(|((v, mask), f)| mask * (v - f))
             .collect();
         let diag: Vec<(f64, Option<Projection>)> = (0..self.diagonal.len())
             .map(|p| {
@@ -508,16 +544,19 @@ impl<'a> Problem<'a> {
                 let s = &self.diagonal[p];
                 let residual = match (s.value, projection) {
                     (None, _) | (_, Some(Projection::Free)) => 0.0,
-                    (Some(v), _) => v - self.fluorescence(&m, s.row, s.column) - d,
+                    (Some(v), _) => v - model[s.row * n_em + s.column] - d,
                 };
                 (residual, projection)
             })
             .collect();
         // Column sums Σ_i L_i·r_ij per light, then ΔLab per light.
         let mut column_sum = vec![0.0; n_lights * n_em];
-        for (c, r) in data.off_diagonal.iter().zip(&off) {
-            for (l, light) in self.patches.iter().enumerate() {
-                column_sum[l * n_em + c.column] += light.light_weights[c.row] * r;
+        for (i, row) in residual.chunks_exact(n_em).enumerate() {
+            for (light, sums) in self.patches.iter().zip(column_sum.chunks_exact_mut(n_em)) {
+                let w = light.light_weights[i];
+                for (s, r) in sums.iter_mut().zip(row) {
+                    *s += w * r;
+                }
             }
         }
         let mut patch = vec![0.0; n_lights * 3];
@@ -536,8 +575,8 @@ impl<'a> Problem<'a> {
             }
         }
         let mut cost = 0.0;
-        for (c, r) in data.off_diagonal.iter().zip(&off) {
-            cost += 0.5 * self.row_weight[c.row] * r * r;
+        for (row, w) in residual.chunks_exact(n_em).zip(&self.row_weight) {
+            cost += 0.5 * w * row.iter().map(|r| r * r).sum::<f64>();
         }
         for (s, (r, _)) in self.diagonal.iter().zip(&diag) {
             cost += 0.5 * self.row_weight[s.row] * r * r;
@@ -559,28 +598,32 @@ impl<'a> Problem<'a> {
             }
         }
 
-        // Adjoints: ∂cost/∂F for every cell (F̄ = −δ), then through the factors.
+        // Adjoints: ∂cost/∂F for every cell (F̄ = −δ), gathered densely, then through
+        // the factors (two matrix-vector products per component).
         let mut scale_bar = vec![0.0; k_count];
         let mut a_bar = vec![vec![0.0; n_ex]; k_count];
         let mut e_bar = vec![vec![0.0; n_em]; k_count];
         let mut kappa_bar = vec![0.0; k_count];
         let mut r_bar = vec![0.0; self.diagonal.len()];
-        let mut push_f =
-            |i: usize, j: usize, f_bar: f64, a_bar: &mut [Vec<f64>], e_bar: &mut [Vec<f64>]| {
-                let u = self.column_factor[j];
-                for k in 0..k_count {
-                    let (a, e) = (m.absorption[k][i], m.emission[k][j] * u);
-                    scale_bar[k] += f_bar * a * e;
-                    a_bar[k][i] += f_bar * m.scale[k] * e;
-                    e_bar[k][j] += f_bar * m.scale[k] * a * u;
+        let mut f_bar = vec![0.0; n_ex * n_em];
+        for (i, ((f_row, r_row), mask_row)) in f_bar
+            .chunks_exact_mut(n_em)
+            .zip(residual.chunks_exact(n_em))
+            .zip(self.cell_mask.chunks_exact(n_em))
+            .enumerate()
+        {
+            // δ_ij = w_i·r_ij + Σ_l L_li·q_lj on the cells.
+            let mut pull = vec![0.0; n_em];
+            for (light, q_row) in self.patches.iter().zip(q.chunks_exact(n_em)) {
+                let w = light.light_weights[i];
+                for (p, qv) in pull.iter_mut().zip(q_row) {
+                    *p += w * qv;
                 }
-            };
-        for (c, r) in data.off_diagonal.iter().zip(&off) {
-            let mut delta = self.row_weight[c.row] * r;
-            for l in 0..n_lights {
-                delta += q[l * n_em + c.column] * self.patches[l].light_weights[c.row];
             }
-            push_f(c.row, c.column, -delta, &mut a_bar, &mut e_bar);
+            let w = self.row_weight[i];
+            for (((fb, r), mask), p) in f_row.iter_mut().zip(r_row).zip(mask_row).zip(&pull) {
+                *fb -= mask * (w * r + p);
+            }
         }
         for (p, (s, (r, projection))) in self.diagonal.iter().zip(&diag).enumerate() {
             if s.value.is_none() || *projection == Some(Projection::Free) {
@@ -591,7 +634,7 @@ impl<'a> Problem<'a> {
                 delta += h[l * n_em + s.column];
             }
             // r = M − F − d: F̄ = −δ; d̄ = −δ.
-            push_f(s.row, s.column, -delta, &mut a_bar, &mut e_bar);
+            f_bar[s.row * n_em + s.column] -= delta;
             let d_bar = -delta;
             let absorbed_bar = match projection {
                 None => {
@@ -605,6 +648,32 @@ impl<'a> Problem<'a> {
             for k in 0..k_count {
                 kappa_bar[k] += absorbed_bar * m.absorption[k][s.row];
                 a_bar[k][s.row] += absorbed_bar * m.kappa[k];
+            }
+        }
+
+        let mut column_adjoint = vec![0.0; n_em];
+        for k in 0..k_count {
+            column_adjoint.iter_mut().for_each(|v| *v = 0.0);
+            for (i, row) in f_bar.chunks_exact(n_em).enumerate() {
+                let a = m.absorption[k][i];
+                let mut t = 0.0;
+                for ((fb, ue), v) in row
+                    .iter()
+                    .zip(&weighted_emission[k])
+                    .zip(column_adjoint.iter_mut())
+                {
+                    t += fb * ue;
+                    *v += fb * a;
+                }
+                a_bar[k][i] += m.scale[k] * t;
+                scale_bar[k] += a * t;
+            }
+            for ((eb, v), u) in e_bar[k]
+                .iter_mut()
+                .zip(&column_adjoint)
+                .zip(&self.column_factor)
+            {
+                *eb += m.scale[k] * u * v;
             }
         }
 

@@ -49,6 +49,14 @@ const EXTRA_COMPONENT_SHARE: f64 = 0.1;
 /// Length of L-BFGS's first step in parameter space.
 const FIRST_STEP: f64 = 0.1;
 
+/// A candidate whose worst ΔE2000 is within this factor of the bound is retried with a
+/// tabulated reflectance before the search adds bands or components.
+const NEAR_MISS: f64 = 1.5;
+
+/// The search skips one-component models when the grid model (K = 1, every sample free)
+/// misses the bound by more than this factor under some light.
+const GRID_MISS: f64 = 2.0;
+
 /// Largest κ a start may have (κ = sin²t is stationary at 1).
 const START_KAPPA_CAP: f64 = 0.98;
 
@@ -195,9 +203,35 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         _ => DEFAULT_DOMAIN,
     };
 
+    // The grid model is the most flexible one-component model: when even it misses the
+    // bound under a light, that light shows something one fluorophore cannot make (a
+    // second emitter), and the search starts at K = 2 from the grid fit plus what it
+    // leaves unexplained under that light.
+    let grid_worst = match (options.model, budget) {
+        (ModelChoice::Fixed(_), _) | (_, None) => None,
+        (_, Some(bound)) => base_report
+            .delta_e2000
+            .iter()
+            .filter(|(_, de)| **de > bound)
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .map(|(light, de)| (light.clone(), *de)),
+    };
+    let bound = budget.unwrap_or(f64::INFINITY);
+    let skip_one_component = grid_worst
+        .as_ref()
+        .is_some_and(|(_, de)| *de > GRID_MISS * bound);
+    let skipped = grid_worst.as_ref().filter(|_| skip_one_component).map(|(light, de)| {
+        format!(
+            "one-component models: the grid model (K = 1, every sample free) has ΔE2000 {de:.2} > {GRID_MISS} × {bound} under {light}"
+        )
+    });
     let specs: Vec<(usize, usize, usize)> = match options.model {
         ModelChoice::Fixed(r) => vec![(r.components, r.absorption_bands, r.emission_bands)],
-        _ => LADDER.to_vec(),
+        _ => LADDER
+            .iter()
+            .copied()
+            .filter(|&(k, _, _)| k > 1 || !skip_one_component)
+            .collect(),
     };
     let reflectance = match options.model {
         ModelChoice::Fixed(ModelRequest {
@@ -214,18 +248,37 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
     };
 
     let reference = measured_xyz(m, &data, &base, lights);
+    let focus = worst_light_reach(&base_report.delta_e2000, lights, &data);
     let mut candidates: Vec<Candidate> = Vec::new();
     let mut fitted: Vec<(Material, f64)> = Vec::new();
     let mut one_component: Vec<(ModelSpec, Vec<f64>)> = Vec::new();
     let mut chosen: Option<usize> = None;
-    for (components, absorption_bands, emission_bands) in specs {
-        let spec = ModelSpec {
+    // Jobs: the ladder's structures in order; a near miss with a polynomial reflectance
+    // is retried next with a tabulated one, warm-started from its optimum (the
+    // reflectance degree was chosen against the grid fit's fluorescence, which a model
+    // with more components may not share).
+    let mut jobs: std::collections::VecDeque<(ModelSpec, Option<Vec<f64>>)> = specs
+        .iter()
+        .map(|&(components, absorption_bands, emission_bands)| {
+            (
+                ModelSpec {
+                    components,
+                    absorption_bands,
+                    emission_bands,
+                    reflectance,
+                    domain,
+                },
+                None,
+            )
+        })
+        .collect();
+    while let Some((spec, warm)) = jobs.pop_front() {
+        let ModelSpec {
             components,
             absorption_bands,
             emission_bands,
-            reflectance,
-            domain,
-        };
+            ..
+        } = spec;
         let t0 = Instant::now();
         let problem = Problem::new(&data, spec, lights, &reference, options.colour_weight);
         // K > 1 starts from the one-component fit with the same bands (or the last).
@@ -235,20 +288,28 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
                 p.absorption_bands == absorption_bands && p.emission_bands == emission_bands
             })
             .or(one_component.last());
-        // K > 1 has two starts: the parent plus a small extra component (a weak emitter
-        // the parent misses), and a fresh split of the matrix by a masked non-negative
-        // factorisation (separate fluorophores the parent averaged); the cheaper wins.
-        let starts: &[usize] = if components > 1 {
-            &[0, SPLIT_SWEEPS]
+        // K > 1 starts (the cheapest optimum wins): the parent plus a small extra
+        // component, a fresh split by a masked non-negative factorisation (separate
+        // fluorophores the parent averaged), and the grid fit plus what it leaves empty
+        // under the light it matches worst (a weak emitter). When the grid model itself
+        // misses the bound, only the last: that light shows what is missing.
+        let starts: &[Start] = if components == 1 {
+            &[Start::Parent]
+        } else if grid_worst.is_some() {
+            &[Start::Base]
         } else {
-            &[0]
+            &[Start::Parent, Start::Split, Start::Base]
+        };
+        let starts: Vec<Result<Vec<f64>>> = match &warm {
+            Some(theta) => vec![Ok(theta.clone())],
+            None => starts
+                .iter()
+                .map(|&kind| start(&problem, &base, parent, sigma, kind, &focus))
+                .collect(),
         };
         let result = starts
-            .iter()
-            .map(|&sweeps| {
-                start(&problem, &base, parent, sigma, sweeps)
-                    .and_then(|theta0| refine(&problem, &theta0, options))
-            })
+            .into_iter()
+            .map(|theta0| theta0.and_then(|theta0| refine(&problem, &theta0, options)))
             .reduce(|a, b| match (a, b) {
                 (Ok(a), Ok(b)) => Ok(
                     if problem.cost_gradient(&b.0).0 < problem.cost_gradient(&a.0).0 {
@@ -301,21 +362,46 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
                 };
                 report.warnings = Vec::new();
                 if !refined.converged {
-                    report.warnings.push(format!(
-                        "lbfgs stopped before converging ({}) after {} iterations; raise --max-iterations",
-                        refined.termination, refined.iterations
-                    ));
+                    report.warnings.push(
+                        if refined.termination.to_lowercase().contains("line search") {
+                            // Kinks (a tabulated reflectance at a bound, a band crossing
+                            // the absorption floor) stop the line search, not the budget.
+                            format!(
+                                "lbfgs stopped after {} iterations: its line search found no descent at a kink of the objective; the fit is the best point found (the ΔE above are its own)",
+                                refined.iterations
+                            )
+                        } else {
+                            format!(
+                                "lbfgs stopped before converging ({}) after {} iterations; raise --max-iterations",
+                                refined.termination, refined.iterations
+                            )
+                        },
+                    );
                 }
                 material.fit = Some(report);
                 if components == 1 {
-                    one_component.push((spec, theta));
+                    one_component.push((spec, theta.clone()));
                 }
                 fitted.push((material, worst));
-                if let Some(bound) = budget
-                    && worst <= bound
-                {
-                    chosen = Some(fitted.len() - 1);
-                    break;
+                if let Some(bound) = budget {
+                    if worst <= bound {
+                        chosen = Some(fitted.len() - 1);
+                        break;
+                    }
+                    // One component with a freer reflectance is still a restriction of the
+                    // grid model: no use when that misses too.
+                    let may_help = components > 1 || grid_worst.is_none();
+                    if may_help
+                        && worst <= NEAR_MISS * bound
+                        && spec.reflectance != ReflectanceForm::Tabulated
+                    {
+                        let freed = ModelSpec {
+                            reflectance: ReflectanceForm::Tabulated,
+                            ..spec
+                        };
+                        let warm = theta[..problem.layout.reflectance().start].to_vec();
+                        jobs.push_front((freed, Some(warm)));
+                    }
                 }
             }
             Err(e) => candidates.push(Candidate {
@@ -392,6 +478,7 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         max_delta_e: budget,
         chosen: fit.model.clone(),
         candidates,
+        skipped,
         met,
         lowest_bic,
         seconds: started.elapsed().as_secs_f64(),
@@ -399,6 +486,31 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
     fit.seconds = started.elapsed().as_secs_f64();
     material.conservation = Some(material.conservation_margins());
     Ok(FitOutcome::Material(Box::new(material)))
+}
+
+/// How much light the light the tabulated fit matches worst (largest ΔE2000) sends to
+/// each excitation row, relative to its peak: the rows whose missing emission the eye
+/// sees. All ones without lights.
+fn worst_light_reach(
+    delta_e: &std::collections::BTreeMap<String, f64>,
+    lights: &[crate::colour::Light],
+    data: &FitData,
+) -> Vec<f64> {
+    let worst = lights.iter().max_by(|a, b| {
+        let de = |l: &crate::colour::Light| delta_e.get(&l.name).copied().unwrap_or(0.0);
+        de(a).total_cmp(&de(b))
+    });
+    let Some(light) = worst else {
+        return vec![1.0; data.n_excitation()];
+    };
+    let pc = crate::colour::PatchColorimeter::cached(light, &data.excitation_nm, &data.emission_nm);
+    let reach = pc.weights().0;
+    let peak = reach.iter().cloned().fold(0.0, f64::max);
+    if peak > 0.0 {
+        reach.iter().map(|w| w / peak).collect()
+    } else {
+        vec![1.0; data.n_excitation()]
+    }
 }
 
 /// XYZ of the measured patch under each light, as the accuracy report sees it
@@ -510,6 +622,20 @@ fn colour_of(
         .collect()
 }
 
+/// Where a candidate's solver starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Start {
+    /// The one-component parent's optimum, plus (K > 1) a small extra component from
+    /// the parent's weighted residual.
+    Parent,
+    /// A fresh split of the matrix by a masked non-negative factorisation.
+    Split,
+    /// The tabulated fit's fluorophore plus (K > 1) an extra component from the cells
+    /// that fit leaves empty: a weak emitter the parent, pulled by the colour term, would
+    /// otherwise hide.
+    Base,
+}
+
 /// The starting parameters: bands fitted to the tabulated fit's spectra (K = 1) or to
 /// the components of a masked non-negative factorisation (K > 1).
 fn start(
@@ -517,7 +643,8 @@ fn start(
     base: &Material,
     one_component: Option<&(ModelSpec, Vec<f64>)>,
     sigma: f64,
-    split_sweeps: usize,
+    kind: Start,
+    focus: &[f64],
 ) -> Result<Vec<f64>> {
     let data = problem.data;
     let layout = problem.layout;
@@ -535,14 +662,19 @@ fn start(
             f.emission.resample_zero_outside(&data.emission_nm).value,
         )]
     } else {
-        split_components(problem, base, one_component, sigma, split_sweeps)
+        let parent = if kind == Start::Base {
+            None
+        } else {
+            one_component
+        };
+        split_components(problem, base, parent, sigma, kind, focus)
     };
     // The parent's own parameters, when it has this model's bands: the start then costs
     // what the parent's optimum costs plus a small extra component.
     let copied = match one_component {
         Some((parent_spec, parent_theta))
             if spec.components > 1
-                && split_sweeps == 0
+                && kind == Start::Parent
                 && parent_spec.absorption_bands == spec.absorption_bands
                 && parent_spec.emission_bands == spec.emission_bands
                 && parent_spec.reflectance == spec.reflectance =>
@@ -630,7 +762,8 @@ fn split_components(
     base: &Material,
     one_component: Option<&(ModelSpec, Vec<f64>)>,
     sigma: f64,
-    split_sweeps: usize,
+    kind: Start,
+    focus: &[f64],
 ) -> Vec<(f64, Vec<f64>, Vec<f64>)> {
     let data = problem.data;
     let k_count = problem.layout.spec.components;
@@ -688,7 +821,16 @@ fn split_components(
                 .map(|(r, col)| r[c.row] * col[c.column])
                 .sum();
             c.value -= explained;
-            weights.push((explained.abs() + 3.0 * sigma).powi(-2));
+            weights.push(if kind == Start::Base {
+                // Only the cells the others leave empty.
+                if explained < 3.0 * sigma {
+                    focus[c.row]
+                } else {
+                    0.0
+                }
+            } else {
+                (explained.abs() + 3.0 * sigma).powi(-2)
+            });
         }
         let (row, column) = weighted_rank_one(&residual, &weights, 50);
         // Its size: the plain least-squares projection of the residual on its shape (the
@@ -708,8 +850,8 @@ fn split_components(
         rows.push(row.iter().map(|v| (v * size).max(floor)).collect());
         columns.push(column.iter().map(|v| v.max(floor)).collect());
     }
-    let factors = if split_sweeps > 0 {
-        masked_nmf(data, Factors { rows, columns }, split_sweeps)
+    let factors = if kind == Start::Split {
+        masked_nmf(data, Factors { rows, columns }, SPLIT_SWEEPS)
     } else {
         Factors { rows, columns }
     };
