@@ -791,10 +791,14 @@ impl<'a> Problem<'a> {
                 let lo = grid.iter().cloned().fold(f64::INFINITY, f64::min);
                 let hi = grid.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
                 let span = (hi - lo).max(1e-6);
+                // A band narrower than half the grid step falls between samples: the data
+                // see it as a spike on one row or column (an instrument artefact fits it
+                // as well as a fluorophore), so widths stay above that.
+                let narrowest = (0.5 * median_step(grid)).max(span / 200.0);
                 let bounds = [
                     (-30.0, 6.0),
                     (lo - 0.5 * span, hi + 0.5 * span),
-                    ((span / 200.0).ln(), (2.0 * span).ln()),
+                    (narrowest.ln(), (2.0 * span).ln()),
                 ];
                 for band in range.step_by(PARAMS_PER_BAND) {
                     for (n, b) in bounds.iter().enumerate() {
@@ -807,7 +811,8 @@ impl<'a> Problem<'a> {
     }
 
     /// The soft box on band parameters: centres within half the measured span beyond
-    /// its ends, widths between 1/200 and twice the span, heights below e⁶. Adds its
+    /// its ends, widths between half the median grid step (at least 1/200 of the span)
+    /// and twice the span, heights below e⁶. Adds its
     /// gradient to `gradient` and returns its cost.
     fn band_penalty(&self, theta: &[f64], gradient: &mut [f64]) -> f64 {
         let mut cost = 0.0;
@@ -1098,6 +1103,16 @@ pub enum Projection {
     AtCap,
     /// Not measured (filled later).
     Unmeasured,
+}
+
+/// The median spacing of a grid (in whatever coordinate it is given).
+fn median_step(grid: &[f64]) -> f64 {
+    let mut steps: Vec<f64> = grid.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    if steps.is_empty() {
+        return 0.0;
+    }
+    steps.sort_by(f64::total_cmp);
+    steps[steps.len() / 2]
 }
 
 #[cfg(test)]
