@@ -7,7 +7,7 @@ use std::path::Path;
 use fluorite::evaluate::stability::{
     self, Config, DELTA_E_TOLERANCE, RECOVERY_TOLERANCE, Sweep, case_data,
 };
-use fluorite::evaluate::{Method, bench};
+use fluorite::evaluate::{Method, SEARCH_BOUND, bench};
 use fluorite::fit::{FitOptions, Solver, fit};
 use fluorite::formats::{ReadOptions, read};
 use fluorite::synth::{MEASURED_NOISE_SIGMA, SynthSpec};
@@ -200,11 +200,30 @@ fn bench_on_a_real_matrix_reports_the_fitted_accuracy() {
     }
     let m = read(&path, &ReadOptions::default()).unwrap();
     let rows = bench::run(
-        &[m],
-        &[Method::new(Solver::Init), Method::new(Solver::Lbfgs)],
+        std::slice::from_ref(&m),
+        &[
+            Method::new(Solver::Init),
+            Method::new(Solver::Lbfgs),
+            Method::search(SEARCH_BOUND),
+        ],
         1,
     )
     .unwrap();
+    // The parametric search meets the bound the one-fluorophore grid fits miss (UV).
+    let search = rows.iter().find(|r| r.method == "search").unwrap();
+    assert!(search.max_delta_e <= SEARCH_BOUND, "{search:?}");
+    // On a matrix without a calibrated scale the search does not apply: no row.
+    let mut uncalibrated = m.clone();
+    uncalibrated.arbitrary_scale = true;
+    let rows_uncalibrated = bench::run(
+        &[uncalibrated],
+        &[Method::new(Solver::Lbfgs), Method::search(SEARCH_BOUND)],
+        1,
+    )
+    .unwrap();
+    assert_eq!(rows_uncalibrated.len(), 1);
+    assert_eq!(rows_uncalibrated[0].method, "lbfgs");
+    let rows: Vec<_> = rows.into_iter().filter(|r| r.method != "search").collect();
     for r in &rows {
         // The rank-1 model leaves 8–50 % of the fluorescence of real files unexplained
         // (data README); HERPICER's colour is off mostly under the UV light.

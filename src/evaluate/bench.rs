@@ -45,7 +45,8 @@ pub struct BenchRow {
 }
 
 /// Fits every input with every method `repeats` times (sequentially, so runs do not
-/// compete for cores) and tabulates time and accuracy.
+/// compete for cores) and tabulates time and accuracy. Parametric methods skip inputs
+/// without a calibrated diagonal (they would refuse them).
 pub fn run(inputs: &[Measurement], methods: &[Method], repeats: usize) -> Result<Vec<BenchRow>> {
     if repeats == 0 {
         return Err(Error::invalid("--repeats", "is 0; give at least 1"));
@@ -53,6 +54,11 @@ pub fn run(inputs: &[Measurement], methods: &[Method], repeats: usize) -> Result
     let mut rows = Vec::new();
     for m in inputs {
         for method in methods {
+            // Parametric models need a calibrated diagonal (reflectance).
+            let calibrated = m.has_diagonal && !m.arbitrary_scale;
+            if method.model != crate::fit::ModelChoice::Tabulated && !calibrated {
+                continue;
+            }
             let options = method.options();
             let mut times = Vec::with_capacity(repeats);
             let mut last = None;

@@ -6,7 +6,7 @@
 pub mod bench;
 pub mod stability;
 
-use crate::fit::{FitOptions, Solver, Start};
+use crate::fit::{FitOptions, ModelChoice, Solver, Start};
 
 /// A fitting method: a solver with its stopping rules and starting point.
 #[derive(Debug, Clone, PartialEq)]
@@ -21,7 +21,14 @@ pub struct Method {
     pub max_iterations: u64,
     /// Starting point of the iterative solvers.
     pub start: Start,
+    /// The spectral model (tabulated, or the parametric search).
+    pub model: ModelChoice,
+    /// The search's ΔE2000 bound ([`FitOptions::max_delta_e`]).
+    pub max_delta_e: Option<f64>,
 }
+
+/// The ΔE2000 bound of the benchmark's `search` method.
+pub const SEARCH_BOUND: f64 = 1.0;
 
 /// Default tolerance of `fit`.
 pub use crate::fit::DEFAULT_TOLERANCE;
@@ -46,6 +53,20 @@ impl Method {
                 FitOptions::default().max_iterations
             },
             start: Start::ClosedForm,
+            model: ModelChoice::Tabulated,
+            max_delta_e: None,
+        }
+    }
+
+    /// The parametric model search (`fit --max-delta-e bound`): the smallest model
+    /// meeting ΔE2000 ≤ `bound` under every light, tabulated start and candidates
+    /// included.
+    pub fn search(bound: f64) -> Method {
+        Method {
+            name: "search".to_string(),
+            model: ModelChoice::Auto,
+            max_delta_e: Some(bound),
+            ..Method::new(Solver::Lbfgs)
         }
     }
 
@@ -69,19 +90,23 @@ impl Method {
             tolerance: self.tolerance,
             max_iterations: self.max_iterations,
             start: self.start,
+            model: self.model,
+            max_delta_e: self.max_delta_e,
             ..FitOptions::default()
         }
     }
 }
 
-/// Every method `fit` offers, each with default and tightened tolerance; the closed-form
-/// estimate has no tolerance and appears once.
+/// Every method `fit` offers, each with default and tightened tolerance (the closed-form
+/// estimate has no tolerance and appears once), then the parametric model search with
+/// the bound [`SEARCH_BOUND`].
 pub fn all_methods() -> Vec<Method> {
     let mut methods = vec![Method::new(Solver::Init)];
     for solver in [Solver::Lbfgs, Solver::GaussNewton, Solver::NelderMead] {
         methods.push(Method::new(solver));
         methods.push(Method::tightened(solver));
     }
+    methods.push(Method::search(SEARCH_BOUND));
     methods
 }
 
@@ -115,8 +140,9 @@ mod tests {
     }
 
     #[test]
-    fn every_solver_appears_with_both_tolerances() {
-        let names: Vec<String> = all_methods().into_iter().map(|m| m.name).collect();
+    fn every_solver_appears_with_both_tolerances_then_the_search() {
+        let methods = all_methods();
+        let names: Vec<String> = methods.iter().map(|m| m.name.clone()).collect();
         assert_eq!(
             names,
             [
@@ -126,8 +152,16 @@ mod tests {
                 "gauss-newton",
                 "gauss-newton-tight",
                 "nelder-mead",
-                "nelder-mead-tight"
+                "nelder-mead-tight",
+                "search"
             ]
         );
+        // Only the search is parametric, and it asks for the bound.
+        for m in &methods {
+            let options = m.options();
+            let search = m.name == "search";
+            assert_eq!(options.model == ModelChoice::Auto, search, "{}", m.name);
+            assert_eq!(options.max_delta_e, search.then_some(SEARCH_BOUND));
+        }
     }
 }

@@ -1152,6 +1152,36 @@ mod tests {
     }
 
     #[test]
+    fn bands_stay_wider_than_half_the_grid_step() {
+        let data = problem_data();
+        let spec = ModelSpec {
+            components: 1,
+            absorption_bands: 1,
+            emission_bands: 1,
+            reflectance: ReflectanceForm::Tabulated,
+            domain: BandDomain::Wavenumber,
+        };
+        let problem = Problem::new(&data, spec, &[], &[], 0.0);
+        let layout = problem.layout;
+        let mut theta = theta_for(&layout);
+        theta[layout.emission(0).start + 2] = -0.3;
+        let width = layout.absorption(0).start + 2;
+        // The grid is 10 nm: about 0.44 kK at 480 nm, the median excitation step.
+        let floor = 0.5 * median_step(&problem.excitation_u);
+        assert!((0.15..0.3).contains(&floor), "{floor}");
+        let mut gradient = vec![0.0; layout.len];
+        theta[width] = (0.9 * floor).ln();
+        let below = problem.band_penalty(&theta, &mut gradient);
+        assert!(below > 0.0 && gradient[width] < 0.0, "{below}");
+        gradient.iter_mut().for_each(|g| *g = 0.0);
+        theta[width] = (1.1 * floor).ln();
+        assert_eq!(problem.band_penalty(&theta, &mut gradient), 0.0);
+        theta[width] = (0.1 * floor).ln();
+        problem.clamp_to_box(&mut theta);
+        assert!(theta[width].exp() >= floor * (1.0 - 1e-12));
+    }
+
+    #[test]
     fn gradient_matches_central_differences() {
         let data = problem_data();
         let lights = Light::standard();
