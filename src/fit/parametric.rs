@@ -262,6 +262,11 @@ pub struct GridModel {
     pub scale: Vec<f64>,
     /// r at each diagonal sample (polynomial reflectance only).
     pub reflectance: Vec<f64>,
+    /// ∂g/∂(band parameters) of the unnormalised absorption at each excitation sample,
+    /// row-major (sample × parameter), per component: the adjoint reuses them.
+    absorption_jacobian: Vec<Vec<f64>>,
+    /// The same for the emission at each emission sample.
+    emission_jacobian: Vec<Vec<f64>>,
 }
 
 impl<'a> Problem<'a> {
@@ -395,16 +400,18 @@ impl<'a> Problem<'a> {
             photon_factor: Vec::with_capacity(k_count),
             scale: Vec::with_capacity(k_count),
             reflectance: Vec::new(),
+            absorption_jacobian: Vec::with_capacity(k_count),
+            emission_jacobian: Vec::with_capacity(k_count),
         };
-        let mut scratch = vec![0.0; PARAMS_PER_BAND * 8];
         for k in 0..k_count {
             let ap = &theta[layout.absorption(k)];
             let ep = &theta[layout.emission(k)];
-            scratch.resize(ap.len().max(ep.len()), 0.0);
+            let mut absorption_jacobian = vec![0.0; self.excitation_u.len() * ap.len()];
             let raw: Vec<f64> = self
                 .excitation_u
                 .iter()
-                .map(|&u| bands_value_gradient(ap, u, &mut scratch[..ap.len()]))
+                .zip(absorption_jacobian.chunks_exact_mut(ap.len().max(1)))
+                .map(|(&u, g)| bands_value_gradient(ap, u, g))
                 .collect();
             let (peak_index, peak) =
                 raw.iter().enumerate().fold(
@@ -413,11 +420,15 @@ impl<'a> Problem<'a> {
                 );
             let peak = peak.max(1e-300);
             let absorption: Vec<f64> = raw.iter().map(|v| v / peak).collect();
+            let mut emission_jacobian = vec![0.0; self.emission_u.len() * ep.len()];
             let emission: Vec<f64> = self
                 .emission_u
                 .iter()
-                .map(|&u| bands_value_gradient(ep, u, &mut scratch[..ep.len()]))
+                .zip(emission_jacobian.chunks_exact_mut(ep.len().max(1)))
+                .map(|(&u, g)| bands_value_gradient(ep, u, g))
                 .collect();
+            m.absorption_jacobian.push(absorption_jacobian);
+            m.emission_jacobian.push(emission_jacobian);
             let (mut normaliser, mut moment) = (0.0, 0.0);
             for ((e, w), l) in emission
                 .iter()
@@ -606,6 +617,7 @@ impl<'a> Problem<'a> {
         let mut kappa_bar = vec![0.0; k_count];
         let mut r_bar = vec![0.0; self.diagonal.len()];
         let mut f_bar = vec![0.0; n_ex * n_em];
+        let mut pull = vec![0.0; n_em];
         for (i, ((f_row, r_row), mask_row)) in f_bar
             .chunks_exact_mut(n_em)
             .zip(residual.chunks_exact(n_em))
@@ -613,7 +625,7 @@ impl<'a> Problem<'a> {
             .enumerate()
         {
             // δ_ij = w_i·r_ij + Σ_l L_li·q_lj on the cells.
-            let mut pull = vec![0.0; n_em];
+            pull.iter_mut().for_each(|p| *p = 0.0);
             for (light, q_row) in self.patches.iter().zip(q.chunks_exact(n_em)) {
                 let w = light.light_weights[i];
                 for (p, qv) in pull.iter_mut().zip(q_row) {
@@ -694,7 +706,6 @@ impl<'a> Problem<'a> {
             }
         }
         let mut gradient = vec![0.0; layout.len];
-        let mut scratch = vec![0.0; PARAMS_PER_BAND * 8];
         for k in 0..k_count {
             // s = κ/(γ·S): through κ, S and γ (γ = λ̄e/λmin when photon-limited).
             kappa_bar[k] += scale_bar[k] / (m.photon_factor[k] * m.normaliser[k]);
@@ -722,26 +733,21 @@ impl<'a> Problem<'a> {
                 / peak;
             g_bar[m.peak_index[k]] += -through_peak + HEIGHT_GAUGE_WEIGHT * (peak - 1.0);
             let ar = layout.absorption(k);
-            scratch.resize(ar.len().max(layout.emission(k).len()), 0.0);
-            for (i, &u) in self.excitation_u.iter().enumerate() {
-                if g_bar[i] == 0.0 {
-                    continue;
-                }
-                let g = &mut scratch[..ar.len()];
-                bands_value_gradient(&theta[ar.clone()], u, g);
-                for (t, gp) in gradient[ar.clone()].iter_mut().zip(g.iter()) {
-                    *t += g_bar[i] * gp;
+            for (gb, g) in g_bar
+                .iter()
+                .zip(m.absorption_jacobian[k].chunks_exact(ar.len().max(1)))
+            {
+                for (t, gp) in gradient[ar.clone()].iter_mut().zip(g) {
+                    *t += gb * gp;
                 }
             }
             let er = layout.emission(k);
-            for (j, &u) in self.emission_u.iter().enumerate() {
-                if e_bar[k][j] == 0.0 {
-                    continue;
-                }
-                let g = &mut scratch[..er.len()];
-                bands_value_gradient(&theta[er.clone()], u, g);
-                for (t, gp) in gradient[er.clone()].iter_mut().zip(g.iter()) {
-                    *t += e_bar[k][j] * gp;
+            for (eb, g) in e_bar[k]
+                .iter()
+                .zip(m.emission_jacobian[k].chunks_exact(er.len().max(1)))
+            {
+                for (t, gp) in gradient[er.clone()].iter_mut().zip(g) {
+                    *t += eb * gp;
                 }
             }
             cost += 0.5 * HEIGHT_GAUGE_WEIGHT * (gauge_s * gauge_s + (peak - 1.0).powi(2));
