@@ -51,7 +51,8 @@ pub struct FitArgs {
     /// Iteration limit of the refinement.
     #[arg(long, default_value_t = 500)]
     pub max_iterations: u64,
-    /// Relative tolerance of the refinement.
+    /// Relative tolerance of the refinement (the automatic model search fits its candidates
+    /// to at least 1e-5; a fixed --model gets this one).
     #[arg(long, default_value_t = fluorite::fit::DEFAULT_TOLERANCE)]
     pub tolerance: f64,
     /// Lights of the scene: the ΔE2000 report, the model search's bound and the colour
