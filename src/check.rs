@@ -18,7 +18,7 @@ use serde_json::Value;
 
 use crate::error::{Error, Result};
 use crate::material::{BOUND_TOLERANCE, FORM_TOLERANCE, Material, NORMALISATION_TOLERANCE, SCHEMA};
-use crate::parametric::{MaterialForms, SpectralForm};
+use crate::parametric::MaterialForms;
 use crate::spectrum::{Spectrum, bin_widths};
 
 /// The laws a material must satisfy.
@@ -960,22 +960,8 @@ fn check_forms(m: &RawMaterial) -> (Tracker, Option<FormsSummary>) {
             )
         });
     }
-    let mut pairs: Vec<(&SpectralForm, &RawSpectrum, String)> = Vec::new();
-    if let Some(r) = &forms.reflectance {
-        pairs.push((r, &m.reflectance, "reflectance".to_string()));
-    }
-    for (n, (ff, f)) in forms.fluorophores.iter().zip(&m.fluorophores).enumerate() {
-        pairs.push((
-            &ff.absorption,
-            &f.absorption,
-            format!("fluorophores[{n}].absorption"),
-        ));
-        pairs.push((
-            &ff.emission,
-            &f.emission,
-            format!("fluorophores[{n}].emission"),
-        ));
-    }
+    let fluorophores = m.fluorophores.iter().map(|f| (&f.absorption, &f.emission));
+    let pairs = forms.pairs(&m.reflectance, fluorophores);
     summary.forms = pairs.len();
     summary.parameters = pairs.iter().map(|(f, _, _)| f.n_params()).sum();
     let mut worst = 0.0f64;
@@ -994,33 +980,15 @@ fn check_forms(m: &RawMaterial) -> (Tracker, Option<FormsSummary>) {
             continue;
         }
         compared = true;
-        let peak = samples
-            .value
-            .iter()
-            .fold(0.0f64, |p, v| p.max(v.abs()))
-            .max(1e-300);
-        let mut spectrum_worst: Option<(f64, f64, f64, f64)> = None;
-        let mut broken = 0usize;
-        for (&l, &v) in samples.wavelength_nm.iter().zip(&samples.value) {
-            let f = form.eval(l);
-            let deviation = (f - v).abs() / peak;
-            let deviation = if deviation.is_nan() {
-                f64::INFINITY
-            } else {
-                deviation
-            };
-            if deviation > FORM_TOLERANCE {
-                broken += 1;
-            }
-            if spectrum_worst.is_none_or(|w| deviation > w.0) {
-                spectrum_worst = Some((deviation, l, f, v));
-            }
-        }
-        if let Some((deviation, l, f, v)) = spectrum_worst {
-            worst = worst.max(deviation);
-            law.observe(-deviation, deviation, &place, Some(l), || {
+        if let Some(a) = form.agreement(&samples.wavelength_nm, &samples.value, FORM_TOLERANCE) {
+            worst = worst.max(a.worst);
+            law.observe(-a.worst, a.worst, &place, Some(a.at_nm), || {
                 format!(
-                    "{place} gives {f} at {l} nm where {what} has the sample {v} ({broken} of {} samples differ by more than {FORM_TOLERANCE:.0e} of the peak); re-tabulate the samples from the form or drop the forms block",
+                    "{place} gives {} at {} nm where {what} has the sample {} ({} of {} samples differ by more than {FORM_TOLERANCE:.0e} of the peak); re-tabulate the samples from the form or drop the forms block",
+                    a.form_value,
+                    a.at_nm,
+                    a.sample,
+                    a.beyond,
                     samples.value.len()
                 )
             });

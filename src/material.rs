@@ -292,41 +292,23 @@ impl Material {
                 ),
             ));
         }
-        let mut pairs = Vec::new();
-        if let Some(r) = &forms.reflectance {
-            pairs.push((r, &self.reflectance, "reflectance".to_string()));
-        }
-        for (n, (ff, f)) in forms
+        let fluorophores = self
             .fluorophores
             .iter()
-            .zip(&self.fluorophores)
-            .enumerate()
-        {
-            pairs.push((
-                &ff.absorption,
-                &f.absorption,
-                format!("fluorophores[{n}].absorption"),
-            ));
-            pairs.push((
-                &ff.emission,
-                &f.emission,
-                format!("fluorophores[{n}].emission"),
-            ));
-        }
-        for (form, samples, what) in pairs {
+            .map(|f| (&f.absorption, &f.emission));
+        for (form, samples, what) in forms.pairs(&self.reflectance, fluorophores) {
             let place = format!("forms.{what}");
             form.validate(&place)?;
-            let peak = samples.max().abs().max(1e-300);
-            for (l, v) in samples.wavelength_nm.iter().zip(&samples.value) {
-                let f = form.eval(*l);
-                if (f - v).abs() > FORM_TOLERANCE * peak {
-                    return Err(Error::invalid(
-                        place,
-                        format!(
-                            "gives {f} at {l} nm where {what} has the sample {v}; the samples must be the form evaluated (re-tabulate or drop the forms block)"
-                        ),
-                    ));
-                }
+            if let Some(a) = form.agreement(&samples.wavelength_nm, &samples.value, FORM_TOLERANCE)
+                && a.worst > FORM_TOLERANCE
+            {
+                return Err(Error::invalid(
+                    place,
+                    format!(
+                        "gives {} at {} nm where {what} has the sample {}; the samples must be the form evaluated (re-tabulate or drop the forms block)",
+                        a.form_value, a.at_nm, a.sample
+                    ),
+                ));
             }
         }
         Ok(())

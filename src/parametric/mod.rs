@@ -272,6 +272,42 @@ impl SpectralForm {
         }
     }
 
+    /// How far the form is from the samples (`wavelength_nm`, `value`) it should
+    /// reproduce, relative to the samples' peak magnitude; `tolerance` counts the samples
+    /// beyond it. None without samples. A non-finite form value is infinitely far.
+    pub fn agreement(
+        &self,
+        wavelength_nm: &[f64],
+        value: &[f64],
+        tolerance: f64,
+    ) -> Option<FormAgreement> {
+        let peak = value.iter().fold(0.0f64, |p, v| p.max(v.abs())).max(1e-300);
+        let mut agreement: Option<FormAgreement> = None;
+        let mut beyond = 0;
+        for (&l, &v) in wavelength_nm.iter().zip(value) {
+            let f = self.eval(l);
+            let deviation = (f - v).abs() / peak;
+            let deviation = if deviation.is_nan() {
+                f64::INFINITY
+            } else {
+                deviation
+            };
+            if deviation > tolerance {
+                beyond += 1;
+            }
+            if agreement.as_ref().is_none_or(|a| deviation > a.worst) {
+                agreement = Some(FormAgreement {
+                    worst: deviation,
+                    at_nm: l,
+                    form_value: f,
+                    sample: v,
+                    beyond: 0,
+                });
+            }
+        }
+        agreement.map(|a| FormAgreement { beyond, ..a })
+    }
+
     /// Samples on `grid` (nm); `what` names the spectrum in errors.
     pub fn tabulate(&self, grid: &[f64], what: &str) -> Result<Spectrum> {
         Spectrum::new(
@@ -329,6 +365,53 @@ pub struct MaterialForms {
     pub reflectance: Option<SpectralForm>,
     /// a(λ) and e(λ) per fluorophore, in the order of the material's fluorophores.
     pub fluorophores: Vec<FluorophoreForms>,
+}
+
+/// How far a form is from its samples ([`SpectralForm::agreement`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FormAgreement {
+    /// The largest |form − sample| relative to the samples' peak magnitude.
+    pub worst: f64,
+    /// Where it is (nm).
+    pub at_nm: f64,
+    /// The form's value there.
+    pub form_value: f64,
+    /// The sample there.
+    pub sample: f64,
+    /// Samples farther than the tolerance.
+    pub beyond: usize,
+}
+
+impl MaterialForms {
+    /// Each form beside the tabulated spectrum it describes and its place in the file
+    /// (`reflectance`, `fluorophores[0].absorption`, …): the reflectance, then absorption
+    /// and emission per fluorophore, in order. `fluorophores` gives (absorption,
+    /// emission) per fluorophore; extra entries on either side are left out.
+    pub fn pairs<'a, S>(
+        &'a self,
+        reflectance: &'a S,
+        fluorophores: impl IntoIterator<Item = (&'a S, &'a S)>,
+    ) -> Vec<(&'a SpectralForm, &'a S, String)> {
+        let mut pairs = Vec::new();
+        if let Some(r) = &self.reflectance {
+            pairs.push((r, reflectance, "reflectance".to_string()));
+        }
+        for (n, (forms, (absorption, emission))) in
+            self.fluorophores.iter().zip(fluorophores).enumerate()
+        {
+            pairs.push((
+                &forms.absorption,
+                absorption,
+                format!("fluorophores[{n}].absorption"),
+            ));
+            pairs.push((
+                &forms.emission,
+                emission,
+                format!("fluorophores[{n}].emission"),
+            ));
+        }
+        pairs
+    }
 }
 
 /// The forms of one fluorophore: evaluated, they equal its tabulated spectra (a with
@@ -407,5 +490,32 @@ mod tests {
         assert_eq!(back, form);
         assert!((form.eval(490.0) - 1.0).abs() < 1e-12);
         assert_eq!(form.eval(299.0), 0.0);
+    }
+
+    #[test]
+    fn agreement_measures_the_worst_sample_against_the_peak() {
+        let form = SpectralForm::SigmoidPolynomial(SigmoidPolynomial {
+            support_nm: [380.0, 780.0],
+            coefficients: vec![0.5, 1.0],
+        });
+        let nm: Vec<f64> = (0..=40).map(|i| 380.0 + 10.0 * i as f64).collect();
+        let mut value: Vec<f64> = nm.iter().map(|&l| form.eval(l)).collect();
+        let exact = form.agreement(&nm, &value, 1e-6).unwrap();
+        assert_eq!((exact.worst, exact.beyond), (0.0, 0));
+        let peak = value.iter().cloned().fold(0.0, f64::max);
+        value[7] += 0.01 * peak;
+        value[30] -= 0.002 * peak;
+        let off = form.agreement(&nm, &value, 1e-3).unwrap();
+        assert!((off.worst - 0.01).abs() < 1e-9, "{off:?}");
+        assert_eq!((off.at_nm, off.beyond), (450.0, 2));
+        assert_eq!(off.sample, value[7]);
+        // A form that evaluates to NaN is infinitely far, never within tolerance.
+        let broken = SpectralForm::SigmoidPolynomial(SigmoidPolynomial {
+            support_nm: [380.0, 780.0],
+            coefficients: vec![f64::NAN],
+        });
+        let nan = broken.agreement(&nm, &value, 1e-6).unwrap();
+        assert!(nan.worst.is_infinite() && nan.beyond == nm.len());
+        assert!(form.agreement(&[], &[], 1e-6).is_none());
     }
 }
