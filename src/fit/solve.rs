@@ -50,50 +50,17 @@ pub struct Stopping {
 /// A point θ with its cost and θ-gradient.
 type Evaluation = (Vec<f64>, f64, Vec<f64>);
 
-struct Problem<'a> {
+/// The tabulated fit as residuals and their Jacobian (Gauss-Newton).
+struct ResidualProblem<'a> {
     objective: Objective<'a>,
     representation: &'a dyn Representation,
-    /// The last (θ, cost, θ-gradient): the line search asks for the cost and the gradient
-    /// of the same point separately, and one pass computes both.
-    cache: RefCell<Option<Evaluation>>,
     /// Prior rows √μ·(θ − θ₀) for Gauss-Newton: they make JᵀJ invertible along the
     /// model's flat directions (the κ·a scale, samples at a bound) without moving the
     /// optimum more than μ/curvature.
     prior: Option<(f64, Vec<f64>)>,
 }
 
-impl Problem<'_> {
-    fn evaluate(&self, theta: &[f64]) -> (f64, Vec<f64>) {
-        if let Some((t, c, g)) = self.cache.borrow().as_ref()
-            && t.as_slice() == theta
-        {
-            return (*c, g.clone());
-        }
-        let sp = self.representation.spectra(theta);
-        let (cost, gk, ga, gv) = self.objective.cost_gradient(&sp);
-        let gradient = self.representation.pull_back(theta, gk, &ga, &gv);
-        *self.cache.borrow_mut() = Some((theta.to_vec(), cost, gradient.clone()));
-        (cost, gradient)
-    }
-}
-
-impl CostFunction for Problem<'_> {
-    type Param = DVector<f64>;
-    type Output = f64;
-    fn cost(&self, theta: &Self::Param) -> Result<f64, argmin::core::Error> {
-        Ok(self.evaluate(theta.as_slice()).0)
-    }
-}
-
-impl Gradient for Problem<'_> {
-    type Param = DVector<f64>;
-    type Gradient = DVector<f64>;
-    fn gradient(&self, theta: &Self::Param) -> Result<Self::Gradient, argmin::core::Error> {
-        Ok(DVector::from_vec(self.evaluate(theta.as_slice()).1))
-    }
-}
-
-impl Operator for Problem<'_> {
+impl Operator for ResidualProblem<'_> {
     type Param = DVector<f64>;
     type Output = DVector<f64>;
     fn apply(&self, theta: &Self::Param) -> Result<Self::Output, argmin::core::Error> {
@@ -106,7 +73,7 @@ impl Operator for Problem<'_> {
     }
 }
 
-impl Jacobian for Problem<'_> {
+impl Jacobian for ResidualProblem<'_> {
     type Param = DVector<f64>;
     type Jacobian = DMatrix<f64>;
     fn jacobian(&self, theta: &Self::Param) -> Result<Self::Jacobian, argmin::core::Error> {
@@ -175,12 +142,20 @@ pub fn lbfgs(
     theta0: &[f64],
     stopping: Stopping,
 ) -> Result<Refined, String> {
-    let function = |theta: &[f64]| {
+    let function = tabulated_cost_gradient(&objective, representation);
+    lbfgs_function(&function, theta0, stopping)
+}
+
+/// The tabulated fit's cost and θ-gradient as a function of θ.
+fn tabulated_cost_gradient<'a>(
+    objective: &'a Objective<'a>,
+    representation: &'a dyn Representation,
+) -> impl Fn(&[f64]) -> (f64, Vec<f64>) + 'a {
+    move |theta: &[f64]| {
         let sp = representation.spectra(theta);
         let (cost, gk, ga, gv) = objective.cost_gradient(&sp);
         (cost, representation.pull_back(theta, gk, &ga, &gv))
-    };
-    lbfgs_function(&function, theta0, stopping)
+    }
 }
 
 /// Refines `theta0` with Gauss-Newton and a backtracking (Armijo) line search.
@@ -191,12 +166,11 @@ pub fn gauss_newton(
     stopping: Stopping,
 ) -> Result<Refined, String> {
     // μ relative to the curvature scale at the start.
-    let probe = Problem {
+    let probe = ResidualProblem {
         objective: Objective {
             data: objective.data,
         },
         representation,
-        cache: RefCell::new(None),
         prior: None,
     };
     let j0 = probe
@@ -207,10 +181,9 @@ pub fn gauss_newton(
         .map(|c| c.norm_squared())
         .fold(0.0, f64::max)
         .max(1e-300);
-    let problem = Problem {
+    let problem = ResidualProblem {
         objective,
         representation,
-        cache: RefCell::new(None),
         prior: Some((1e-10 * curvature, theta0.to_vec())),
     };
     let linesearch =
@@ -250,11 +223,10 @@ pub fn nelder_mead(
     theta0: &[f64],
     stopping: Stopping,
 ) -> Result<Refined, String> {
-    let problem = Problem {
-        objective,
-        representation,
+    let function = tabulated_cost_gradient(&objective, representation);
+    let problem = FunctionProblem {
+        function: &function,
         cache: RefCell::new(None),
-        prior: None,
     };
     let start = DVector::from_column_slice(theta0);
     let mut simplex = vec![start.clone()];
@@ -278,9 +250,12 @@ pub fn nelder_mead(
 /// A cost with its gradient, as a function of the parameters.
 pub type CostGradient<'a> = &'a dyn Fn(&[f64]) -> (f64, Vec<f64>);
 
-/// A problem given by a cost-and-gradient function (the parametric models).
+/// A problem given by a cost-and-gradient function (L-BFGS and Nelder-Mead on the
+/// tabulated fit, L-BFGS on the parametric models).
 struct FunctionProblem<'a> {
     function: CostGradient<'a>,
+    /// The last (θ, cost, θ-gradient): the line search asks for the cost and the gradient
+    /// of the same point separately, and one pass computes both.
     cache: RefCell<Option<Evaluation>>,
 }
 
