@@ -709,12 +709,16 @@ fn parameter_lines(material: &Material, comparison: Option<&Comparison>) -> Vec<
     if let Some(forms) = &material.forms
         && forms.fluorophores.len() == material.fluorophores.len()
     {
-        lines.push(format!("model {}: forms drawn every 1 nm", forms.model));
+        lines.push(format!("model {}", forms.model));
+        lines.push("(forms drawn every 1 nm)".to_string());
     }
     if let Some(fit) = &material.fit
         && !fit.gauge.is_empty()
     {
-        lines.push(format!("gauge: {}", fit.gauge));
+        // Its first clause: the rest (the numbers, how to pin) is in the fit summary and
+        // would run off the figure.
+        let clause = fit.gauge.split(['(', ';']).next().unwrap_or("").trim();
+        lines.push(format!("gauge: {clause}"));
     }
     if let Some(c) = comparison {
         lines.push(format!(
