@@ -50,8 +50,8 @@ const EXTRA_COMPONENT_SHARE: f64 = 0.1;
 const FIRST_STEP: f64 = 0.1;
 
 /// Relative cost tolerance the automatic search fits its candidates to, at least
-/// (`--tolerance` when looser): 1e-6 against 1e-5 chose the same models on the six real
-/// surfaces and the synthetic examples, at about twice the time.
+/// (`--tolerance` when looser): 1e-6 chose the same or larger models on the six real
+/// surfaces and the synthetic examples, and took longer.
 const SEARCH_TOLERANCE: f64 = 1e-5;
 
 /// The search skips one-component models when the grid model (K = 1, every sample free)
