@@ -844,6 +844,7 @@ pub fn check(m: &RawMaterial) -> CheckReport {
                 .map(|f| crate::material::Fluorophore {
                     concentration: f.concentration,
                     quantum_yield: f.quantum_yield,
+                    yield_form: crate::material::YieldForm::Energy,
                     concentration_range: None,
                     absorption: to_spectrum(&f.absorption),
                     emission: to_spectrum(&f.emission),

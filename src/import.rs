@@ -324,6 +324,7 @@ pub fn import_spectra(options: &ImportOptions) -> Result<(Material, CheckReport)
         vec![Fluorophore {
             concentration: options.concentration,
             quantum_yield: options.quantum_yield,
+            yield_form: crate::material::YieldForm::Energy,
             concentration_range: None,
             absorption,
             emission,

@@ -24,6 +24,6 @@ pub mod spectrum;
 pub mod synth;
 
 pub use error::{Error, Result};
-pub use material::{Fluorophore, Material};
+pub use material::{Fluorophore, Material, YieldForm};
 pub use measurement::{Measurement, Units};
 pub use spectrum::Spectrum;

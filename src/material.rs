@@ -43,13 +43,52 @@ pub struct Material {
     pub forms: Option<MaterialForms>,
 }
 
+/// Which quantum yield of a fluorophore is constant over the excitation wavelength
+/// (model.md §3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, Hash)]
+#[serde(rename_all = "lowercase")]
+pub enum YieldForm {
+    /// The paper's form: a constant energy yield Q (emitted / absorbed energy). Photon
+    /// conservation then caps Q at λmin/λ̄e for every row. A file without `yield_form`
+    /// has this meaning.
+    #[default]
+    Energy,
+    /// A constant photon yield Φ (emitted / absorbed photons, Kasha–Vavilov): the energy
+    /// yield is Φ·λi/λ̄e, photon-conserving for every Φ ≤ 1.
+    Photon,
+}
+
+impl YieldForm {
+    /// The name written into material files and reports (`energy`, `photon`).
+    pub fn name(self) -> &'static str {
+        match self {
+            YieldForm::Energy => "energy",
+            YieldForm::Photon => "photon",
+        }
+    }
+
+    /// Whether this is the default (energy) form; such files omit the field.
+    pub fn is_energy(&self) -> bool {
+        *self == YieldForm::Energy
+    }
+}
+
 /// One fluorescent component.
+///
+/// In JSON the yield is `quantum_yield` (Q) in the energy form and `photon_yield` (Φ)
+/// beside `"yield_form": "photon"` in the photon form, so a reader that knows only the
+/// energy form fails on a photon-form file instead of misreading Φ as Q.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "FluorophoreFile", into = "FluorophoreFile")]
 pub struct Fluorophore {
     /// c: fraction absorbed at the absorption peak, in [0, 1].
     pub concentration: f64,
-    /// Q: energy quantum yield (emitted / absorbed energy), in [0, 1].
+    /// The yield of the fluorophore's form, in [0, 1]: the energy quantum yield Q (emitted
+    /// / absorbed energy) in the energy form, the photon quantum yield Φ (emitted /
+    /// absorbed photons) in the photon form.
     pub quantum_yield: f64,
+    /// Which yield is constant over the excitation wavelength.
+    pub yield_form: YieldForm,
     /// The interval of c for which every constraint holds given the data (c and Q are not
     /// separately identifiable; only k = c·Q is).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -60,10 +99,132 @@ pub struct Fluorophore {
     pub emission: Spectrum,
 }
 
+/// The JSON layout of a [`Fluorophore`].
+#[derive(Serialize, Deserialize)]
+struct FluorophoreFile {
+    concentration: f64,
+    #[serde(default, skip_serializing_if = "YieldForm::is_energy")]
+    yield_form: YieldForm,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    quantum_yield: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    photon_yield: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    concentration_range: Option<[f64; 2]>,
+    absorption: Spectrum,
+    emission: Spectrum,
+}
+
+impl TryFrom<FluorophoreFile> for Fluorophore {
+    type Error = String;
+
+    fn try_from(f: FluorophoreFile) -> std::result::Result<Self, String> {
+        let quantum_yield = match (f.yield_form, f.quantum_yield, f.photon_yield) {
+            (YieldForm::Energy, Some(q), None) => q,
+            (YieldForm::Photon, None, Some(phi)) => phi,
+            (YieldForm::Energy, _, Some(_)) => {
+                return Err(
+                    "a fluorophore with `photon_yield` needs \"yield_form\": \"photon\"".into(),
+                );
+            }
+            (YieldForm::Photon, Some(_), _) => {
+                return Err(
+                    "a photon-form fluorophore gives its yield as `photon_yield` (Φ), not `quantum_yield`".into(),
+                );
+            }
+            (YieldForm::Energy, None, None) => {
+                return Err("missing field `quantum_yield`".into());
+            }
+            (YieldForm::Photon, None, None) => {
+                return Err("missing field `photon_yield`".into());
+            }
+        };
+        Ok(Fluorophore {
+            concentration: f.concentration,
+            quantum_yield,
+            yield_form: f.yield_form,
+            concentration_range: f.concentration_range,
+            absorption: f.absorption,
+            emission: f.emission,
+        })
+    }
+}
+
+impl From<Fluorophore> for FluorophoreFile {
+    fn from(f: Fluorophore) -> Self {
+        let (quantum_yield, photon_yield) = match f.yield_form {
+            YieldForm::Energy => (Some(f.quantum_yield), None),
+            YieldForm::Photon => (None, Some(f.quantum_yield)),
+        };
+        FluorophoreFile {
+            concentration: f.concentration,
+            yield_form: f.yield_form,
+            quantum_yield,
+            photon_yield,
+            concentration_range: f.concentration_range,
+            absorption: f.absorption,
+            emission: f.emission,
+        }
+    }
+}
+
 impl Fluorophore {
-    /// k = c·Q, the only scale a reradiation matrix determines.
+    /// k = c·Q (energy form) or c·Φ (photon form): the only scale a reradiation matrix
+    /// determines. The fluorescent term is k·a(λi)·e(λo) in the energy form and
+    /// k·a(λi)·(λi/λ̄e)·e(λo) in the photon form.
     pub fn k(&self) -> f64 {
         self.concentration * self.quantum_yield
+    }
+
+    /// The energy yield at excitation `nm` given the mean emission wavelength: Q in the
+    /// energy form, Φ·λi/λ̄e in the photon form.
+    pub fn energy_yield_with_mean(&self, nm: f64, emission_mean_nm: f64) -> f64 {
+        match self.yield_form {
+            YieldForm::Energy => self.quantum_yield,
+            YieldForm::Photon => self.quantum_yield * nm / emission_mean_nm,
+        }
+    }
+
+    /// The photon yield at excitation `nm` given the mean emission wavelength: Q·λ̄e/λi in
+    /// the energy form, Φ in the photon form.
+    pub fn photon_yield_with_mean(&self, nm: f64, emission_mean_nm: f64) -> f64 {
+        match self.yield_form {
+            YieldForm::Energy => self.quantum_yield * emission_mean_nm / nm,
+            YieldForm::Photon => self.quantum_yield,
+        }
+    }
+
+    /// The excitation factor of the fluorescent term relative to a(λi): 1 in the energy
+    /// form, λi/λ̄e in the photon form (the energy yield over the yield parameter).
+    pub fn excitation_factor_with_mean(&self, nm: f64, emission_mean_nm: f64) -> f64 {
+        match self.yield_form {
+            YieldForm::Energy => 1.0,
+            YieldForm::Photon => nm / emission_mean_nm,
+        }
+    }
+
+    /// c·Q(λi)·a(λi): the fraction of the energy arriving at excitation `nm` that this
+    /// fluorophore re-emits (the row factor of its fluorescent term: the term is this
+    /// times e(λo)). Computes λ̄e; use [`Fluorophore::reradiated_with_mean`] in loops.
+    pub fn reradiated(&self, nm: f64) -> f64 {
+        self.reradiated_with_mean(nm, self.emission_mean_nm())
+    }
+
+    /// [`Fluorophore::reradiated`] with λ̄e given.
+    pub fn reradiated_with_mean(&self, nm: f64, emission_mean_nm: f64) -> f64 {
+        self.concentration
+            * self.energy_yield_with_mean(nm, emission_mean_nm)
+            * self.absorption.eval_zero_outside(nm)
+    }
+
+    /// The largest photon yield over the absorbed wavelengths (≤ 1 is photon
+    /// conservation): Q·λ̄e/λmin in the energy form, Φ in the photon form. None when a
+    /// vanishes everywhere or the emission has no mean.
+    pub fn max_photon_yield(&self) -> Option<f64> {
+        let shortest = self.shortest_absorbed_nm()?;
+        let mean = self.emission_mean_nm();
+        mean.is_finite()
+            .then(|| self.photon_yield_with_mean(shortest, mean))
     }
 
     /// λ̄e = ∫λ·e dλ, the mean emission wavelength (nm).
@@ -101,7 +262,7 @@ pub struct FitReport {
     pub iterations: u64,
     /// Wall time of the fit (seconds).
     pub seconds: f64,
-    /// Cells within this distance of the diagonal were excluded as crosstalk.
+    /// Cells within this distance of the diagonal were excluded (0: none, the default).
     pub guard_nm: f64,
     /// The convention that picked c within its feasible interval.
     pub gauge: String,
@@ -120,9 +281,21 @@ pub struct FitReport {
     /// Noise level estimated from the anti-Stokes side (reflectance-factor units).
     #[serde(default)]
     pub noise_sigma: f64,
-    /// Sum of |M| in the excluded guard-band cells, relative to the fluorescent signal.
+    /// Sum of |M| in the excluded guard-band cells, relative to the fluorescent signal
+    /// (0 without a guard band, the default: every measured cell is fitted).
     #[serde(default)]
     pub guard_signal_fraction: f64,
+    /// Cells of the colour reference the file does not hold, filled from the model (the
+    /// reference is otherwise the measurement as measured).
+    #[serde(default)]
+    pub reference_filled_cells: usize,
+    /// Largest share, over the lights, of the reference patch's luminance that those
+    /// filled cells carry.
+    #[serde(default)]
+    pub reference_filled_share: f64,
+    /// Why the fluorophores' yield form was chosen (`fit --yield auto`).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub yield_choice: String,
     /// Objective value per solver iteration (for convergence plots).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub cost_history: Vec<f64>,
@@ -192,9 +365,10 @@ pub struct Candidate {
 /// Conservation margins of a material (the `conservation` block).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct Conservation {
-    /// max over λ of ρ(λ) = (1 − Σc·a)·r + Σc·Q·a; must be ≤ 1.
+    /// max over λ of ρ(λ) = (1 − Σc·a)·r + Σc·Q(λ)·a; must be ≤ 1.
     pub max_energy_albedo: f64,
-    /// max over fluorophores and absorbed λ of Q·λ̄e/λ; must be ≤ 1.
+    /// max over fluorophores and absorbed λ of the photon yield (Q·λ̄e/λ in the energy
+    /// form, Φ in the photon form); must be ≤ 1.
     pub max_photon_ratio: f64,
 }
 
@@ -233,35 +407,48 @@ impl Material {
 
     /// ρ(λ): total energy albedo for excitation at `nm`.
     pub fn energy_albedo(&self, nm: f64) -> f64 {
-        self.energy_albedo_with(nm, &self.emission_integrals())
+        self.energy_albedo_with(nm, &self.emission_moments())
     }
 
-    /// ∫e per fluorophore (1 for a valid material; computed, as checks run on any).
-    fn emission_integrals(&self) -> Vec<f64> {
+    /// (∫e, λ̄e) per fluorophore (∫e is 1 for a valid material; computed, as checks run
+    /// on any).
+    pub fn emission_moments(&self) -> Vec<(f64, f64)> {
         self.fluorophores
             .iter()
-            .map(|f| f.emission.integral())
+            .map(|f| (f.emission.integral(), f.emission_mean_nm()))
             .collect()
     }
 
-    /// ρ(λ) with the emission integrals given (they cost a pass over each emission).
-    fn energy_albedo_with(&self, nm: f64, emission_integrals: &[f64]) -> f64 {
+    /// ρ(λ) with the emission moments of [`Material::emission_moments`] given (they cost a
+    /// pass over each emission).
+    pub fn energy_albedo_with(&self, nm: f64, emission_moments: &[(f64, f64)]) -> f64 {
         self.diagonal(nm)
             + self
                 .fluorophores
                 .iter()
-                .zip(emission_integrals)
-                .map(|(f, integral)| f.k() * f.absorption.eval_zero_outside(nm) * integral)
+                .zip(emission_moments)
+                .map(|(f, &(integral, mean))| f.reradiated_with_mean(nm, mean) * integral)
                 .sum::<f64>()
     }
 
-    /// Off-diagonal reradiation density k·a(λi)·e(λo), summed over fluorophores (1/nm).
+    /// Off-diagonal reradiation density Σ c·Q(λi)·a(λi)·e(λo) over fluorophores (1/nm).
+    /// Computes each λ̄e; use [`Material::fluorescence_with`] in loops.
     pub fn fluorescence(&self, excitation_nm: f64, emission_nm: f64) -> f64 {
+        self.fluorescence_with(excitation_nm, emission_nm, &self.emission_moments())
+    }
+
+    /// [`Material::fluorescence`] with the emission moments given.
+    pub fn fluorescence_with(
+        &self,
+        excitation_nm: f64,
+        emission_nm: f64,
+        emission_moments: &[(f64, f64)],
+    ) -> f64 {
         self.fluorophores
             .iter()
-            .map(|f| {
-                f.k()
-                    * f.absorption.eval_zero_outside(excitation_nm)
+            .zip(emission_moments)
+            .map(|(f, &(_, mean))| {
+                f.reradiated_with_mean(excitation_nm, mean)
                     * f.emission.eval_zero_outside(emission_nm)
             })
             .sum()
@@ -320,19 +507,15 @@ impl Material {
         let samples = self.sample_wavelengths();
         let mut points = samples.clone();
         points.extend(samples.windows(2).map(|w| 0.5 * (w[0] + w[1])));
-        let integrals = self.emission_integrals();
+        let moments = self.emission_moments();
         let max_energy_albedo = points
             .iter()
-            .map(|&l| self.energy_albedo_with(l, &integrals))
+            .map(|&l| self.energy_albedo_with(l, &moments))
             .fold(0.0, f64::max);
         let max_photon_ratio = self
             .fluorophores
             .iter()
-            .filter_map(|f| {
-                let shortest = f.shortest_absorbed_nm()?;
-                let mean = f.emission_mean_nm();
-                mean.is_finite().then(|| f.quantum_yield * mean / shortest)
-            })
+            .filter_map(Fluorophore::max_photon_yield)
             .fold(0.0, f64::max);
         Conservation {
             max_energy_albedo,
@@ -436,7 +619,7 @@ impl Material {
             return Err(Error::invalid(
                 "photons",
                 format!(
-                    "Q·λ̄e/λ reaches {}; a fluorophore may not emit more photons than it absorbs (lower the quantum yield)",
+                    "the photon yield (Q·λ̄e/λ, or Φ in the photon form) reaches {}; a fluorophore may not emit more photons than it absorbs (lower the quantum yield)",
                     margins.max_photon_ratio
                 ),
             ));

@@ -5,7 +5,8 @@ use crate::measurement::{Measurement, Units};
 use crate::spectrum::{bin_widths, find_wavelength};
 
 /// The reradiation matrix `material` predicts on the given grids:
-/// M[λi, λo] = [λi = λo]·d(λi) + Σ k·a(λi)·e(λo)·Δλo (per bin) or without Δλo (per nm).
+/// M[λi, λo] = [λi = λo]·d(λi) + Σ c·Q(λi)·a(λi)·e(λo)·Δλo (per bin) or without Δλo (per
+/// nm), with Q(λi) = Q (energy form) or Φ·λi/λ̄e (photon form).
 /// `with_diagonal` adds d on the cells where both grids share a wavelength.
 pub fn predict(
     material: &Material,
@@ -19,10 +20,11 @@ pub fn predict(
         Units::PerBin => bin_widths(emission_nm),
         Units::PerNm => vec![1.0; emission_nm.len()],
     };
+    let moments = material.emission_moments();
     let mut values = Vec::with_capacity(excitation_nm.len() * emission_nm.len());
     for &li in excitation_nm {
         for (&lo, w) in emission_nm.iter().zip(&widths) {
-            values.push(material.fluorescence(li, lo) * w);
+            values.push(material.fluorescence_with(li, lo, &moments) * w);
         }
     }
     let mut m = Measurement {

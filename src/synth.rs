@@ -417,6 +417,7 @@ impl SynthSpec {
         let fluorophore = Fluorophore {
             concentration: component.concentration,
             quantum_yield: component.yield_fraction_of_limit * limit,
+            yield_form: crate::material::YieldForm::Energy,
             concentration_range: None,
             absorption,
             emission,

@@ -20,7 +20,7 @@ use fluorite::render::{
     SpectralEstimate, SurfaceTables, render, spectral_radiance,
 };
 use fluorite::spectrum::uniform_grid;
-use fluorite::{Fluorophore, Material, Spectrum};
+use fluorite::{Fluorophore, Material, Spectrum, YieldForm};
 use glam::Vec3;
 
 // ---------------------------------------------------------------------------------------
@@ -48,6 +48,7 @@ fn gaussian_fluorophore(
     Fluorophore {
         concentration,
         quantum_yield,
+        yield_form: YieldForm::Energy,
         concentration_range: None,
         absorption: Spectrum::new(grid.clone(), a, "a").unwrap(),
         emission: Spectrum::new(grid, e.value.iter().map(|v| v / area).collect(), "e").unwrap(),
@@ -119,6 +120,7 @@ fn dye(path: &Path, concentration: f64) -> Fluorophore {
     let mut f = Fluorophore {
         concentration,
         quantum_yield: 1.0,
+        yield_form: YieldForm::Energy,
         concentration_range: None,
         absorption,
         emission,
@@ -674,6 +676,7 @@ fn energy_limit_material() -> Material {
         vec![Fluorophore {
             concentration: 1.0,
             quantum_yield: 1.0,
+            yield_form: YieldForm::Energy,
             concentration_range: None,
             absorption: Spectrum::new(grid.clone(), a, "a").unwrap(),
             emission: Spectrum::new(grid, e.value.iter().map(|v| v / area).collect(), "e").unwrap(),

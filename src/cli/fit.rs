@@ -39,9 +39,15 @@ pub struct FitArgs {
     /// Starting point of the iterative solvers.
     #[arg(long, value_enum, default_value = "closed-form")]
     pub start: Start,
-    /// Exclude cells within this many nm of the diagonal (crosstalk). Default: one grid step.
+    /// Set aside cells within this many nm of the diagonal. Default: none (they are
+    /// mostly fluorescence); the output says how much measured signal a guard sets aside.
     #[arg(long)]
     pub guard: Option<f64>,
+    /// Yield form of the fluorophores: `energy` (constant energy yield Q, the paper's),
+    /// `photon` (constant photon yield Φ; energy yield Φ·λi/λ̄e), or `auto` (energy unless
+    /// its photon law binds and costs fit).
+    #[arg(long = "yield", value_enum, default_value = "auto")]
+    pub yield_choice: fluorite::fit::YieldChoice,
     /// Pin the energy quantum yield Q from outside knowledge (c = k/Q).
     #[arg(long, conflicts_with = "concentration")]
     pub quantum_yield: Option<f64>,
@@ -151,6 +157,7 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
     let options = FitOptions {
         solver: args.solver,
         guard_nm: args.guard,
+        yield_choice: args.yield_choice,
         quantum_yield: args.quantum_yield,
         concentration: args.concentration,
         max_iterations: args.max_iterations,

@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 
 use crate::colour::{Light, PatchColorimeter, delta_e2000, xyz_to_lab};
 use crate::material::Material;
-use crate::measurement::{CellKind, Measurement};
+use crate::measurement::Measurement;
 use crate::model::predict;
 
 use super::data::{Cell, FitData};
@@ -12,7 +12,7 @@ use super::data::{Cell, FitData};
 /// Accuracy figures of a fit.
 #[derive(Debug, Clone, Default)]
 pub struct Accuracy {
-    /// ‖M − F‖/‖M‖ over the Stokes-side cells outside the guard band.
+    /// ‖M − F‖/‖M‖ over the Stokes-side cells the fit uses.
     pub rel_residual_fluorescence: f64,
     /// RMSE of the diagonal.
     pub rmse_diagonal: f64,
@@ -20,6 +20,8 @@ pub struct Accuracy {
     pub rms_off_diagonal: f64,
     /// ΔE2000 per light.
     pub delta_e2000: BTreeMap<String, f64>,
+    /// What of the colour reference was filled from the model (missing cells).
+    pub filled: FilledReference,
 }
 
 /// Residual figures and ΔE2000 for `material` against measurement `m`.
@@ -56,9 +58,11 @@ pub fn accuracy(
         (s / cells.len() as f64).sqrt()
     };
     let mut delta_e = BTreeMap::new();
+    let mut filled = FilledReference::default();
     if m.has_diagonal && !m.arbitrary_scale {
         let fitted_per_bin = fitted.to_per_bin();
-        let measured = measured_patch(m, &fitted_per_bin, data.guard_nm);
+        filled = filled_reference(m, &fitted_per_bin, lights);
+        let measured = measured_patch(m, &fitted_per_bin);
         for light in lights {
             let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
             let lab_m = xyz_to_lab(pc.xyz(&measured), pc.white);
@@ -71,27 +75,67 @@ pub fn accuracy(
         rmse_diagonal: rms(&data.diagonal),
         rms_off_diagonal: rms(&data.off_diagonal),
         delta_e2000: delta_e,
+        filled,
     }
 }
 
-/// The measured patch the colour is judged on, per bin: every measured cell outside the
-/// guard band. Guard cells hold instrument crosstalk (neither reflectance nor
-/// fluorescence) mixed with the fluorescence right next to the diagonal, and missing
-/// cells hold nothing: both are taken from `fitted_per_bin`, so neither side is judged
-/// on what the data cannot tell.
-pub fn measured_patch(m: &Measurement, fitted_per_bin: &Measurement, guard_nm: f64) -> Measurement {
+/// The measured patch the colour is judged on, per bin: the measurement as measured
+/// (model.md §7). Every measured cell counts, the cells next to the diagonal included;
+/// only cells the file does not hold (missing) are taken from `fitted_per_bin`. A
+/// reference that borrowed any measured cell from the fit would let the fit grade itself.
+pub fn measured_patch(m: &Measurement, fitted_per_bin: &Measurement) -> Measurement {
     let mut measured = m.to_per_bin();
-    for i in 0..m.n_excitation() {
-        for j in 0..m.n_emission() {
-            if matches!(
-                m.cell_kind(i, j, guard_nm),
-                CellKind::Missing | CellKind::Guard
-            ) {
-                *measured.get_mut(i, j) = fitted_per_bin.get(i, j);
-            }
+    for (v, f) in measured.values.iter_mut().zip(&fitted_per_bin.values) {
+        if !v.is_finite() {
+            *v = *f;
         }
     }
     measured
+}
+
+/// How much of the colour reference was not measured: the cells filled from the model
+/// and the largest share, over `lights`, of the reference patch's light they carry.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FilledReference {
+    /// Cells the file does not hold.
+    pub cells: usize,
+    /// Largest share over the lights of the patch's luminance (Y) those cells carry.
+    pub light_share: f64,
+}
+
+/// [`FilledReference`] of the patch [`measured_patch`] builds from `m` and
+/// `fitted_per_bin`.
+pub fn filled_reference(
+    m: &Measurement,
+    fitted_per_bin: &Measurement,
+    lights: &[Light],
+) -> FilledReference {
+    let missing: Vec<bool> = m.values.iter().map(|v| !v.is_finite()).collect();
+    let cells = missing.iter().filter(|&&x| x).count();
+    if cells == 0 {
+        return FilledReference::default();
+    }
+    let reference = measured_patch(m, fitted_per_bin);
+    let mut filled_only = reference.clone();
+    for (v, &is_missing) in filled_only.values.iter_mut().zip(&missing) {
+        if !is_missing {
+            *v = 0.0;
+        }
+    }
+    let light_share = lights
+        .iter()
+        .map(|light| {
+            let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
+            let total = pc.xyz(&reference)[1];
+            let filled = pc.xyz(&filled_only)[1];
+            if total.abs() > 0.0 {
+                (filled / total).abs()
+            } else {
+                0.0
+            }
+        })
+        .fold(0.0, f64::max);
+    FilledReference { cells, light_share }
 }
 
 /// Wavelength ranges (`"300–350 nm"`) of the flagged samples of `grid`.

@@ -75,14 +75,29 @@ impl Solver {
     }
 }
 
+/// Which yield form the fitted fluorophores take (model.md §3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum YieldChoice {
+    /// The paper's constant energy yield Q.
+    Energy,
+    /// A constant photon yield Φ (energy yield Φ·λi/λ̄e).
+    Photon,
+    /// The energy form unless its photon law binds and costs fit; then the photon form,
+    /// and the report says why.
+    #[default]
+    Auto,
+}
+
 /// How to fit.
 #[derive(Debug, Clone)]
 pub struct FitOptions {
     /// Refinement method.
     pub solver: Solver,
-    /// Cells within this many nm of the diagonal are excluded as crosstalk (default: one
-    /// grid step).
+    /// Cells within this many nm of the diagonal are set aside (default: none; the cells
+    /// next to the diagonal are mostly fluorescence, model.md §5).
     pub guard_nm: Option<f64>,
+    /// The yield form of the fitted fluorophores.
+    pub yield_choice: YieldChoice,
     /// Pin the energy quantum yield Q (outside knowledge); c = k/Q.
     pub quantum_yield: Option<f64>,
     /// Pin the concentration c; Q = k/c.
@@ -112,6 +127,7 @@ impl Default for FitOptions {
         FitOptions {
             solver: Solver::Lbfgs,
             guard_nm: None,
+            yield_choice: YieldChoice::Auto,
             quantum_yield: None,
             concentration: None,
             max_iterations: 500,
@@ -200,7 +216,7 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
     let started = Instant::now();
     validate_options(options)?;
     m.validate()?;
-    let guard_nm = options.guard_nm.unwrap_or_else(|| m.default_guard_nm());
+    let guard_nm = options.guard_nm.unwrap_or(0.0);
     // Arbitrary-scale data (counts) are brought to a scale where the rank-1 start has
     // κ = ½, so that the bound κ ≤ 1 (meaningless in counts) never binds; the scale is
     // reported back in data units.
@@ -429,6 +445,8 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
     fit.rel_residual_fluorescence = accuracy.rel_residual_fluorescence;
     fit.rmse_diagonal = accuracy.rmse_diagonal;
     fit.delta_e2000 = accuracy.delta_e2000;
+    fit.reference_filled_cells = accuracy.filled.cells;
+    fit.reference_filled_share = accuracy.filled.light_share;
     let rss = accuracy.rms_off_diagonal.powi(2) * data.off_diagonal.len() as f64
         + accuracy.rmse_diagonal.powi(2) * data.diagonal.len() as f64;
     let residuals = (data.off_diagonal.len() + data.diagonal.len()).max(1) as f64;
@@ -857,6 +875,7 @@ fn build_material(
     let fluorophore = Fluorophore {
         concentration,
         quantum_yield,
+        yield_form: crate::material::YieldForm::Energy,
         concentration_range: Some([c_min, c_max]),
         absorption: Spectrum::new(data.excitation_nm.clone(), absorption, "absorption")?,
         emission: Spectrum::new(data.emission_nm.clone(), emission, "emission")?,
@@ -1006,6 +1025,8 @@ fn plain_reflector(
     fit.rel_residual_fluorescence = accuracy.rel_residual_fluorescence;
     fit.rmse_diagonal = accuracy.rmse_diagonal;
     fit.delta_e2000 = accuracy.delta_e2000;
+    fit.reference_filled_cells = accuracy.filled.cells;
+    fit.reference_filled_share = accuracy.filled.light_share;
     fit.warnings = warnings;
     fit.seconds = started.elapsed().as_secs_f64();
     FitOutcome::Material(Box::new(material))

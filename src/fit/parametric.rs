@@ -965,6 +965,7 @@ impl Problem<'_> {
             let mut fluorophore = Fluorophore {
                 concentration,
                 quantum_yield: 0.0,
+                yield_form: crate::material::YieldForm::Energy,
                 concentration_range: None,
                 absorption: absorption_samples,
                 emission: emission_samples,

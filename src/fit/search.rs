@@ -236,7 +236,7 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         ),
     };
 
-    let reference = measured_xyz(m, &data, &base, lights);
+    let reference = measured_xyz(m, &base, lights);
     // A fixed model gets the tolerance asked for; the search's candidates at most
     // SEARCH_TOLERANCE (the choice is made on ΔE, which the last digits of the cost do
     // not move).
@@ -504,10 +504,9 @@ fn worst_light_reach(
 }
 
 /// XYZ of the measured patch under each light, as the accuracy report sees it
-/// ([`assess::measured_patch`], guard and missing cells from the tabulated fit).
+/// ([`assess::measured_patch`]: every measured cell, missing ones from the tabulated fit).
 fn measured_xyz(
     m: &Measurement,
-    data: &FitData,
     base: &Material,
     lights: &[crate::colour::Light],
 ) -> Vec<crate::colour::Xyz> {
@@ -520,7 +519,7 @@ fn measured_xyz(
         m.has_diagonal,
     )
     .to_per_bin();
-    let measured = assess::measured_patch(m, &fitted, data.guard_nm);
+    let measured = assess::measured_patch(m, &fitted);
     lights
         .iter()
         .map(|light| {
