@@ -501,6 +501,44 @@ impl Material {
         Ok(())
     }
 
+    /// Lowers the reflectance samples around any wavelength where the energy albedo ρ
+    /// exceeds 1 (within [`BOUND_TOLERANCE`]): a fit bounds ρ at its grid samples, but in
+    /// the photon form the emitted term c·Φ·a(λ)·λ/λ̄e is quadratic between samples and
+    /// can rise above the chord. Returns the largest reduction of r (0 when none).
+    pub fn lower_reflectance_to_energy_bound(&mut self) -> f64 {
+        let mut largest: f64 = 0.0;
+        for _ in 0..20 {
+            let samples = self.sample_wavelengths();
+            let mut points = samples.clone();
+            points.extend(samples.windows(2).map(|w| 0.5 * (w[0] + w[1])));
+            let moments = self.emission_moments();
+            let mut changed = false;
+            for &l in &points {
+                let excess = self.energy_albedo_with(l, &moments) - 1.0;
+                if excess <= 0.5 * BOUND_TOLERANCE {
+                    continue;
+                }
+                let transmitted = (1.0 - self.absorbed(l)).max(1e-12);
+                // Lower both samples bracketing λ (the reflectance holds its ends outside).
+                let grid = &self.reflectance.wavelength_nm;
+                let upper = grid.partition_point(|&g| g < l).min(grid.len() - 1);
+                let lower = upper.saturating_sub(1);
+                let cut = excess / transmitted + BOUND_TOLERANCE;
+                for i in [lower, upper] {
+                    let v = &mut self.reflectance.value[i];
+                    let new = (*v - cut).max(0.0);
+                    largest = largest.max(*v - new);
+                    *v = new;
+                }
+                changed = true;
+            }
+            if !changed {
+                break;
+            }
+        }
+        largest
+    }
+
     /// Computes the conservation margins. The albedo is piecewise linear-times-linear
     /// between samples, so it is evaluated at every sample and at midpoints.
     pub fn conservation_margins(&self) -> Conservation {

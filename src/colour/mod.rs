@@ -262,6 +262,30 @@ pub fn xyz_to_lab(xyz: Xyz, white: Xyz) -> Lab {
     [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)]
 }
 
+/// ∂(L*, a*, b*)/∂(X, Y, Z) at `xyz` against `white`.
+pub fn lab_jacobian(xyz: Xyz, white: Xyz) -> [[f64; 3]; 3] {
+    let delta: f64 = 6.0 / 29.0;
+    let slope = |value: f64, reference: f64| {
+        let t = value / reference.max(1e-300);
+        let df = if t > delta.powi(3) {
+            t.powf(-2.0 / 3.0) / 3.0
+        } else {
+            1.0 / (3.0 * delta * delta)
+        };
+        df / reference.max(1e-300)
+    };
+    let (fx, fy, fz) = (
+        slope(xyz[0], white[0]),
+        slope(xyz[1], white[1]),
+        slope(xyz[2], white[2]),
+    );
+    [
+        [0.0, 116.0 * fy, 0.0],
+        [500.0 * fx, -500.0 * fy, 0.0],
+        [0.0, 200.0 * fy, -200.0 * fz],
+    ]
+}
+
 /// CIEDE2000 colour difference (Sharma, Wu, Dalal 2005), kL = kC = kH = 1.
 pub fn delta_e2000(lab1: Lab, lab2: Lab) -> f64 {
     use std::f64::consts::PI;

@@ -10,8 +10,8 @@ use super::representation::GridSpectra;
 /// Fluorescence peak below this many noise σ: a and e are dominated by noise. In the
 /// stability sweeps the shape error is about 3/ratio, so it passes 10 % near 30.
 pub const LOW_SIGNAL_RATIO: f64 = 30.0;
-/// Residual RMS of the first cells outside the guard band, in noise σ and relative to
-/// the residual of the other cells, that marks crosstalk wider than the guard band.
+/// Residual RMS of the first fitted cells next to the diagonal (or the guard band), in
+/// noise σ and relative to the residual of the other cells, that marks crosstalk.
 pub const CROSSTALK_RESIDUAL_FACTOR: f64 = 3.0;
 /// An absorption band resolved by at most this many excitation samples above half its
 /// maximum is under-sampled: its width and peak, hence colour under spiky lights, are
@@ -20,14 +20,14 @@ pub const MIN_SAMPLES_ACROSS_BAND: usize = 2;
 
 /// Runs every check and appends a warning for each that fires.
 pub fn after_refinement(
-    data: &FitData,
+    objective: &Objective<'_>,
     spectra: &GridSpectra,
     noise_sigma: f64,
     warnings: &mut Vec<String>,
 ) {
-    let objective = Objective { data };
-    let scale = objective.derived(spectra).scale;
-    let fitted = |i: usize, j: usize| scale * spectra.absorption[i] * spectra.emission[j];
+    let data = objective.data;
+    let derived = objective.derived(spectra);
+    let fitted = |i: usize, j: usize| objective.fitted(spectra, &derived, i, j);
     low_signal(data, &fitted, noise_sigma, warnings);
     wide_crosstalk(data, &fitted, noise_sigma, warnings);
     undersampled_absorption(data, spectra, warnings);
@@ -53,8 +53,9 @@ fn low_signal(
     }
 }
 
-/// Crosstalk reaching past the guard band shows as a residual concentrated in the first
-/// cells outside it (on both sides of the diagonal).
+/// Crosstalk the fit does not model (next to the diagonal, or past the guard band when one
+/// is set) shows as a residual concentrated in the first cells it fits, on both sides of
+/// the diagonal.
 fn wide_crosstalk(
     data: &FitData,
     fitted: &dyn Fn(usize, usize) -> f64,
@@ -81,8 +82,12 @@ fn wide_crosstalk(
     let far_rms = (far / n_far as f64).sqrt();
     if near_rms > CROSSTALK_RESIDUAL_FACTOR * noise_sigma.max(far_rms) {
         warnings.push(format!(
-            "residual concentrated next to the {} nm guard band (RMS {near_rms:.2e}, {:.1}× the rest): crosstalk reaches past the guard band; raise --guard to {}",
-            data.guard_nm,
+            "residual concentrated in the cells next to the {} (RMS {near_rms:.2e}, {:.1}× the rest): crosstalk (e.g. a wavelength offset between the monochromators) the model does not hold, or fluorescence of a small Stokes shift it misses; --guard {} sets those cells aside",
+            if data.guard_nm > 0.0 {
+                format!("{} nm guard band", data.guard_nm)
+            } else {
+                "diagonal".to_string()
+            },
             near_rms / far_rms.max(noise_sigma).max(f64::MIN_POSITIVE),
             data.guard_nm + step
         ));

@@ -25,7 +25,9 @@ use std::time::Instant;
 
 use crate::colour::{Light, PatchColorimeter, delta_e2000, xyz_to_lab};
 use crate::error::{Error, Result};
-use crate::material::{FitReport, Fluorophore, FluorophoreShapes, Material, SHAPES_SCHEMA};
+use crate::material::{
+    FitReport, Fluorophore, FluorophoreShapes, Material, SHAPES_SCHEMA, YieldForm,
+};
 use crate::measurement::Measurement;
 use crate::measurement::Units;
 use crate::spectrum::Spectrum;
@@ -200,6 +202,97 @@ const POOR_START_MARGIN: f64 = 1e-6;
 /// The largest κ a start may have (see [`start_spectra`]).
 const START_KAPPA_CAP: f64 = 0.98;
 
+/// A refined κ at least this high counts as the photon law binding (`--yield auto`): the
+/// smallest feasible c is 1, so the fluorescence is held at its limit.
+const PHOTON_BINDS_KAPPA: f64 = 0.999;
+
+/// `--yield auto` takes the photon form only when its objective is lower than the energy
+/// form's by more than this fraction (plus ½σ²): forms that fit equally keep the paper's.
+const YIELD_FORM_MARGIN: f64 = 1e-3;
+
+/// One yield form fitted: the objective, the refinement and where it ended.
+struct FormFit<'a> {
+    objective: Objective<'a>,
+    refined: solve::Refined,
+    spectra: GridSpectra,
+    cost: f64,
+    cost_history: Vec<f64>,
+    kappa_unbounded: f64,
+}
+
+/// Starts and refines the grid model in one yield form.
+#[allow(clippy::too_many_arguments)]
+fn refine_form<'a>(
+    data: &'a FitData,
+    representation: &Tabulated,
+    start: &init::RankOne,
+    form: YieldForm,
+    colour: Option<objective::ColourTerm>,
+    options: &FitOptions,
+    noise_sigma: f64,
+    total_energy: f64,
+) -> Result<FormFit<'a>> {
+    let _ = noise_sigma;
+    let objective = Objective::new(data, form).with_colour(colour);
+    let estimate = start_spectra(&objective, start);
+    let closed_form = estimate.spectra;
+    let start_spectra = match options.start {
+        Start::ClosedForm => closed_form.clone(),
+        Start::Flat => flat_start(&closed_form),
+    };
+    let theta0 = representation.encode(&start_spectra);
+    let energy_scale = total_energy + data.diagonal.iter().map(|c| c.value * c.value).sum::<f64>();
+    // Stop when the gradient is negligible against the data, or when an iteration
+    // improves the cost by less than `tolerance` of the starting cost.
+    let start_cost = objective.cost_gradient(&start_spectra).0;
+    let stopping = solve::Stopping {
+        max_iterations: options.max_iterations,
+        gradient_tolerance: options.tolerance * energy_scale.sqrt().max(1e-300),
+        cost_tolerance: options.tolerance * start_cost.max(1e-300),
+    };
+    let refined = match options.solver {
+        Solver::Init => solve::Refined {
+            theta: theta0.clone(),
+            iterations: start.sweeps as u64,
+            converged: start.converged,
+            termination: if start.converged {
+                "alternating least squares converged".into()
+            } else {
+                "alternating least squares sweep limit".into()
+            },
+            cost_history: start.cost_history.clone(),
+        },
+        Solver::Lbfgs => solve::lbfgs(objective.clone(), representation, &theta0, stopping)
+            .map_err(Error::Fit)?,
+        Solver::GaussNewton => {
+            solve::gauss_newton(objective.clone(), representation, &theta0, stopping)
+                .map_err(Error::Fit)?
+        }
+        Solver::NelderMead => {
+            solve::nelder_mead(objective.clone(), representation, &theta0, stopping)
+                .map_err(Error::Fit)?
+        }
+    };
+    let mut cost_history = if options.solver == Solver::Init {
+        refined.cost_history.clone()
+    } else {
+        let mut h = vec![start_cost];
+        h.extend(&refined.cost_history);
+        h
+    };
+    cost_history.retain(|c| c.is_finite());
+    let spectra = representation.spectra(&refined.theta);
+    let cost = objective.cost_gradient(&spectra).0;
+    Ok(FormFit {
+        objective,
+        refined,
+        spectra,
+        cost,
+        cost_history,
+        kappa_unbounded: estimate.kappa_unbounded,
+    })
+}
+
 /// Fits the model to `m`.
 pub fn fit(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
     match options.model {
@@ -247,7 +340,6 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
         n_excitation: data.n_excitation(),
         n_emission: data.n_emission(),
     };
-    let objective = Objective { data: &data };
     let mut warnings = Vec::new();
 
     // 1. Closed-form start.
@@ -287,65 +379,107 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
         ));
     }
 
-    let closed_form = start_spectra(&objective, &start, &mut warnings).spectra;
-    let start_spectra = match options.start {
-        Start::ClosedForm => closed_form.clone(),
-        Start::Flat => flat_start(&closed_form),
-    };
-    let theta0 = representation.encode(&start_spectra);
-
-    // 2. Refinement.
-    let energy_scale = total_energy + data.diagonal.iter().map(|c| c.value * c.value).sum::<f64>();
-    // Stop when the gradient is negligible against the data, or when an iteration
-    // improves the cost by less than `tolerance` of the starting cost.
-    let start_cost = objective.cost_gradient(&start_spectra).0;
-    let stopping = solve::Stopping {
-        max_iterations: options.max_iterations,
-        gradient_tolerance: options.tolerance * energy_scale.sqrt().max(1e-300),
-        cost_tolerance: options.tolerance * start_cost.max(1e-300),
-    };
-    let refined = match options.solver {
-        Solver::Init => solve::Refined {
-            theta: theta0.clone(),
-            iterations: start.sweeps as u64,
-            converged: start.converged,
-            termination: if start.converged {
-                "alternating least squares converged".into()
-            } else {
-                "alternating least squares sweep limit".into()
-            },
-            cost_history: start.cost_history.clone(),
-        },
-        Solver::Lbfgs => solve::lbfgs(
-            Objective { data: &data },
-            &representation,
-            &theta0,
-            stopping,
-        )
-        .map_err(Error::Fit)?,
-        Solver::GaussNewton => solve::gauss_newton(
-            Objective { data: &data },
-            &representation,
-            &theta0,
-            stopping,
-        )
-        .map_err(Error::Fit)?,
-        Solver::NelderMead => solve::nelder_mead(
-            Objective { data: &data },
-            &representation,
-            &theta0,
-            stopping,
-        )
-        .map_err(Error::Fit)?,
-    };
-    let mut cost_history = if options.solver == Solver::Init {
-        refined.cost_history.clone()
+    // Colour term: the flat patch under the scene's lights, so that the grid model is
+    // good in colour as well as in cells (a least-squares fit of the cells alone misses
+    // CIBA12 under A by ΔE2000 1.4).
+    let colour = if m.has_diagonal && !m.arbitrary_scale && options.colour_weight > 0.0 {
+        let per_bin = m_fit.to_per_bin();
+        let reference: Vec<crate::colour::Xyz> = options
+            .lights
+            .iter()
+            .map(|light| {
+                PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm).xyz(&per_bin)
+            })
+            .collect();
+        Some(objective::ColourTerm::new(
+            &data,
+            &options.lights,
+            &reference,
+            options.colour_weight,
+        ))
     } else {
-        let mut h = vec![start_cost];
-        h.extend(&refined.cost_history);
-        h
+        None
     };
-    cost_history.retain(|c| c.is_finite());
+    let forms: &[YieldForm] = if !m.has_diagonal || m.arbitrary_scale {
+        // Without a calibrated diagonal only the shapes are fitted; the form changes none.
+        &[YieldForm::Energy]
+    } else {
+        match options.yield_choice {
+            // A pinned --quantum-yield is an energy yield Q unless --yield photon says Φ.
+            YieldChoice::Energy | YieldChoice::Auto => &[YieldForm::Energy],
+            YieldChoice::Photon => &[YieldForm::Photon],
+        }
+    };
+    let mut chosen = refine_form(
+        &data,
+        &representation,
+        &start,
+        forms[0],
+        colour.clone(),
+        options,
+        noise_sigma,
+        total_energy,
+    )?;
+    let mut yield_reason = match options.yield_choice {
+        YieldChoice::Energy => "energy form (constant Q), as asked (--yield energy)".to_string(),
+        YieldChoice::Photon => "photon form (constant Φ), as asked (--yield photon)".to_string(),
+        YieldChoice::Auto => String::new(),
+    };
+    if options.yield_choice == YieldChoice::Auto && options.quantum_yield.is_some() {
+        yield_reason =
+            "energy form (constant Q): --quantum-yield pins Q (give --yield photon to pin Φ)"
+                .into();
+    } else if options.yield_choice == YieldChoice::Auto
+        && forms[0] == YieldForm::Energy
+        && m.has_diagonal
+        && !m.arbitrary_scale
+    {
+        let binds = chosen.kappa_unbounded > 1.0 || chosen.spectra.kappa >= PHOTON_BINDS_KAPPA;
+        if binds {
+            let photon = refine_form(
+                &data,
+                &representation,
+                &start,
+                YieldForm::Photon,
+                colour.clone(),
+                options,
+                noise_sigma,
+                total_energy,
+            )?;
+            let margin = YIELD_FORM_MARGIN * chosen.cost + 0.5 * noise_sigma * noise_sigma;
+            if photon.cost < chosen.cost - margin {
+                yield_reason = format!(
+                    "photon form (constant Φ): in the energy form the photon law binds (c ≥ {:.3} needed for the cells, so the fluorescence is scaled down) and the photon form fits better (objective {:.4e} against {:.4e})",
+                    chosen.kappa_unbounded, photon.cost, chosen.cost
+                );
+                chosen = photon;
+            } else {
+                yield_reason = format!(
+                    "energy form (constant Q): its photon law binds but the photon form fits no better (objective {:.4e} against {:.4e})",
+                    photon.cost, chosen.cost
+                );
+            }
+        } else {
+            yield_reason = format!(
+                "energy form (constant Q): its photon law does not bind (c ≥ {:.3} suffices)",
+                chosen.kappa_unbounded
+            );
+        }
+    }
+    let FormFit {
+        objective,
+        refined,
+        spectra,
+        cost_history,
+        kappa_unbounded,
+        ..
+    } = chosen;
+    if kappa_unbounded > 1.0 {
+        warnings.push(format!(
+            "the unconstrained rank-1 estimate needs c ≥ {kappa_unbounded:.3} > 1 in the {} form: conservation caps the fluorescence, the fit scales it down",
+            objective.form.name()
+        ));
+    }
     if !refined.converged {
         warnings.push(format!(
             "{} stopped before converging ({}) after {} iterations; raise --max-iterations or try another --solver",
@@ -354,16 +488,16 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
             refined.iterations
         ));
     }
-    let spectra = representation.spectra(&refined.theta);
     // A solver started away from the closed-form estimate can stall in a local minimum
     // or a flat region (the stability sweep's "poor start" regime): a result costlier
     // than the estimate it skipped is worse than no refinement at all.
     if options.start != Start::ClosedForm {
         let refined_cost = objective.cost_gradient(&spectra).0;
+        let closed_form = start_spectra(&objective, &start).spectra;
         let closed_form_cost = objective.cost_gradient(&closed_form).0;
         // Costs differing by less than what p fitted parameters absorb of the noise
         // (½·p·σ²) are equally good fits.
-        let noise_margin = 0.5 * theta0.len() as f64 * noise_sigma * noise_sigma;
+        let noise_margin = 0.5 * representation.n_params() as f64 * noise_sigma * noise_sigma;
         if refined_cost > closed_form_cost * (1.0 + POOR_START_MARGIN) + noise_margin {
             warnings.push(format!(
                 "{} from the {:?} start ended at cost {refined_cost:.3e}, above the closed-form estimate's {closed_form_cost:.3e}: stuck in a local minimum or flat region; use the default start",
@@ -372,7 +506,7 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
             ));
         }
     }
-    checks::after_refinement(&data, &spectra, noise_sigma, &mut warnings);
+    checks::after_refinement(&objective, &spectra, noise_sigma, &mut warnings);
 
     // 3. Material and gauge.
     let report = FitReport {
@@ -392,6 +526,7 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
         guard_signal_fraction: guard_fraction(&data),
         cost_history,
         model: "tabulated".into(),
+        yield_choice: yield_reason,
         parameter_count: 1
             + (data.n_excitation() - 1)
             + (data.n_emission() - 1)
@@ -454,6 +589,17 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
         Some(rss / noise_sigma.max(1e-12).powi(2) + fit.parameter_count as f64 * residuals.ln());
     fit.warnings = warnings;
     fit.seconds = started.elapsed().as_secs_f64();
+    let lowered = material.lower_reflectance_to_energy_bound();
+    if lowered > 1e-3 {
+        material
+            .fit
+            .as_mut()
+            .expect("report set above")
+            .warnings
+            .push(format!(
+                "reflectance lowered by up to {lowered:.4} between grid samples to keep the energy albedo ≤ 1"
+            ));
+    }
     material.conservation = Some(material.conservation_margins());
     material.validate().map_err(|e| {
         Error::Fit(format!(
@@ -579,7 +725,7 @@ fn noise_colour_check(
 fn arbitrary_data_scale(m: &Measurement, guard_nm: f64) -> f64 {
     let data = FitData::new(m, guard_nm);
     let start = init::rank_one(&data, MAX_SWEEPS);
-    let kappa = start_spectra(&Objective { data: &data }, &start, &mut Vec::new()).kappa_unbounded;
+    let kappa = start_spectra(&Objective::new(&data, YieldForm::Energy), &start).kappa_unbounded;
     if kappa.is_finite() && kappa > 0.0 {
         kappa / 0.5
     } else {
@@ -654,15 +800,17 @@ struct StartEstimate {
     kappa_unbounded: f64,
 }
 
-/// Grid spectra from the rank-1 start, projected onto the feasible set (κ ≤ 1).
-fn start_spectra(
-    objective: &Objective<'_>,
-    start: &init::RankOne,
-    warnings: &mut Vec<String>,
-) -> StartEstimate {
-    let peak = start.row.iter().cloned().fold(0.0, f64::max);
-    let absorption: Vec<f64> = start
+/// Grid spectra from the rank-1 start, projected onto the feasible set (κ ≤ 1). The
+/// rank-1 row is s·a_i·x_i: in the photon form a_i ∝ row_i/λ_i.
+fn start_spectra(objective: &Objective<'_>, start: &init::RankOne) -> StartEstimate {
+    let row: Vec<f64> = start
         .row
+        .iter()
+        .enumerate()
+        .map(|(i, u)| u / objective.row_factor(i))
+        .collect();
+    let peak = row.iter().cloned().fold(0.0, f64::max);
+    let absorption: Vec<f64> = row
         .iter()
         .map(|u| if peak > 0.0 { u / peak } else { 0.0 })
         .collect();
@@ -689,13 +837,8 @@ fn start_spectra(
         emission,
     };
     let d = objective.derived(&sp);
-    // F = u·v = peak·normaliser · a·(v/normaliser) = s·a·v with s = κ/(γ·S), S = 1.
-    let kappa = peak * normaliser * d.photon_factor;
-    if kappa > 1.0 {
-        warnings.push(format!(
-            "the unconstrained rank-1 estimate needs c ≥ {kappa:.3} > 1 (k·λ̄e/λmin): conservation caps the fluorescence, the fit scales it down"
-        ));
-    }
+    // F = u·v = peak·normaliser · a·x·(v/normaliser) = s·a·x·v with s = κ/(κ/s) and S = 1.
+    let kappa = peak * normaliser * d.kappa_per_scale;
     // Start strictly inside: with κ = sin²t the bound κ = 1 is a stationary point
     // (dκ/dt = 0), where a start exactly on it would stay although the optimum lies inside.
     sp.kappa = kappa.min(START_KAPPA_CAP);
@@ -740,7 +883,7 @@ fn build_material(
         emission,
         k,
         peak,
-    } = normalised(data, &derived, sp);
+    } = normalised(objective, &derived, sp);
     // The smallest feasible c is k·γ = κ·peak.
     let c_min = (sp.kappa * peak).min(1.0);
 
@@ -766,7 +909,14 @@ fn build_material(
     let cap: Vec<f64> = data
         .diagonal_positions
         .iter()
-        .map(|&(i, _)| 1.0 - c_min * absorption[i])
+        .map(|&(i, _)| {
+            let li = data.excitation_nm[i];
+            let m = match objective.form {
+                YieldForm::Energy => 1.0,
+                YieldForm::Photon => (li / derived.emission_mean_nm).max(1.0),
+            };
+            1.0 - c_min * absorption[i] * m
+        })
         .collect();
     fill_missing(&mut diagonal, &wavelengths, &cap, &m.name)?;
     if diagonal.iter().any(|d| d.is_nan()) {
@@ -785,7 +935,12 @@ fn build_material(
         }
     }
     let c_max = c_max.max(c_min);
+    // The largest yield photons allow: Q ≤ λmin/λ̄e (energy form), Φ ≤ 1 (photon form).
     let photon_limit_q = 1.0 / derived.photon_factor;
+    let yield_symbol = match objective.form {
+        YieldForm::Energy => "Q",
+        YieldForm::Photon => "Φ",
+    };
     let (concentration, gauge) = match (options.quantum_yield, options.concentration) {
         (Some(q), _) => {
             if q > photon_limit_q * (1.0 + 1e-12) {
@@ -809,7 +964,9 @@ fn build_material(
             }
             (
                 c.clamp(c_min, c_max),
-                format!("quantum yield pinned at {q} by the user: c = k/Q"),
+                format!(
+                    "quantum yield pinned at {yield_symbol} = {q} by the user: c = k/{yield_symbol}"
+                ),
             )
         }
         (None, Some(c)) => {
@@ -832,20 +989,26 @@ fn build_material(
             }
             (
                 c.clamp(c_min, c_max),
-                format!("concentration pinned at {c} by the user: Q = k/c"),
+                format!("concentration pinned at {c} by the user: {yield_symbol} = k/c"),
             )
         }
         (None, None) => (
             c_min,
-            format!(
-                "smallest feasible c (c = k·max(1, λ̄e/λmin) = {c_min:.4}, so Q = {:.4} sits at its {} limit); any c in [{c_min:.4}, {c_max:.4}] gives the same matrix — pin one with --quantum-yield or --concentration",
-                if c_min > 0.0 { k / c_min } else { 0.0 },
-                if derived.photon_limited {
-                    "photon"
-                } else {
-                    "energy"
-                }
-            ),
+            match objective.form {
+                YieldForm::Energy => format!(
+                    "smallest feasible c (c = k·max(1, λ̄e/λmin) = {c_min:.4}, so Q = {:.4} sits at its {} limit); any c in [{c_min:.4}, {c_max:.4}] gives the same matrix — pin one with --quantum-yield or --concentration",
+                    if c_min > 0.0 { k / c_min } else { 0.0 },
+                    if derived.photon_limited {
+                        "photon"
+                    } else {
+                        "energy"
+                    }
+                ),
+                YieldForm::Photon => format!(
+                    "smallest feasible c (c = k = c·Φ = {c_min:.4}, so the photon yield Φ = {:.4} sits at its limit); any c in [{c_min:.4}, {c_max:.4}] gives the same matrix — pin one with --quantum-yield (Φ) or --concentration",
+                    if c_min > 0.0 { k / c_min } else { 0.0 },
+                ),
+            },
         ),
     };
     if c_min >= 1.0 - 1e-9 {
@@ -875,7 +1038,7 @@ fn build_material(
     let fluorophore = Fluorophore {
         concentration,
         quantum_yield,
-        yield_form: crate::material::YieldForm::Energy,
+        yield_form: objective.form,
         concentration_range: Some([c_min, c_max]),
         absorption: Spectrum::new(data.excitation_nm.clone(), absorption, "absorption")?,
         emission: Spectrum::new(data.emission_nm.clone(), emission, "emission")?,
@@ -902,7 +1065,12 @@ struct Normalised {
 }
 
 /// Normalises grid spectra: F = s·a·v = (s·peak·S)·(a/peak)·(v/S), so k = s·peak·S.
-fn normalised(data: &FitData, derived: &objective::Derived, sp: &GridSpectra) -> Normalised {
+fn normalised(
+    objective: &Objective<'_>,
+    derived: &objective::Derived,
+    sp: &GridSpectra,
+) -> Normalised {
+    let data = objective.data;
     let peak = sp
         .absorption
         .iter()
@@ -918,7 +1086,14 @@ fn normalised(data: &FitData, derived: &objective::Derived, sp: &GridSpectra) ->
             .zip(&data.emission_bin_widths)
             .map(|((v, ew), w)| v * ew / (w * derived.normaliser))
             .collect(),
-        k: derived.scale * peak * derived.normaliser,
+        // Energy form: F = s·a·v, so k = c·Q = s·peak·S. Photon form: F = s·a·λ·v and
+        // c·Φ·a·(λ/λ̄e)·e = s·a·λ·v gives k = c·Φ = s·peak·λ̄e·S = s·peak·M.
+        k: derived.scale
+            * peak
+            * match objective.form {
+                YieldForm::Energy => derived.normaliser,
+                YieldForm::Photon => derived.moment,
+            },
         peak,
     }
 }
@@ -1049,7 +1224,7 @@ fn shapes(
         emission,
         k,
         ..
-    } = normalised(data, &derived, sp);
+    } = normalised(objective, &derived, sp);
     // Residual of the off-diagonal cells, the only accuracy figure without a diagonal.
     let (mut num, mut den) = (0.0, 0.0);
     for c in &data.off_diagonal {

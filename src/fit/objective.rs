@@ -1,16 +1,28 @@
 //! The least-squares objective on the grid spectra (κ, a, v) and its derivatives.
 //!
-//! Off the diagonal the model is F_ij = s·a_i·v_j with s = κ/(γ·S): S normalises the
-//! emission (∫e = 1), γ = max(1, λ̄e/λmin) is the photon factor, and κ = k·γ is the
-//! smallest concentration the constraints allow (κ ≤ 1 is exactly "some valid c exists"
-//! when max a = 1). On the diagonal the reflectance d_j is eliminated in closed form:
-//! it is the projection of M_jj − F_jj onto its feasible interval [0, 1 − κ·a_j] (r ≤ 1
-//! and photon conservation), so every point the solver visits is a valid material and
-//! the diagonal residual is what that projection cannot absorb.
+//! Off the diagonal the model is F_ij = s·a_i·x_i·v_j. In the energy form (constant
+//! energy yield Q) x_i = 1 and s = κ/(γ·S): S normalises the emission (∫e = 1),
+//! γ = max(1, λ̄e/λmin) is the photon factor and κ = k·γ. In the photon form (constant
+//! photon yield Φ, energy yield Φ·λi/λ̄e; model.md §3) x_i = λ_i and s = κ/M with
+//! M = Σ v_j·w_j·λ_j = λ̄e·S, and κ = c·Φ. Either way κ is the smallest concentration the
+//! constraints allow, and κ ≤ 1 is exactly "some valid c exists" when max a = 1.
+//!
+//! On the diagonal the reflectance d_j is eliminated in closed form: it is the projection
+//! of M_jj − F_jj onto its feasible interval [0, 1 − κ·a_j·m_j], with m_j = 1 in the
+//! energy form and max(1, λ_j/λ̄e) in the photon form (r ≤ 1 at the smallest c, and the
+//! energy law where the energy yield Φ·λ/λ̄e exceeds Φ). So every point the solver visits
+//! is a valid material and the diagonal residual is what that projection cannot absorb.
+//!
+//! An optional colour term (½·w·Σ ΔE76² of the flat patch under the scene's lights,
+//! CIELAB linearised at the measured colour, model.md §7) is a linear function of the
+//! cell residuals, so it differentiates like the matrix term.
 
 use nalgebra::DMatrix;
 
-use super::data::FitData;
+use crate::colour::{Light, PatchColorimeter, Xyz};
+use crate::material::YieldForm;
+
+use super::data::{Cell, FitData};
 use super::representation::GridSpectra;
 
 /// Weight of the term that fixes the free scale of the emission samples (S = 1). The
@@ -22,15 +34,20 @@ const SCALE_GAUGE_WEIGHT: f64 = 1e-4;
 pub struct Derived {
     /// S = Σ v_j·w_j: the emission normaliser.
     pub normaliser: f64,
+    /// M = Σ v_j·w_j·λ_j = λ̄e·S.
+    pub moment: f64,
     /// λ̄e, the mean emission wavelength (nm).
     pub emission_mean_nm: f64,
     /// λmin, the infimum of absorbed wavelengths (nm).
     pub shortest_absorbed_nm: f64,
-    /// γ = max(1, λ̄e/λmin).
+    /// γ = max(1, λ̄e/λmin) in the energy form; 1 in the photon form (Φ ≤ 1 is the
+    /// photon law there).
     pub photon_factor: f64,
-    /// Whether γ > 1 (the photon law is stricter than Q ≤ 1).
+    /// Whether γ > 1 (the photon law is stricter than Q ≤ 1; energy form only).
     pub photon_limited: bool,
-    /// s = κ/(γ·S), the scale of the off-diagonal product.
+    /// κ/s: γ·S in the energy form, M in the photon form.
+    pub kappa_per_scale: f64,
+    /// s = κ/(κ/s), the scale of the off-diagonal product.
     pub scale: f64,
 }
 
@@ -41,17 +58,189 @@ pub enum DiagonalRegime {
     Free,
     /// Clamped at d = 0: the fluorescent term alone exceeds the measured diagonal.
     AtZero,
-    /// Clamped at d = 1 − κ·a: conservation caps the reflectance.
+    /// Clamped at d = 1 − κ·a·m: conservation caps the reflectance.
     AtCap,
 }
 
+/// τ of the colour term's robust loss (ΔE76 units): about the difference a person sees.
+pub const COLOUR_SCALE: f64 = 1.0;
+
+/// The colour term: per light, CIELAB of the flat patch linearised at the measured
+/// colour, as linear functionals of the cell residuals (measured − model).
+#[derive(Debug, Clone)]
+pub struct ColourTerm {
+    /// w: the cost is ½·w·Σ_lights ΔE76².
+    weight: f64,
+    /// Per light: ∫L·h_i per excitation row.
+    light_weights: Vec<Vec<f64>>,
+    /// Per light and Lab channel: ∂Lab/∂(off-diagonal cell of column j) / L_i.
+    emitted: Vec<[Vec<f64>; 3]>,
+    /// Per light and Lab channel: ∂Lab/∂(diagonal cell of column j).
+    reflected: Vec<[Vec<f64>; 3]>,
+}
+
+impl ColourTerm {
+    /// The colour term of `lights` on the grids of `data`, linearised at the measured
+    /// patch colours `reference` (XYZ per light, as [`PatchColorimeter::xyz`] gives them).
+    pub fn new(data: &FitData, lights: &[Light], reference: &[Xyz], weight: f64) -> Self {
+        let mut term = ColourTerm {
+            weight,
+            light_weights: Vec::new(),
+            emitted: Vec::new(),
+            reflected: Vec::new(),
+        };
+        for (light, xyz) in lights.iter().zip(reference) {
+            let pc = PatchColorimeter::cached(light, &data.excitation_nm, &data.emission_nm);
+            let (light_weights, reflected, emitted, widths, scale) = pc.weights();
+            let jacobian = crate::colour::lab_jacobian(*xyz, pc.white);
+            // Cells are in the data's units: per bin, or per nm (then ×Δλ = emission_weight).
+            let project = |weights: &[Xyz], channel: usize, per_bin: bool| -> Vec<f64> {
+                weights
+                    .iter()
+                    .enumerate()
+                    .map(|(j, w)| {
+                        let unit = data.emission_weight[j] / if per_bin { widths[j] } else { 1.0 };
+                        scale * unit * (0..3).map(|x| jacobian[channel][x] * w[x]).sum::<f64>()
+                    })
+                    .collect()
+            };
+            term.light_weights.push(light_weights.to_vec());
+            term.emitted
+                .push([0, 1, 2].map(|channel| project(emitted, channel, true)));
+            term.reflected
+                .push([0, 1, 2].map(|channel| project(reflected, channel, false)));
+        }
+        term
+    }
+
+    /// ΔLab (measured − model, linearised) per light and channel, from the residuals of
+    /// the off-diagonal and guard cells and of the diagonal cells.
+    fn patch(&self, off: &[(Cell, f64)], diagonal: &[(Cell, f64)]) -> Vec<f64> {
+        let mut patch = vec![0.0; 3 * self.light_weights.len()];
+        for (l, (lw, (em, re))) in self
+            .light_weights
+            .iter()
+            .zip(self.emitted.iter().zip(&self.reflected))
+            .enumerate()
+        {
+            for channel in 0..3 {
+                let mut v = 0.0;
+                for (c, r) in off {
+                    v += lw[c.row] * em[channel][c.column] * r;
+                }
+                for (c, r) in diagonal {
+                    v += re[channel][c.column] * r;
+                }
+                patch[3 * l + channel] = v;
+            }
+        }
+        patch
+    }
+
+    /// The colour cost ½·w·Σ_l τ²·ln(1 + ΔE_l²/τ²) of the patch ΔLab (ΔE_l = |ΔLab_l|,
+    /// τ = [`COLOUR_SCALE`]), and ∂cost/∂ΔLab / w. Quadratic (½·w·ΔE²) for differences
+    /// below τ; a light whose difference the model cannot bring near τ (a second emitter
+    /// a one-fluorophore model cannot follow) pulls less and less instead of trading the
+    /// other lights' colour for a small gain of its own.
+    fn robust(&self, patch: &[f64]) -> (f64, Vec<f64>) {
+        let tau2 = COLOUR_SCALE * COLOUR_SCALE;
+        let mut cost = 0.0;
+        let mut pull = patch.to_vec();
+        for light in pull.chunks_exact_mut(3) {
+            let t2: f64 = light.iter().map(|p| p * p).sum();
+            cost += 0.5 * self.weight * tau2 * (t2 / tau2).ln_1p();
+            let factor = 1.0 / (1.0 + t2 / tau2);
+            light.iter_mut().for_each(|p| *p *= factor);
+        }
+        (cost, pull)
+    }
+
+    /// φ(t) and φ′(t) for a light's ΔE t: the residual √w·φ(t)·ΔLab has ½‖·‖² equal to
+    /// that light's robust cost (φ → 1 as t → 0).
+    fn residual_factor(t: f64) -> (f64, f64) {
+        let tau = COLOUR_SCALE;
+        let u = (t / tau).powi(2);
+        if u < 1e-10 {
+            return (1.0, 0.0);
+        }
+        let l = u.ln_1p();
+        let phi = tau * l.sqrt() / t;
+        let dphi = 1.0 / (tau * l.sqrt() * (1.0 + u)) - tau * l.sqrt() / (t * t);
+        (phi, dphi)
+    }
+
+    /// ∂(colour cost)/∂(residual) of an off-diagonal cell and of a diagonal cell, given
+    /// the patch ΔLab: w·Σ_l,ch p_l,ch·coefficient.
+    fn pulls(&self, patch: &[f64], n_em: usize) -> (Vec<Vec<f64>>, Vec<f64>) {
+        // Off-diagonal: L_i·q_lj summed over lights; keep q per light.
+        let mut q = vec![vec![0.0; n_em]; self.light_weights.len()];
+        let mut h = vec![0.0; n_em];
+        for (l, (em, re)) in self.emitted.iter().zip(&self.reflected).enumerate() {
+            for j in 0..n_em {
+                for channel in 0..3 {
+                    let p = self.weight * patch[3 * l + channel];
+                    q[l][j] += p * em[channel][j];
+                    h[j] += p * re[channel][j];
+                }
+            }
+        }
+        (q, h)
+    }
+
+    /// The pull on an off-diagonal cell (row i, column j) from the per-light q.
+    fn off_pull(&self, q: &[Vec<f64>], row: usize, column: usize) -> f64 {
+        self.light_weights
+            .iter()
+            .zip(q)
+            .map(|(lw, ql)| lw[row] * ql[column])
+            .sum()
+    }
+}
+
 /// The objective for one measurement.
+#[derive(Debug, Clone)]
 pub struct Objective<'a> {
     /// The cells.
     pub data: &'a FitData,
+    /// The yield form of the fluorophore.
+    pub form: YieldForm,
+    /// x_i: 1 (energy form) or λ_i (photon form).
+    row_factor: Vec<f64>,
+    /// The colour term, if any.
+    pub colour: Option<ColourTerm>,
 }
 
 impl<'a> Objective<'a> {
+    /// The matrix-only objective of `data` in the yield form `form`.
+    pub fn new(data: &'a FitData, form: YieldForm) -> Self {
+        let row_factor = match form {
+            YieldForm::Energy => vec![1.0; data.n_excitation()],
+            YieldForm::Photon => data.excitation_nm.clone(),
+        };
+        Objective {
+            data,
+            form,
+            row_factor,
+            colour: None,
+        }
+    }
+
+    /// This objective with a colour term.
+    pub fn with_colour(mut self, colour: Option<ColourTerm>) -> Self {
+        self.colour = colour;
+        self
+    }
+
+    /// x_i, the excitation factor of row i (1, or λ_i in the photon form).
+    pub fn row_factor(&self, row: usize) -> f64 {
+        self.row_factor[row]
+    }
+
+    /// The fitted off-diagonal value of cell (i, j).
+    pub fn fitted(&self, sp: &GridSpectra, d: &Derived, row: usize, column: usize) -> f64 {
+        d.scale * sp.absorption[row] * self.row_factor[row] * sp.emission[column]
+    }
+
     /// Derived quantities for the spectra `sp`.
     pub fn derived(&self, sp: &GridSpectra) -> Derived {
         let data = self.data;
@@ -72,22 +261,51 @@ impl<'a> Objective<'a> {
             f64::NAN
         };
         let shortest_absorbed_nm = shortest_positive(&sp.absorption, &data.excitation_nm);
-        let ratio = emission_mean_nm / shortest_absorbed_nm;
-        let photon_limited = ratio.is_finite() && ratio > 1.0;
-        let photon_factor = if photon_limited { ratio } else { 1.0 };
-        let scale = if normaliser > 0.0 {
-            sp.kappa / (photon_factor * normaliser)
+        let (photon_factor, photon_limited, kappa_per_scale) = match self.form {
+            YieldForm::Energy => {
+                let ratio = emission_mean_nm / shortest_absorbed_nm;
+                let limited = ratio.is_finite() && ratio > 1.0;
+                let gamma = if limited { ratio } else { 1.0 };
+                (gamma, limited, gamma * normaliser)
+            }
+            YieldForm::Photon => (1.0, false, moment),
+        };
+        let scale = if normaliser > 0.0 && kappa_per_scale > 0.0 {
+            sp.kappa / kappa_per_scale
         } else {
             0.0
         };
         Derived {
             normaliser,
+            moment,
             emission_mean_nm,
             shortest_absorbed_nm,
             photon_factor,
             photon_limited,
+            kappa_per_scale,
             scale,
         }
+    }
+
+    /// m_i: the factor of κ·a_i in the diagonal's cap (1, or max(1, λ_i/λ̄e) in the
+    /// photon form).
+    fn cap_factor(&self, d: &Derived, row: usize) -> f64 {
+        match self.form {
+            YieldForm::Energy => 1.0,
+            YieldForm::Photon => {
+                let ratio = self.data.excitation_nm[row] / d.emission_mean_nm;
+                if ratio.is_finite() {
+                    ratio.max(1.0)
+                } else {
+                    1.0
+                }
+            }
+        }
+    }
+
+    /// The diagonal's cap 1 − κ·a_i·m_i at row `row`.
+    pub fn cap(&self, sp: &GridSpectra, d: &Derived, row: usize) -> f64 {
+        1.0 - sp.kappa * sp.absorption[row] * self.cap_factor(d, row)
     }
 
     /// The fitted diagonal reflectance d_j (per diagonal cell of `data.diagonal`) and where
@@ -97,8 +315,8 @@ impl<'a> Objective<'a> {
             .diagonal
             .iter()
             .map(|c| {
-                let raw = c.value - d.scale * sp.absorption[c.row] * sp.emission[c.column];
-                let cap = 1.0 - sp.kappa * sp.absorption[c.row];
+                let raw = c.value - self.fitted(sp, d, c.row, c.column);
+                let cap = self.cap(sp, d, c.row);
                 if raw < 0.0 {
                     (0.0, DiagonalRegime::AtZero)
                 } else if raw > cap {
@@ -110,46 +328,111 @@ impl<'a> Objective<'a> {
             .collect()
     }
 
-    /// ½‖r‖² and its gradient with respect to (κ, a, v).
+    /// The residual (measured − model) of each diagonal cell and its regime.
+    fn diagonal_residuals(&self, sp: &GridSpectra, d: &Derived) -> Vec<(f64, DiagonalRegime)> {
+        self.data
+            .diagonal
+            .iter()
+            .map(|c| {
+                let raw = c.value - self.fitted(sp, d, c.row, c.column);
+                let cap = self.cap(sp, d, c.row);
+                if raw < 0.0 {
+                    (raw, DiagonalRegime::AtZero)
+                } else if raw > cap {
+                    (raw - cap, DiagonalRegime::AtCap)
+                } else {
+                    (0.0, DiagonalRegime::Free)
+                }
+            })
+            .collect()
+    }
+
+    /// ½‖r‖² (plus the colour term) and its gradient with respect to (κ, a, v).
     pub fn cost_gradient(&self, sp: &GridSpectra) -> (f64, f64, Vec<f64>, Vec<f64>) {
         let data = self.data;
+        let n_em = data.n_emission();
         let d = self.derived(sp);
-        let (a, v, s) = (&sp.absorption, &sp.emission, d.scale);
+        let (a, v, s, x) = (&sp.absorption, &sp.emission, d.scale, &self.row_factor);
         let mut cost = 0.0;
         let mut g_scale = 0.0;
         let mut g_kappa = 0.0;
         let mut g_a = vec![0.0; a.len()];
         let mut g_v = vec![0.0; v.len()];
-        for c in &data.off_diagonal {
-            let (ai, vj) = (a[c.row], v[c.column]);
-            let r = c.value - s * ai * vj;
+        let off: Vec<(Cell, f64)> = data
+            .off_diagonal
+            .iter()
+            .map(|c| (*c, c.value - s * a[c.row] * x[c.row] * v[c.column]))
+            .collect();
+        let diagonal = self.diagonal_residuals(sp, &d);
+        for (_, r) in &off {
             cost += 0.5 * r * r;
-            g_scale -= r * ai * vj;
-            g_a[c.row] -= r * s * vj;
-            g_v[c.column] -= r * s * ai;
         }
-        for c in &data.diagonal {
-            let (ai, vj) = (a[c.row], v[c.column]);
-            let raw = c.value - s * ai * vj;
-            let cap = 1.0 - sp.kappa * ai;
-            let r = if raw < 0.0 {
-                raw
-            } else if raw > cap {
-                raw - cap
-            } else {
-                continue;
-            };
+        for (r, _) in &diagonal {
             cost += 0.5 * r * r;
-            g_scale -= r * ai * vj;
-            g_a[c.row] -= r * s * vj;
-            g_v[c.column] -= r * s * ai;
-            if raw > cap {
-                g_kappa += r * ai;
-                g_a[c.row] += r * sp.kappa;
+        }
+        // The colour term's pulls on each cell's residual.
+        let (q, h, guard) = match &self.colour {
+            Some(colour) => {
+                let guard: Vec<(Cell, f64)> = data
+                    .guard
+                    .iter()
+                    .map(|c| (*c, c.value - s * a[c.row] * x[c.row] * v[c.column]))
+                    .collect();
+                let mut all_off = off.clone();
+                all_off.extend(guard.iter().copied());
+                let diag_cells: Vec<(Cell, f64)> = data
+                    .diagonal
+                    .iter()
+                    .zip(&diagonal)
+                    .map(|(c, (r, _))| (*c, *r))
+                    .collect();
+                let patch = colour.patch(&all_off, &diag_cells);
+                let (colour_cost, pull_patch) = colour.robust(&patch);
+                cost += colour_cost;
+                let (q, h) = colour.pulls(&pull_patch, n_em);
+                (Some(q), h, guard)
+            }
+            None => (None, vec![0.0; n_em], Vec::new()),
+        };
+        let pull = |c: &Cell| match (&self.colour, &q) {
+            (Some(colour), Some(q)) => colour.off_pull(q, c.row, c.column),
+            _ => 0.0,
+        };
+        // Off-diagonal (and guard) cells: ∂cost/∂F = −(r + colour pull).
+        let fitted_cells = off.iter().map(|(c, r)| (c, *r + pull(c)));
+        let guard_cells = guard.iter().map(|(c, _)| (c, pull(c)));
+        for (c, effective) in fitted_cells.chain(guard_cells) {
+            let (ai, xi, vj) = (a[c.row], x[c.row], v[c.column]);
+            g_scale -= effective * ai * xi * vj;
+            g_a[c.row] -= effective * s * xi * vj;
+            g_v[c.column] -= effective * s * ai * xi;
+        }
+        for (c, (r, regime)) in data.diagonal.iter().zip(&diagonal) {
+            if *regime == DiagonalRegime::Free {
+                continue;
+            }
+            let effective = r + h[c.column];
+            let (ai, xi, vj) = (a[c.row], x[c.row], v[c.column]);
+            g_scale -= effective * ai * xi * vj;
+            g_a[c.row] -= effective * s * xi * vj;
+            g_v[c.column] -= effective * s * ai * xi;
+            if *regime == DiagonalRegime::AtCap {
+                // r = raw − cap, cap = 1 − κ·a·m: ∂r/∂κ = a·m, ∂r/∂a = κ·m, ∂r/∂v via m.
+                let m = self.cap_factor(&d, c.row);
+                g_kappa += effective * ai * m;
+                g_a[c.row] += effective * sp.kappa * m;
+                if m > 1.0 {
+                    let li = data.excitation_nm[c.row];
+                    for (l, g) in g_v.iter_mut().enumerate() {
+                        let dm = li * data.emission_weight[l] / d.moment
+                            * (1.0 - data.emission_nm[l] / d.emission_mean_nm);
+                        *g += effective * sp.kappa * ai * dm;
+                    }
+                }
             }
         }
-        if d.normaliser > 0.0 {
-            g_kappa += g_scale / (d.photon_factor * d.normaliser);
+        if d.normaliser > 0.0 && d.kappa_per_scale > 0.0 {
+            g_kappa += g_scale / d.kappa_per_scale;
             for (j, g) in g_v.iter_mut().enumerate() {
                 *g += g_scale * self.scale_derivative(&d, j);
             }
@@ -166,28 +449,94 @@ impl<'a> Objective<'a> {
     fn scale_derivative(&self, d: &Derived, j: usize) -> f64 {
         let data = self.data;
         let w = data.emission_weight[j];
-        let d_gamma = if d.photon_limited {
-            w * (data.emission_nm[j] - d.emission_mean_nm) / (d.normaliser * d.shortest_absorbed_nm)
-        } else {
-            0.0
-        };
-        -d.scale * (d_gamma / d.photon_factor + w / d.normaliser)
+        match self.form {
+            YieldForm::Energy => {
+                let d_gamma = if d.photon_limited {
+                    w * (data.emission_nm[j] - d.emission_mean_nm)
+                        / (d.normaliser * d.shortest_absorbed_nm)
+                } else {
+                    0.0
+                };
+                -d.scale * (d_gamma / d.photon_factor + w / d.normaliser)
+            }
+            YieldForm::Photon => -d.scale * w * data.emission_nm[j] / d.moment,
+        }
     }
 
-    /// The residual vector r (off-diagonal cells, diagonal cells, the scale gauge); the
-    /// objective is ½‖r‖².
+    /// The residual vector r (off-diagonal cells, diagonal cells, the colour term's
+    /// √w·ΔLab per light and channel, the scale gauge); the objective is ½‖r‖².
     pub fn residuals(&self, sp: &GridSpectra) -> Vec<f64> {
         let data = self.data;
         let d = self.derived(sp);
-        let mut r = Vec::with_capacity(data.off_diagonal.len() + data.diagonal.len() + 1);
+        let mut r = Vec::with_capacity(data.off_diagonal.len() + data.diagonal.len() + 13);
         for c in &data.off_diagonal {
-            r.push(c.value - d.scale * sp.absorption[c.row] * sp.emission[c.column]);
+            r.push(c.value - self.fitted(sp, &d, c.row, c.column));
         }
-        for (c, (dj, _)) in data.diagonal.iter().zip(self.diagonal(sp, &d)) {
-            r.push(c.value - d.scale * sp.absorption[c.row] * sp.emission[c.column] - dj);
+        let diagonal = self.diagonal_residuals(sp, &d);
+        r.extend(diagonal.iter().map(|x| x.0));
+        if let Some(colour) = &self.colour {
+            let off: Vec<(Cell, f64)> = data
+                .off_diagonal
+                .iter()
+                .chain(&data.guard)
+                .map(|c| (*c, c.value - self.fitted(sp, &d, c.row, c.column)))
+                .collect();
+            let diag_cells: Vec<(Cell, f64)> = data
+                .diagonal
+                .iter()
+                .zip(&diagonal)
+                .map(|(c, (x, _))| (*c, *x))
+                .collect();
+            let w = colour.weight.sqrt();
+            for light in colour.patch(&off, &diag_cells).chunks_exact(3) {
+                let t = light.iter().map(|p| p * p).sum::<f64>().sqrt();
+                let (phi, _) = ColourTerm::residual_factor(t);
+                r.extend(light.iter().map(|p| w * phi * p));
+            }
         }
         r.push(SCALE_GAUGE_WEIGHT.sqrt() * (d.normaliser - 1.0));
         r
+    }
+
+    /// ∂r/∂(κ, a, v) of one cell's residual in regime `regime` (AtZero stands for an
+    /// off-diagonal cell: the full model term).
+    fn cell_jacobian(
+        &self,
+        sp: &GridSpectra,
+        d: &Derived,
+        ds: &[f64],
+        c: &Cell,
+        regime: DiagonalRegime,
+        out: &mut [f64],
+    ) {
+        let data = self.data;
+        let n_ex = data.n_excitation();
+        let kappa_scale = if d.kappa_per_scale > 0.0 {
+            1.0 / d.kappa_per_scale
+        } else {
+            0.0
+        };
+        let xi = self.row_factor[c.row];
+        let (ai, vj) = (sp.absorption[c.row], sp.emission[c.column]);
+        out[0] = -ai * xi * vj * kappa_scale;
+        out[1 + c.row] = -d.scale * xi * vj;
+        for (l, dsl) in ds.iter().enumerate() {
+            out[1 + n_ex + l] = -ai * xi * vj * dsl;
+        }
+        out[1 + n_ex + c.column] -= d.scale * ai * xi;
+        if regime == DiagonalRegime::AtCap {
+            let m = self.cap_factor(d, c.row);
+            out[0] += ai * m;
+            out[1 + c.row] += sp.kappa * m;
+            if m > 1.0 {
+                let li = data.excitation_nm[c.row];
+                for l in 0..data.n_emission() {
+                    let dm = li * data.emission_weight[l] / d.moment
+                        * (1.0 - data.emission_nm[l] / d.emission_mean_nm);
+                    out[1 + n_ex + l] += sp.kappa * ai * dm;
+                }
+            }
+        }
     }
 
     /// ∂r/∂(κ, a, v): one row per residual of [`Objective::residuals`].
@@ -195,17 +544,18 @@ impl<'a> Objective<'a> {
         let data = self.data;
         let d = self.derived(sp);
         let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
-        let rows = data.off_diagonal.len() + data.diagonal.len() + 1;
-        let mut j = DMatrix::zeros(rows, 1 + n_ex + n_em);
+        let n_colour = self
+            .colour
+            .as_ref()
+            .map(|c| 3 * c.light_weights.len())
+            .unwrap_or(0);
+        let rows = data.off_diagonal.len() + data.diagonal.len() + n_colour + 1;
+        let n_params = 1 + n_ex + n_em;
+        let mut j = DMatrix::zeros(rows, n_params);
         let ds: Vec<f64> = if d.normaliser > 0.0 {
             (0..n_em).map(|l| self.scale_derivative(&d, l)).collect()
         } else {
             vec![0.0; n_em]
-        };
-        let kappa_scale = if d.normaliser > 0.0 {
-            1.0 / (d.photon_factor * d.normaliser)
-        } else {
-            0.0
         };
         let regimes = self.diagonal(sp, &d);
         let cells = data
@@ -213,20 +563,82 @@ impl<'a> Objective<'a> {
             .iter()
             .map(|c| (c, DiagonalRegime::AtZero))
             .chain(data.diagonal.iter().zip(regimes.iter().map(|x| x.1)));
+        let mut row_buffer = vec![0.0; n_params];
         for (row, (c, regime)) in cells.enumerate() {
             if regime == DiagonalRegime::Free {
                 continue;
             }
-            let (ai, vj) = (sp.absorption[c.row], sp.emission[c.column]);
-            j[(row, 0)] = -ai * vj * kappa_scale;
-            j[(row, 1 + c.row)] = -d.scale * vj;
-            for (l, dsl) in ds.iter().enumerate() {
-                j[(row, 1 + n_ex + l)] = -ai * vj * dsl;
+            row_buffer.iter_mut().for_each(|x| *x = 0.0);
+            self.cell_jacobian(sp, &d, &ds, c, regime, &mut row_buffer);
+            for (k, v) in row_buffer.iter().enumerate() {
+                j[(row, k)] = *v;
             }
-            j[(row, 1 + n_ex + c.column)] -= d.scale * ai;
-            if regime == DiagonalRegime::AtCap {
-                j[(row, 0)] += ai;
-                j[(row, 1 + c.row)] += sp.kappa;
+        }
+        if let Some(colour) = &self.colour {
+            let first = data.off_diagonal.len() + data.diagonal.len();
+            // ∂ΔLab/∂θ first (unit weight), then through the robust residual factor.
+            let w = 1.0;
+            let off_cells = data.off_diagonal.iter().chain(&data.guard);
+            for c in off_cells {
+                row_buffer.iter_mut().for_each(|x| *x = 0.0);
+                self.cell_jacobian(sp, &d, &ds, c, DiagonalRegime::AtZero, &mut row_buffer);
+                for (l, (lw, em)) in colour.light_weights.iter().zip(&colour.emitted).enumerate() {
+                    for channel in 0..3 {
+                        let coefficient = w * lw[c.row] * em[channel][c.column];
+                        for (k, v) in row_buffer.iter().enumerate() {
+                            j[(first + 3 * l + channel, k)] += coefficient * v;
+                        }
+                    }
+                }
+            }
+            for (c, (_, regime)) in data.diagonal.iter().zip(&regimes) {
+                if *regime == DiagonalRegime::Free {
+                    continue;
+                }
+                row_buffer.iter_mut().for_each(|x| *x = 0.0);
+                self.cell_jacobian(sp, &d, &ds, c, *regime, &mut row_buffer);
+                for (l, re) in colour.reflected.iter().enumerate() {
+                    for channel in 0..3 {
+                        let coefficient = w * re[channel][c.column];
+                        for (k, v) in row_buffer.iter().enumerate() {
+                            j[(first + 3 * l + channel, k)] += coefficient * v;
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(colour) = &self.colour {
+            let first = data.off_diagonal.len() + data.diagonal.len();
+            let off: Vec<(Cell, f64)> = data
+                .off_diagonal
+                .iter()
+                .chain(&data.guard)
+                .map(|c| (*c, c.value - self.fitted(sp, &d, c.row, c.column)))
+                .collect();
+            let diagonal = self.diagonal_residuals(sp, &d);
+            let diag_cells: Vec<(Cell, f64)> = data
+                .diagonal
+                .iter()
+                .zip(&diagonal)
+                .map(|(c, (x, _))| (*c, *x))
+                .collect();
+            let patch = colour.patch(&off, &diag_cells);
+            let root_weight = colour.weight.sqrt();
+            for (l, p) in patch.chunks_exact(3).enumerate() {
+                let t = p.iter().map(|x| x * x).sum::<f64>().sqrt();
+                let (phi, dphi) = ColourTerm::residual_factor(t);
+                let rows: Vec<usize> = (0..3).map(|ch| first + 3 * l + ch).collect();
+                for k in 0..n_params {
+                    let dp: Vec<f64> = rows.iter().map(|&row| j[(row, k)]).collect();
+                    let dt = if t > 0.0 {
+                        (0..3).map(|ch| p[ch] * dp[ch]).sum::<f64>() / t
+                    } else {
+                        0.0
+                    };
+                    for ch in 0..3 {
+                        j[(rows[ch], k)] = root_weight * (phi * dp[ch] + p[ch] * dphi * dt);
+                    }
+                }
             }
         }
         let gauge_row = rows - 1;
@@ -244,5 +656,120 @@ pub fn shortest_positive(absorption: &[f64], grid: &[f64]) -> f64 {
         Some(0) => grid[0],
         Some(i) => grid[i - 1],
         None => f64::NAN,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measurement::{Measurement, Units};
+
+    /// A small noisy-looking matrix with a diagonal, for derivative checks.
+    fn data() -> FitData {
+        let excitation_nm: Vec<f64> = (0..9).map(|i| 360.0 + 20.0 * i as f64).collect();
+        let emission_nm: Vec<f64> = (0..8).map(|i| 380.0 + 20.0 * i as f64).collect();
+        let mut values = Vec::new();
+        for (i, &li) in excitation_nm.iter().enumerate() {
+            for (j, &lo) in emission_nm.iter().enumerate() {
+                let a = (-(li - 420.0f64).powi(2) / 800.0).exp();
+                let e = (-(lo - 500.0f64).powi(2) / 1500.0).exp();
+                let wobble = 0.003 * ((i * 7 + j * 3) % 5) as f64 - 0.006;
+                let diag = if (li - lo).abs() < 1e-9 {
+                    0.5 + 0.001 * j as f64
+                } else {
+                    0.0
+                };
+                values.push(0.08 * a * e + wobble + diag);
+            }
+        }
+        let m = Measurement {
+            name: "t".into(),
+            source: None,
+            source_sha256: None,
+            excitation_nm,
+            emission_nm,
+            values,
+            units: Units::PerBin,
+            has_diagonal: true,
+            arbitrary_scale: false,
+            notes: Vec::new(),
+        };
+        FitData::new(&m, 0.0)
+    }
+
+    fn spectra(data: &FitData, kappa: f64) -> GridSpectra {
+        GridSpectra {
+            kappa,
+            absorption: data
+                .excitation_nm
+                .iter()
+                .map(|l| 0.05 + 0.9 * (-(l - 430.0f64).powi(2) / 900.0).exp())
+                .collect(),
+            emission: data
+                .emission_nm
+                .iter()
+                .map(|l| 0.01 + 0.2 * (-(l - 510.0f64).powi(2) / 1200.0).exp())
+                .collect(),
+        }
+    }
+
+    /// The analytic gradient against central differences, both forms, with and without
+    /// the colour term, with κ large enough that diagonal cells hit their cap.
+    #[test]
+    fn gradient_matches_central_differences() {
+        let data = data();
+        let lights = Light::standard();
+        let reference: Vec<Xyz> = lights.iter().map(|_| [40.0, 45.0, 30.0]).collect();
+        for form in [YieldForm::Energy, YieldForm::Photon] {
+            for colour in [false, true] {
+                for kappa in [0.3, 0.99] {
+                    let objective = Objective::new(&data, form).with_colour(
+                        colour.then(|| ColourTerm::new(&data, &lights, &reference, 0.01)),
+                    );
+                    let sp = spectra(&data, kappa);
+                    let (cost, gk, ga, gv) = objective.cost_gradient(&sp);
+                    // The residual vector gives the same cost.
+                    let r = objective.residuals(&sp);
+                    let half: f64 = 0.5 * r.iter().map(|x| x * x).sum::<f64>();
+                    assert!(
+                        (half - cost).abs() <= 1e-12 * cost.max(1e-12),
+                        "{form:?} {colour}"
+                    );
+                    let jac = objective.jacobian(&sp);
+                    let h = 1e-6;
+                    let cost_at = |sp: &GridSpectra| objective.cost_gradient(sp).0;
+                    let mut analytic = vec![gk];
+                    analytic.extend(&ga);
+                    analytic.extend(&gv);
+                    for k in 0..analytic.len() {
+                        let bump = |delta: f64| {
+                            let mut s = sp.clone();
+                            if k == 0 {
+                                s.kappa += delta;
+                            } else if k <= s.absorption.len() {
+                                s.absorption[k - 1] += delta;
+                            } else {
+                                s.emission[k - 1 - data.n_excitation()] += delta;
+                            }
+                            s
+                        };
+                        let numeric = (cost_at(&bump(h)) - cost_at(&bump(-h))) / (2.0 * h);
+                        let scale = analytic[k].abs().max(numeric.abs()).max(1e-6);
+                        assert!(
+                            (analytic[k] - numeric).abs() <= 1e-4 * scale,
+                            "{form:?} colour {colour} κ {kappa} parameter {k}: analytic {} numeric {numeric}",
+                            analytic[k]
+                        );
+                        // Jᵀr is the gradient too.
+                        let jtr: f64 = (0..r.len()).map(|row| jac[(row, k)] * r[row]).sum::<f64>();
+                        assert!(
+                            (jtr - analytic[k]).abs() <= 1e-6 * scale.max(1e-3),
+                            "{form:?} colour {colour} κ {kappa} parameter {k}: Jᵀr {jtr} gradient {}",
+                            analytic[k]
+                        );
+                    }
+                }
+            }
+        }
     }
 }

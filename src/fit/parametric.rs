@@ -11,7 +11,7 @@
 //! absorbing in different bands may each absorb nearly all light there), and the
 //! material is scaled onto the bound exactly when it is built.
 
-use crate::colour::{Light, PatchColorimeter, Xyz};
+use crate::colour::{Light, PatchColorimeter, Xyz, lab_jacobian};
 use crate::error::{Error, Result};
 use crate::material::{Fluorophore, Material};
 use crate::parametric::{
@@ -172,30 +172,6 @@ struct PatchLight {
     emitted: [Vec<f64>; 3],
     /// Per Lab channel and emission column: ∂Lab/∂(diagonal at j).
     reflected: [Vec<f64>; 3],
-}
-
-/// ∂(L*, a*, b*)/∂(X, Y, Z) at `xyz` against `white`.
-fn lab_jacobian(xyz: Xyz, white: Xyz) -> [[f64; 3]; 3] {
-    let delta: f64 = 6.0 / 29.0;
-    let slope = |value: f64, reference: f64| {
-        let t = value / reference.max(1e-300);
-        let df = if t > delta.powi(3) {
-            t.powf(-2.0 / 3.0) / 3.0
-        } else {
-            1.0 / (3.0 * delta * delta)
-        };
-        df / reference.max(1e-300)
-    };
-    let (fx, fy, fz) = (
-        slope(xyz[0], white[0]),
-        slope(xyz[1], white[1]),
-        slope(xyz[2], white[2]),
-    );
-    [
-        [0.0, 116.0 * fy, 0.0],
-        [500.0 * fx, -500.0 * fy, 0.0],
-        [0.0, 200.0 * fy, -200.0 * fz],
-    ]
 }
 
 /// A diagonal position of the fit.

@@ -167,9 +167,7 @@ pub fn gauss_newton(
 ) -> Result<Refined, String> {
     // μ relative to the curvature scale at the start.
     let probe = ResidualProblem {
-        objective: Objective {
-            data: objective.data,
-        },
+        objective: objective.clone(),
         representation,
         prior: None,
     };
