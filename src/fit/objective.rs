@@ -73,6 +73,8 @@ pub struct ColourTerm {
     weight: f64,
     /// Per light: ∫L·h_i per excitation row.
     light_weights: Vec<Vec<f64>>,
+    /// The same, row-major (row × light), for the per-cell passes.
+    row_lights: Vec<f64>,
     /// Per light and Lab channel: ∂Lab/∂(off-diagonal cell of column j) / L_i.
     emitted: Vec<[Vec<f64>; 3]>,
     /// Per light and Lab channel: ∂Lab/∂(diagonal cell of column j).
@@ -86,6 +88,7 @@ impl ColourTerm {
         let mut term = ColourTerm {
             weight,
             light_weights: Vec::new(),
+            row_lights: Vec::new(),
             emitted: Vec::new(),
             reflected: Vec::new(),
         };
@@ -109,6 +112,13 @@ impl ColourTerm {
                 .push([0, 1, 2].map(|channel| project(emitted, channel, true)));
             term.reflected
                 .push([0, 1, 2].map(|channel| project(reflected, channel, false)));
+        }
+        let n_lights = term.light_weights.len();
+        term.row_lights = vec![0.0; data.n_excitation() * n_lights];
+        for (l, weights) in term.light_weights.iter().enumerate() {
+            for (i, w) in weights.iter().enumerate() {
+                term.row_lights[i * n_lights + l] = *w;
+            }
         }
         term
     }
@@ -185,15 +195,6 @@ impl ColourTerm {
             }
         }
         (q, h)
-    }
-
-    /// The pull on an off-diagonal cell (row i, column j) from the per-light q.
-    fn off_pull(&self, q: &[Vec<f64>], row: usize, column: usize) -> f64 {
-        self.light_weights
-            .iter()
-            .zip(q)
-            .map(|(lw, ql)| lw[row] * ql[column])
-            .sum()
     }
 }
 
@@ -353,59 +354,80 @@ impl<'a> Objective<'a> {
         let n_em = data.n_emission();
         let d = self.derived(sp);
         let (a, v, s, x) = (&sp.absorption, &sp.emission, d.scale, &self.row_factor);
+        let model = |c: &Cell| s * a[c.row] * x[c.row] * v[c.column];
         let mut cost = 0.0;
         let mut g_scale = 0.0;
         let mut g_kappa = 0.0;
         let mut g_a = vec![0.0; a.len()];
         let mut g_v = vec![0.0; v.len()];
-        let off: Vec<(Cell, f64)> = data
-            .off_diagonal
-            .iter()
-            .map(|c| (*c, c.value - s * a[c.row] * x[c.row] * v[c.column]))
-            .collect();
         let diagonal = self.diagonal_residuals(sp, &d);
-        for (_, r) in &off {
-            cost += 0.5 * r * r;
-        }
         for (r, _) in &diagonal {
             cost += 0.5 * r * r;
         }
-        // The colour term's pulls on each cell's residual.
-        let (q, h, guard) = match &self.colour {
-            Some(colour) => {
-                let guard: Vec<(Cell, f64)> = data
-                    .guard
-                    .iter()
-                    .map(|c| (*c, c.value - s * a[c.row] * x[c.row] * v[c.column]))
-                    .collect();
-                let mut all_off = off.clone();
-                all_off.extend(guard.iter().copied());
-                let diag_cells: Vec<(Cell, f64)> = data
-                    .diagonal
-                    .iter()
-                    .zip(&diagonal)
-                    .map(|(c, (r, _))| (*c, *r))
-                    .collect();
-                let patch = colour.patch(&all_off, &diag_cells);
-                let (colour_cost, pull_patch) = colour.robust(&patch);
-                cost += colour_cost;
-                let (q, h) = colour.pulls(&pull_patch, n_em);
-                (Some(q), h, guard)
+        // The colour term: per light, the column sums Σ_i L_i·r_ij of the residuals (one
+        // pass over the cells), then ΔLab, then each column's pull q_lj (and h_j on the
+        // diagonal); a cell's pull is Σ_l L_li·q_lj.
+        let n_lights = self.colour.as_ref().map_or(0, |c| c.light_weights.len());
+        let mut q = vec![0.0; n_lights * n_em];
+        let mut h = vec![0.0; n_em];
+        if let Some(colour) = &self.colour {
+            let mut column_sum = vec![0.0; n_lights * n_em];
+            for c in data.off_diagonal.iter().chain(&data.guard) {
+                let r = c.value - model(c);
+                let weights = &colour.row_lights[c.row * n_lights..(c.row + 1) * n_lights];
+                for (l, w) in weights.iter().enumerate() {
+                    column_sum[l * n_em + c.column] += w * r;
+                }
             }
-            None => (None, vec![0.0; n_em], Vec::new()),
+            let mut patch = vec![0.0; 3 * n_lights];
+            for l in 0..n_lights {
+                let sums = &column_sum[l * n_em..(l + 1) * n_em];
+                for channel in 0..3 {
+                    let em = &colour.emitted[l][channel];
+                    let re = &colour.reflected[l][channel];
+                    let mut value: f64 = em.iter().zip(sums).map(|(e, s)| e * s).sum();
+                    for (cell, (r, _)) in data.diagonal.iter().zip(&diagonal) {
+                        value += re[cell.column] * r;
+                    }
+                    patch[3 * l + channel] = value;
+                }
+            }
+            let (colour_cost, pull_patch) = colour.robust(&patch);
+            cost += colour_cost;
+            let (per_light, diagonal_pull) = colour.pulls(&pull_patch, n_em);
+            for (l, row) in per_light.iter().enumerate() {
+                q[l * n_em..(l + 1) * n_em].copy_from_slice(row);
+            }
+            h = diagonal_pull;
+        }
+        let pull = |c: &Cell| -> f64 {
+            match &self.colour {
+                Some(colour) => colour.row_lights[c.row * n_lights..(c.row + 1) * n_lights]
+                    .iter()
+                    .enumerate()
+                    .map(|(l, w)| w * q[l * n_em + c.column])
+                    .sum(),
+                None => 0.0,
+            }
         };
-        let pull = |c: &Cell| match (&self.colour, &q) {
-            (Some(colour), Some(q)) => colour.off_pull(q, c.row, c.column),
-            _ => 0.0,
-        };
-        // Off-diagonal (and guard) cells: ∂cost/∂F = −(r + colour pull).
-        let fitted_cells = off.iter().map(|(c, r)| (c, *r + pull(c)));
-        let guard_cells = guard.iter().map(|(c, _)| (c, pull(c)));
-        for (c, effective) in fitted_cells.chain(guard_cells) {
+        // Off-diagonal cells: ∂cost/∂F = −(r + colour pull); guard cells only the pull.
+        for c in &data.off_diagonal {
+            let r = c.value - model(c);
+            cost += 0.5 * r * r;
+            let effective = r + pull(c);
             let (ai, xi, vj) = (a[c.row], x[c.row], v[c.column]);
             g_scale -= effective * ai * xi * vj;
             g_a[c.row] -= effective * s * xi * vj;
             g_v[c.column] -= effective * s * ai * xi;
+        }
+        if self.colour.is_some() {
+            for c in &data.guard {
+                let effective = pull(c);
+                let (ai, xi, vj) = (a[c.row], x[c.row], v[c.column]);
+                g_scale -= effective * ai * xi * vj;
+                g_a[c.row] -= effective * s * xi * vj;
+                g_v[c.column] -= effective * s * ai * xi;
+            }
         }
         for (c, (r, regime)) in data.diagonal.iter().zip(&diagonal) {
             if *regime == DiagonalRegime::Free {
