@@ -581,6 +581,74 @@ fn furnace_tells_the_photon_form_from_the_energy_form() {
 }
 
 #[test]
+fn flat_patch_colour_of_a_photon_form_material_weights_absorption_by_wavelength() {
+    // material_xyz against the patch colour summed here at 1 nm over 300–830 nm:
+    // Σ L·d·x̄ + Σ_f (Σ L·c·y·x_f·a) · (Σ e·x̄), per unit of the white's Y = 100.
+    let observer = cie1931();
+    let grid = uniform_grid(300.0, 830.0, 1.0);
+    let w = |i: usize| {
+        if i == 0 || i == grid.len() - 1 {
+            0.5
+        } else {
+            1.0
+        }
+    };
+    for material in [photon_synthetic(), mixed_forms()] {
+        for light in Light::standard() {
+            let cmf = |l: f64| {
+                [
+                    observer.x.eval_zero_outside(l),
+                    observer.y.eval_zero_outside(l),
+                    observer.z.eval_zero_outside(l),
+                ]
+            };
+            let mut xyz = [0.0; 3];
+            let mut white = [0.0; 3];
+            for (i, &l) in grid.iter().enumerate() {
+                let p = light.power(l) * w(i);
+                for c in 0..3 {
+                    xyz[c] += p * material.diagonal(l) * cmf(l)[c];
+                    white[c] += p * cmf(l)[c];
+                }
+            }
+            for f in &material.fluorophores {
+                let x = excitation_factor(f);
+                let reemitted: f64 = grid
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &l)| {
+                        light.power(l)
+                            * f.concentration
+                            * f.quantum_yield
+                            * x(l)
+                            * f.absorption.eval_zero_outside(l)
+                            * w(i)
+                    })
+                    .sum();
+                for (i, &l) in grid.iter().enumerate() {
+                    let e = reemitted * f.emission.eval_zero_outside(l) * w(i);
+                    for (v, m) in xyz.iter_mut().zip(cmf(l)) {
+                        *v += e * m;
+                    }
+                }
+            }
+            let (got, got_white) = material_xyz(&material, &light);
+            for c in 0..3 {
+                let want = xyz[c] * 100.0 / white[1];
+                assert!(
+                    (got[c] - want).abs() < 1e-4 * want.abs().max(1.0),
+                    "{} under {}: XYZ[{c}] {} vs {want}",
+                    material.name,
+                    light.name,
+                    got[c]
+                );
+                assert!((got_white[c] - white[c] * 100.0 / white[1]).abs() < 1e-9);
+            }
+        }
+    }
+}
+
+#[test]
 fn photon_form_integrating_sphere_matches_the_exact_multi_bounce_solution() {
     for (material, light) in [
         (photon_synthetic(), Light::builtin("d65").unwrap()),
@@ -930,6 +998,7 @@ fn furnace_film_colour_matches_flat_patch_colorimetry() {
     for material in [
         synthetic(),
         two_fluorophores(),
+        photon_synthetic(),
         plain(ramp_reflectance(0.6, 0.6)),
     ] {
         for light in Light::standard() {
