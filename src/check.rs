@@ -17,7 +17,9 @@ use serde::Serialize;
 use serde_json::Value;
 
 use crate::error::{Error, Result};
-use crate::material::{BOUND_TOLERANCE, FORM_TOLERANCE, Material, NORMALISATION_TOLERANCE, SCHEMA};
+use crate::material::{
+    BOUND_TOLERANCE, FORM_TOLERANCE, Material, NORMALISATION_TOLERANCE, SCHEMA, YieldForm,
+};
 use crate::parametric::MaterialForms;
 use crate::spectrum::{Spectrum, bin_widths};
 
@@ -38,7 +40,8 @@ pub enum Law {
     AbsorptionRange,
     /// 0 ≤ c ≤ 1.
     ConcentrationRange,
-    /// 0 ≤ Q ≤ 1.
+    /// 0 ≤ Q ≤ 1 (energy form) or 0 ≤ Φ ≤ 1 (photon form), the yield given as its form
+    /// requires (`quantum_yield`, or `photon_yield` beside `"yield_form": "photon"`).
     QuantumYieldRange,
     /// max a = 1.
     AbsorptionPeak,
@@ -46,9 +49,10 @@ pub enum Law {
     EmissionIntegral,
     /// Σ c·a(λ) ≤ 1: the fluorophores together absorb at most all the light.
     TotalAbsorption,
-    /// ρ(λ) = (1 − Σc·a)·r + Σc·Q·a·∫e ≤ 1.
+    /// ρ(λ) = (1 − Σc·a)·r + Σc·Q(λ)·a·∫e ≤ 1, with Q(λ) = Q (energy form) or
+    /// Φ·λ/λ̄e (photon form).
     Energy,
-    /// Q·λ̄e/λ ≤ 1 wherever a(λ) > 0.
+    /// Q·λ̄e/λ ≤ 1 wherever a(λ) > 0 (energy form); Φ ≤ 1 (photon form).
     Photons,
     /// The `forms` block (when present) parses, has one entry per fluorophore, finite
     /// parameters, and reproduces the tabulated samples within
@@ -104,12 +108,12 @@ impl Law {
             Law::ReflectanceRange => "r(λ) ≤ 1",
             Law::AbsorptionRange => "a(λ) ≤ 1",
             Law::ConcentrationRange => "0 ≤ c ≤ 1",
-            Law::QuantumYieldRange => "0 ≤ Q ≤ 1",
+            Law::QuantumYieldRange => "0 ≤ Q ≤ 1 (energy form), 0 ≤ Φ ≤ 1 (photon form)",
             Law::AbsorptionPeak => "max a = 1",
             Law::EmissionIntegral => "∫e dλ = 1 (1/nm, trapezoid rule)",
             Law::TotalAbsorption => "Σ c·a(λ) ≤ 1",
-            Law::Energy => "ρ(λ) = (1 − Σc·a)·r + Σc·Q·a·∫e ≤ 1",
-            Law::Photons => "Q·λ̄e/λ ≤ 1 wherever a(λ) > 0",
+            Law::Energy => "ρ(λ) = (1 − Σc·a)·r + Σc·Q(λ)·a·∫e ≤ 1, Q(λ) = Q or Φ·λ/λ̄e",
+            Law::Photons => "Q·λ̄e/λ ≤ 1 where a(λ) > 0 (energy form), Φ ≤ 1 (photon form)",
             Law::Forms => "forms = samples (relative to the peak)",
         }
     }
@@ -172,14 +176,23 @@ pub struct LawResult {
 /// Per-fluorophore quantities a chemist would quote.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FluorophoreSummary {
-    /// k = c·Q.
+    /// Which yield is constant over the excitation wavelength.
+    pub yield_form: YieldForm,
+    /// The constant yield of the form: Q (energy form) or Φ (photon form).
+    #[serde(rename = "yield")]
+    pub yield_value: f64,
+    /// k = c·Q (energy form) or c·Φ (photon form).
     pub k: f64,
     /// λ̄e = ∫λ·e dλ / ∫e dλ (nm).
     pub mean_emission_nm: f64,
     /// Shortest and longest wavelength where a > 0 (nm).
     pub absorbed_nm: Option<[f64; 2]>,
-    /// Range of the photon quantum yield Φ(λ) = Q·λ̄e/λ over the absorbed wavelengths.
+    /// Range of the photon quantum yield over the absorbed wavelengths: Φ(λ) = Q·λ̄e/λ in
+    /// the energy form, the constant [Φ, Φ] in the photon form.
     pub photon_yield_range: Option<[f64; 2]>,
+    /// Range of the energy quantum yield over the absorbed wavelengths: the constant
+    /// [Q, Q] in the energy form, Q(λ) = Φ·λ/λ̄e in the photon form.
+    pub energy_yield_range: Option<[f64; 2]>,
 }
 
 /// What the `forms` block holds and how well it reproduces the samples.
@@ -302,14 +315,33 @@ impl CheckReport {
             }
         }
         for (n, f) in self.fluorophores.iter().enumerate() {
+            let symbol = match f.yield_form {
+                YieldForm::Energy => "Q",
+                YieldForm::Photon => "Φ",
+            };
             out.push_str(&format!(
-                "  fluorophores[{n}]: k = c·Q = {:.6}, λ̄e = {:.2} nm",
-                f.k, f.mean_emission_nm
+                "  fluorophores[{n}]: k = c·{symbol} = {:.6} ({} form, {symbol} = {:.6}), λ̄e = {:.2} nm",
+                f.k,
+                f.yield_form.name(),
+                f.yield_value,
+                f.mean_emission_nm
             ));
-            if let (Some([lo, hi]), Some([pl, ph])) = (f.absorbed_nm, f.photon_yield_range) {
-                out.push_str(&format!(
-                    ", photon quantum yield Φ(λ) = Q·λ̄e/λ from {pl:.4} (at {hi} nm) to {ph:.4} (at {lo} nm)"
-                ));
+            match (f.yield_form, f.absorbed_nm) {
+                (YieldForm::Energy, Some([lo, hi])) => {
+                    if let Some([pl, ph]) = f.photon_yield_range {
+                        out.push_str(&format!(
+                            ", photon quantum yield Φ(λ) = Q·λ̄e/λ from {pl:.4} (at {hi} nm) to {ph:.4} (at {lo} nm)"
+                        ));
+                    }
+                }
+                (YieldForm::Photon, Some([lo, hi])) => {
+                    if let Some([el, eh]) = f.energy_yield_range {
+                        out.push_str(&format!(
+                            ", energy quantum yield Q(λ) = Φ·λ/λ̄e from {el:.4} (at {lo} nm) to {eh:.4} (at {hi} nm)"
+                        ));
+                    }
+                }
+                _ => {}
             }
             out.push('\n');
         }
@@ -358,8 +390,16 @@ pub struct RawSpectrum {
 pub struct RawFluorophore {
     /// c (NaN when not a number).
     pub concentration: f64,
-    /// Q (NaN when not a number).
+    /// The form's yield: Q (`quantum_yield`) in the energy form, Φ (`photon_yield`) in
+    /// the photon form; NaN when not a number, missing, or given under the other form's
+    /// key (then `yield_issues` says so).
     pub quantum_yield: f64,
+    /// The yield form (`yield_form`; energy when absent or not understood).
+    pub yield_form: YieldForm,
+    /// How the yield is given wrongly (a photon-form fluorophore without `photon_yield`
+    /// or with `quantum_yield`, an unknown `yield_form`, …): reported by
+    /// [`Law::QuantumYieldRange`].
+    pub yield_issues: Vec<String>,
     /// a(λ).
     pub absorption: RawSpectrum,
     /// e(λ).
@@ -413,6 +453,8 @@ impl From<&Material> for RawMaterial {
                 .map(|f| RawFluorophore {
                     concentration: f.concentration,
                     quantum_yield: f.quantum_yield,
+                    yield_form: f.yield_form,
+                    yield_issues: Vec::new(),
                     absorption: (&f.absorption).into(),
                     emission: (&f.emission).into(),
                 })
@@ -429,8 +471,10 @@ impl From<&Material> for RawMaterial {
 impl RawMaterial {
     /// Reads a material leniently from JSON text. Fails only when the text is not JSON or
     /// lacks the material's structure (`reflectance`, `fluorophores`, spectra with
-    /// `wavelength_nm` and `value` arrays, `concentration` and `quantum_yield`); values
-    /// that are not numbers (null, strings) are read as NaN and reported by the check.
+    /// `wavelength_nm` and `value` arrays, `concentration`); values that are not numbers
+    /// (null, strings) are read as NaN and reported by the check. A yield given wrongly
+    /// for its form (missing, under the other form's key, an unknown `yield_form`) is
+    /// reported by the check too, never guessed.
     pub fn from_json(text: &str, path: &Path) -> Result<RawMaterial> {
         let root: Value = serde_json::from_str(text)
             .map_err(|e| Error::parse(path, e.line(), e.column(), format!("not JSON: {e}")))?;
@@ -505,9 +549,12 @@ impl RawMaterial {
                 })?;
                 Ok(v.as_f64().unwrap_or(f64::NAN))
             };
+            let (yield_form, quantum_yield, yield_issues) = raw_yield(f, &p);
             fluorophores.push(RawFluorophore {
                 concentration: scalar("concentration")?,
-                quantum_yield: scalar("quantum_yield")?,
+                quantum_yield,
+                yield_form,
+                yield_issues,
                 absorption: spectrum(f.get("absorption"), &format!("{p}.absorption"))?,
                 emission: spectrum(f.get("emission"), &format!("{p}.emission"))?,
             });
@@ -540,6 +587,68 @@ impl RawMaterial {
             forms,
         })
     }
+}
+
+/// The yield form and the form's yield of a fluorophore object `f` (named `p`), with
+/// every way they are given wrongly in words (the yield is then NaN: not guessed).
+fn raw_yield(f: &Value, p: &str) -> (YieldForm, f64, Vec<String>) {
+    let number = |v: &Value| v.as_f64().unwrap_or(f64::NAN);
+    let q = f.get("quantum_yield").filter(|v| !v.is_null());
+    let phi = f.get("photon_yield").filter(|v| !v.is_null());
+    let mut issues = Vec::new();
+    let form = match f.get("yield_form").filter(|v| !v.is_null()) {
+        None => Some(YieldForm::Energy),
+        Some(v) => match v.as_str() {
+            Some("energy") => Some(YieldForm::Energy),
+            Some("photon") => Some(YieldForm::Photon),
+            _ => {
+                issues.push(format!(
+                    "{p}.yield_form is {v}; give \"energy\" (constant energy yield, `quantum_yield`; the default) or \"photon\" (constant photon yield, `photon_yield`)"
+                ));
+                None
+            }
+        },
+    };
+    let value = match (form, q, phi) {
+        (None, _, _) => f64::NAN,
+        (Some(YieldForm::Energy), Some(q), None) => number(q),
+        (Some(YieldForm::Energy), q, Some(_)) => {
+            issues.push(format!(
+                "{p} gives `photon_yield` without \"yield_form\": \"photon\"; add that to make it a photon-form fluorophore{}",
+                if q.is_some() {
+                    " and drop `quantum_yield` (a fluorophore has one yield)"
+                } else {
+                    ", or give the energy yield as `quantum_yield`"
+                }
+            ));
+            f64::NAN
+        }
+        (Some(YieldForm::Energy), None, None) => {
+            issues.push(format!(
+                "{p}.quantum_yield is missing; give the energy quantum yield Q in [0, 1] (or \"yield_form\": \"photon\" with `photon_yield` Φ)"
+            ));
+            f64::NAN
+        }
+        (Some(YieldForm::Photon), None, Some(phi)) => number(phi),
+        (Some(YieldForm::Photon), Some(_), phi) => {
+            issues.push(format!(
+                "{p} has \"yield_form\": \"photon\" but gives `quantum_yield`; a photon-form fluorophore gives its photon yield Φ as `photon_yield` only{}",
+                if phi.is_some() {
+                    " (drop `quantum_yield`)"
+                } else {
+                    " (rename it if it is Φ, or drop yield_form if it is the energy yield Q)"
+                }
+            ));
+            f64::NAN
+        }
+        (Some(YieldForm::Photon), None, None) => {
+            issues.push(format!(
+                "{p}.photon_yield is missing; a photon-form fluorophore needs its photon quantum yield Φ in [0, 1]"
+            ));
+            f64::NAN
+        }
+    };
+    (form.unwrap_or_default(), value, issues)
 }
 
 /// Reads `path` leniently and checks it. Errors only when the file cannot be read or
@@ -784,7 +893,29 @@ pub fn check(m: &RawMaterial) -> CheckReport {
     let concentration_range = scalar(Law::ConcentrationRange, "concentration", |f| {
         f.concentration
     });
-    let yield_range = scalar(Law::QuantumYieldRange, "quantum_yield", |f| f.quantum_yield);
+    let mut yield_range = Tracker::new(Law::QuantumYieldRange);
+    for (n, f) in m.fluorophores.iter().enumerate() {
+        let key = match f.yield_form {
+            YieldForm::Energy => "quantum_yield",
+            YieldForm::Photon => "photon_yield",
+        };
+        let at = format!("fluorophores[{n}].{key}");
+        if !f.yield_issues.is_empty() {
+            yield_range.observe_if(true, f64::NAN, f.quantum_yield, &at, None, || {
+                f.yield_issues.join("; ")
+            });
+            continue;
+        }
+        let v = f.quantum_yield;
+        let margin = if v.is_nan() { f64::NAN } else { v.min(1.0 - v) };
+        let symbol = match f.yield_form {
+            YieldForm::Energy => "the energy yield Q",
+            YieldForm::Photon => "the photon yield Φ",
+        };
+        yield_range.observe(margin, v, &at, None, || {
+            format!("{at} is {v}; {symbol} must lie in [0, 1]")
+        });
+    }
 
     // Normalisations.
     let mut peak = Tracker::new(Law::AbsorptionPeak);
@@ -844,7 +975,7 @@ pub fn check(m: &RawMaterial) -> CheckReport {
                 .map(|f| crate::material::Fluorophore {
                     concentration: f.concentration,
                     quantum_yield: f.quantum_yield,
-                    yield_form: crate::material::YieldForm::Energy,
+                    yield_form: f.yield_form,
                     concentration_range: None,
                     absorption: to_spectrum(&f.absorption),
                     emission: to_spectrum(&f.emission),
@@ -863,32 +994,69 @@ pub fn check(m: &RawMaterial) -> CheckReport {
                 )
             });
         }
+        let lower = if material
+            .fluorophores
+            .iter()
+            .any(|f| f.yield_form == YieldForm::Photon)
+        {
+            "lower r, c or the yield (Q, or Φ in the photon form, where Q(λ) = Φ·λ/λ̄e grows with λ)"
+        } else {
+            "lower r, c or Q"
+        };
         for (l, rho) in energy_extrema(&material, &grid) {
             energy.observe(1.0 - rho, rho, "albedo", Some(l), || {
-                format!("albedo ρ = {rho} at {l} nm: the material reflects and emits more energy than it receives; lower r, c or Q")
+                format!("albedo ρ = {rho} at {l} nm: the material reflects and emits more energy than it receives; {lower}")
             });
         }
         for (n, f) in material.fluorophores.iter().enumerate() {
             let mean = f.emission_mean_nm();
             let absorbed = absorbed_range(&f.absorption);
             let mut summary = FluorophoreSummary {
+                yield_form: f.yield_form,
+                yield_value: f.quantum_yield,
                 k: f.k(),
                 mean_emission_nm: mean,
                 absorbed_nm: absorbed,
                 photon_yield_range: None,
+                energy_yield_range: None,
             };
             if let Some([lo, hi]) = absorbed
                 && mean.is_finite()
             {
-                let q = f.quantum_yield;
-                let ratio = q * mean / lo;
-                summary.photon_yield_range = Some([q * mean / hi, ratio]);
-                photons.observe(1.0 - ratio, ratio, &format!("fluorophores[{n}]"), Some(lo), || {
-                    format!(
-                        "fluorophores[{n}] emits Q·λ̄e/λ = {ratio:.6} photons per absorbed photon at {lo} nm (Q = {q}, λ̄e = {mean:.2} nm); photon conservation allows Q ≤ {:.6}",
-                        lo / mean
-                    )
-                });
+                summary.photon_yield_range = Some([
+                    f.photon_yield_with_mean(hi, mean),
+                    f.photon_yield_with_mean(lo, mean),
+                ]);
+                summary.energy_yield_range = Some([
+                    f.energy_yield_with_mean(lo, mean),
+                    f.energy_yield_with_mean(hi, mean),
+                ]);
+                // The photon yield is largest at the shortest absorbed wavelength (it is
+                // constant in the photon form).
+                let ratio = f.photon_yield_with_mean(lo, mean);
+                let y = f.quantum_yield;
+                let (nm, message) = match f.yield_form {
+                    YieldForm::Energy => (
+                        Some(lo),
+                        format!(
+                            "fluorophores[{n}] emits Q·λ̄e/λ = {ratio:.6} photons per absorbed photon at {lo} nm (Q = {y}, λ̄e = {mean:.2} nm); photon conservation allows Q ≤ {:.6} (or a constant photon yield Φ ≤ 1: \"yield_form\": \"photon\")",
+                            lo / mean
+                        ),
+                    ),
+                    YieldForm::Photon => (
+                        None,
+                        format!(
+                            "fluorophores[{n}] emits Φ = {y} photons per absorbed photon at every absorbed wavelength; photon conservation allows Φ ≤ 1"
+                        ),
+                    ),
+                };
+                photons.observe(
+                    1.0 - ratio,
+                    ratio,
+                    &format!("fluorophores[{n}]"),
+                    nm,
+                    || message,
+                );
             }
             summaries.push(summary);
         }
@@ -1032,19 +1200,34 @@ fn absorbed_range(a: &Spectrum) -> Option<[f64; 2]> {
 }
 
 /// The local maxima of ρ(λ) on `grid` (every spectrum's samples): between samples every
-/// spectrum is linear, so ρ = (1 − Σc·a)·r + Σk·a·∫e is quadratic there, and its
+/// spectrum is linear, so ρ = (1 − Σc·a)·r + Σc·Q(λ)·a·∫e is quadratic there, and its
 /// maximum is at an end or at the vertex. Returns (λ, ρ) for every sample and interior
 /// vertex, which include the global maximum exactly.
+///
+/// The photon form keeps ρ quadratic between samples: its fluorescent term
+/// c·Φ·(λ/λ̄e)·a(λ)·∫e is λ (linear) times a (linear), a quadratic like (1 − Σc·a)·r, so
+/// the sum is still one quadratic per interval and the vertex search stays exact (no
+/// dense evaluation needed). Three values per interval (ends and midpoint) determine it.
 fn energy_extrema(material: &Material, grid: &[f64]) -> Vec<(f64, f64)> {
-    let mut out: Vec<(f64, f64)> = grid
-        .iter()
-        .map(|&l| (l, material.energy_albedo(l)))
-        .collect();
+    let moments = material.emission_moments();
+    // ρ(λ); an emission without area (∫e = 0, reported by its own law) adds nothing,
+    // though its mean (and so the photon form's Q(λ)) is undefined.
+    let albedo = |l: f64| {
+        material.diagonal(l)
+            + material
+                .fluorophores
+                .iter()
+                .zip(&moments)
+                .filter(|(_, (integral, _))| *integral != 0.0)
+                .map(|(f, &(integral, mean))| f.reradiated_with_mean(l, mean) * integral)
+                .sum::<f64>()
+    };
+    let mut out: Vec<(f64, f64)> = grid.iter().map(|&l| (l, albedo(l))).collect();
     for w in grid.windows(2) {
         let (l0, l1) = (w[0], w[1]);
-        let f0 = material.energy_albedo(l0);
-        let f1 = material.energy_albedo(l1);
-        let fm = material.energy_albedo(0.5 * (l0 + l1));
+        let f0 = albedo(l0);
+        let f1 = albedo(l1);
+        let fm = albedo(0.5 * (l0 + l1));
         // ρ(t) = f0 + b·t + c·t², t ∈ [0, 1].
         let c = 2.0 * (f0 + f1) - 4.0 * fm;
         let b = f1 - f0 - c;
@@ -1052,7 +1235,7 @@ fn energy_extrema(material: &Material, grid: &[f64]) -> Vec<(f64, f64)> {
             let t = -b / (2.0 * c);
             if t > 0.0 && t < 1.0 {
                 let l = l0 + t * (l1 - l0);
-                out.push((l, material.energy_albedo(l)));
+                out.push((l, albedo(l)));
             }
         }
     }

@@ -1,6 +1,8 @@
 //! Building a material from published spectra (as the paper does): an absorption (or
 //! excitation) spectrum, an emission spectrum, a reflectance spectrum or constant, and
-//! the concentration c and energy quantum yield Q.
+//! the concentration c and a quantum yield: the energy yield Q (constant over the
+//! excitation wavelength, the paper's form) or the photon yield Φ that chemists tabulate
+//! (constant photon yield, energy yield Φ·λi/λ̄e).
 //!
 //! Spectra files are delimited text (`,`, `;`, tab or whitespace), `#` comment lines
 //! skipped, a header row naming the columns (first column the wavelength in nm), e.g.
@@ -14,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 use crate::check::{CheckReport, Law, check_material};
 use crate::error::{Error, Result};
-use crate::material::{Fluorophore, Material};
+use crate::material::{Fluorophore, Material, YieldForm};
 use crate::spectrum::Spectrum;
 
 /// Where a spectrum comes from: a file and, optionally, the column to read.
@@ -48,8 +50,23 @@ pub struct ImportOptions {
     pub reflectance: ReflectanceSource,
     /// c: fraction absorbed at the absorption peak.
     pub concentration: f64,
-    /// Q: energy quantum yield (emitted / absorbed energy).
+    /// The yield of `yield_form`: the energy quantum yield Q (emitted / absorbed energy)
+    /// or the photon quantum yield Φ (emitted / absorbed photons).
     pub quantum_yield: f64,
+    /// Which yield is constant over the excitation wavelength (and so what
+    /// `quantum_yield` is).
+    pub yield_form: YieldForm,
+}
+
+impl ImportOptions {
+    /// The command-line name of the yield option (`--quantum-yield` or `--photon-yield`),
+    /// for messages.
+    pub fn yield_option(&self) -> &'static str {
+        match self.yield_form {
+            YieldForm::Energy => "--quantum-yield",
+            YieldForm::Photon => "--photon-yield",
+        }
+    }
 }
 
 /// Column names tried, in order, when no column is named.
@@ -251,15 +268,28 @@ fn trim_zeros(s: &Spectrum) -> Spectrum {
 /// is zero everywhere, or the material breaks a law (e.g. a quantum yield above what
 /// photon conservation allows, with the largest allowed value in the message).
 pub fn import_spectra(options: &ImportOptions) -> Result<(Material, CheckReport)> {
-    for (v, what) in [
-        (options.concentration, "--concentration"),
-        (options.quantum_yield, "--quantum-yield"),
+    let yield_option = options.yield_option();
+    for (v, what, meaning) in [
+        (
+            options.concentration,
+            "--concentration",
+            "it must lie in [0, 1]",
+        ),
+        (
+            options.quantum_yield,
+            yield_option,
+            match options.yield_form {
+                YieldForm::Energy => {
+                    "an energy quantum yield (emitted / absorbed energy) lies in [0, 1]"
+                }
+                YieldForm::Photon => {
+                    "a photon quantum yield (emitted / absorbed photons) lies in [0, 1]; a yield in percent must be divided by 100"
+                }
+            },
+        ),
     ] {
         if !(0.0..=1.0).contains(&v) {
-            return Err(Error::invalid(
-                what,
-                format!("is {v}; it must lie in [0, 1]"),
-            ));
+            return Err(Error::invalid(what, format!("is {v}; {meaning}")));
         }
     }
     let read = |s: &SpectrumSource, preferred: &[&str]| {
@@ -324,7 +354,7 @@ pub fn import_spectra(options: &ImportOptions) -> Result<(Material, CheckReport)
         vec![Fluorophore {
             concentration: options.concentration,
             quantum_yield: options.quantum_yield,
-            yield_form: crate::material::YieldForm::Energy,
+            yield_form: options.yield_form,
             concentration_range: None,
             absorption,
             emission,
@@ -341,10 +371,18 @@ pub fn import_spectra(options: &ImportOptions) -> Result<(Material, CheckReport)
             } else {
                 String::new()
             };
-            let hint = if law == Law::Photons {
-                "; lower --quantum-yield"
-            } else {
-                ""
+            let hint = match (law, options.yield_form) {
+                (Law::Photons, YieldForm::Energy) => {
+                    "; lower --quantum-yield, or give the photon yield Φ that chemists tabulate with --photon-yield (a constant photon yield conserves photons for every Φ ≤ 1)"
+                }
+                (Law::Photons, YieldForm::Photon) => "; lower --photon-yield",
+                (Law::Energy, YieldForm::Photon) => {
+                    "; the energy yield Φ·λ/λ̄e exceeds Φ where the dye absorbs above its mean emission wavelength: lower --photon-yield, --concentration or --reflectance"
+                }
+                (Law::Energy, YieldForm::Energy) => {
+                    "; lower --quantum-yield, --concentration or --reflectance"
+                }
+                _ => "",
             };
             reasons.push(format!("{law}: {first}{more}{hint}"));
         }

@@ -7,7 +7,7 @@ use std::process::Command;
 use fluorite::check::{Law, Status, check_file, check_material};
 use fluorite::fit::{FitOptions, FitOutcome, fit};
 use fluorite::formats::{ReadOptions, read};
-use fluorite::material::{Fluorophore, Material};
+use fluorite::material::{Fluorophore, Material, YieldForm};
 use fluorite::parametric::SpectralForm;
 use fluorite::spectrum::Spectrum;
 use fluorite::synth::{PRESETS, SynthSpec};
@@ -103,7 +103,7 @@ fn base() -> Material {
         vec![Fluorophore {
             concentration: 0.5,
             quantum_yield: 0.3,
-            yield_form: fluorite::YieldForm::Energy,
+            yield_form: YieldForm::Energy,
             concentration_range: None,
             absorption: a,
             emission: e,
@@ -325,7 +325,7 @@ fn margins_and_worst_wavelengths_are_the_analytic_ones() {
         vec![Fluorophore {
             concentration: 1.0,
             quantum_yield: 0.0,
-            yield_form: fluorite::YieldForm::Energy,
+            yield_form: YieldForm::Energy,
             concentration_range: None,
             absorption: a,
             emission: e,
@@ -527,5 +527,254 @@ fn forms_are_compared_with_their_samples_and_named() {
     assert_eq!(out.status.code(), Some(1));
     let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(stdout.contains("VIOLATES forms"), "{stdout}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+// ---- the photon-yield form --------------------------------------------------------------
+
+/// The base material in the photon form with photon yield Φ.
+fn base_photon(phi: f64) -> Material {
+    let mut m = base();
+    m.fluorophores[0].yield_form = YieldForm::Photon;
+    m.fluorophores[0].quantum_yield = phi;
+    m
+}
+
+#[test]
+fn photon_form_laws_and_summary_are_the_analytic_ones() {
+    // Φ = 0.9, λ̄e = 600 nm, absorbed 350–550 nm. In the energy form Q = 0.9 breaks the
+    // photon law (0.9·600/350 > 1); a constant photon yield of 0.9 keeps it.
+    let report = check_material(&base_photon(0.9));
+    assert!(report.valid, "{}", report.to_text());
+    let photons = report.law(Law::Photons);
+    assert_eq!(photons.worst_value, 0.9);
+    assert!((photons.margin - 0.1).abs() < 1e-12);
+    assert_eq!(photons.worst_nm, None);
+    let f = &report.fluorophores[0];
+    assert_eq!(f.yield_form, YieldForm::Photon);
+    assert_eq!(f.yield_value, 0.9);
+    assert_eq!(f.k, 0.5 * 0.9);
+    assert_eq!(f.absorbed_nm, Some([350.0, 550.0]));
+    assert_eq!(f.photon_yield_range, Some([0.9, 0.9]));
+    let [lo, hi] = f.energy_yield_range.unwrap();
+    assert!((lo - 0.9 * 350.0 / 600.0).abs() < 1e-12, "{lo}");
+    assert!((hi - 0.9 * 550.0 / 600.0).abs() < 1e-12, "{hi}");
+    // Energy: ρ = (1 − 0.5·a)·0.5 + 0.5·0.9·(λ/600)·a; on the plateau a = 1 (400–500 nm)
+    // ρ = 0.25 + 0.45·λ/600, largest at 500 nm: 0.625. Beyond, a falls to 0 at 550 nm
+    // and ρ(λ) = 0.5 − 0.25·a + 0.00075·λ·a with a = (550 − λ)/50 has its vertex below
+    // 500 nm, so 500 nm is the maximum.
+    let energy = report.law(Law::Energy);
+    assert!((energy.worst_value - 0.625).abs() < 1e-12, "{energy:?}");
+    assert_eq!(energy.worst_nm, Some(500.0));
+
+    // The text and the JSON report name the form, Φ and the energy-yield range.
+    let text = report.to_text();
+    assert!(
+        text.contains("fluorophores[0]: k = c·Φ = 0.450000 (photon form, Φ = 0.900000)"),
+        "{text}"
+    );
+    assert!(
+        text.contains(
+            "energy quantum yield Q(λ) = Φ·λ/λ̄e from 0.5250 (at 350 nm) to 0.8250 (at 550 nm)"
+        ),
+        "{text}"
+    );
+    let json: serde_json::Value = serde_json::from_str(&report.to_json()).unwrap();
+    let f = &json["fluorophores"][0];
+    assert_eq!(f["yield_form"], "photon");
+    assert_eq!(f["yield"], 0.9);
+    assert_eq!(f["photon_yield_range"], serde_json::json!([0.9, 0.9]));
+    // The energy form states Q and the Φ(λ) range.
+    let text = check_material(&base()).to_text();
+    assert!(
+        text.contains("fluorophores[0]: k = c·Q = 0.150000 (energy form, Q = 0.300000)")
+            && text.contains("photon quantum yield Φ(λ) = Q·λ̄e/λ"),
+        "{text}"
+    );
+
+    // Φ above 1 breaks the yield range and the photon law, and only those.
+    let report = check_material(&base_photon(1.2));
+    assert_eq!(
+        report.failed(),
+        vec![Law::QuantumYieldRange, Law::Photons],
+        "{}",
+        report.to_text()
+    );
+    assert!(report.law(Law::QuantumYieldRange).violations[0].contains("photon_yield"));
+}
+
+/// Largest value of c0 + c1·t + c2·t² on [0, 1].
+fn quadratic_max(c0: f64, c1: f64, c2: f64) -> f64 {
+    let mut best = c0.max(c0 + c1 + c2);
+    if c2 < 0.0 {
+        let t = -c1 / (2.0 * c2);
+        if (0.0..=1.0).contains(&t) {
+            best = best.max(c0 + c1 * t + c2 * t * t);
+        }
+    }
+    best
+}
+
+#[test]
+fn photon_form_energy_law_finds_the_maximum_between_samples_and_above_the_mean_emission() {
+    // r = a rising 400 → 500 nm and falling to 600 nm, c = 1, Φ = 0.5, e flat on
+    // 600–700 nm (λ̄e = 650): ρ = (1 − a)·a + 0.5·(λ/650)·a is quadratic on each
+    // interval with its maximum inside, found exactly (not just at samples or midpoints).
+    let r = Spectrum::new(vec![400.0, 500.0, 600.0], vec![0.0, 1.0, 0.0], "r").unwrap();
+    let e = Spectrum::new(vec![600.0, 700.0], vec![0.01, 0.01], "e").unwrap();
+    let m = Material::new(
+        "q",
+        r.clone(),
+        vec![Fluorophore {
+            concentration: 1.0,
+            quantum_yield: 0.5,
+            yield_form: YieldForm::Photon,
+            concentration_range: None,
+            absorption: r,
+            emission: e,
+        }],
+    );
+    // On 400–500: a = t, λ = 400 + 100t: ρ = t − t² + (200t + 50t²)/650.
+    let rising = quadratic_max(0.0, 1.0 + 200.0 / 650.0, -1.0 + 50.0 / 650.0);
+    // On 500–600: a = 1 − s, λ = 500 + 100s: ρ = s − s² + 0.5·(500 + 100s)(1 − s)/650.
+    let falling = quadratic_max(
+        250.0 / 650.0,
+        1.0 + (50.0 - 250.0) / 650.0,
+        -1.0 - 50.0 / 650.0,
+    );
+    let exact = rising.max(falling);
+    let energy = check_material(&m).law(Law::Energy).clone();
+    assert!(
+        (energy.worst_value - exact).abs() < 1e-12,
+        "{energy:?} vs {exact}"
+    );
+    let nm = energy.worst_nm.unwrap();
+    assert!(nm % 50.0 != 0.0, "the maximum lies between samples: {nm}");
+
+    // Absorbing above the mean emission, a constant Φ ≤ 1 can break energy conservation:
+    // r = 0.5, c = 1, a = 1 on 500–600 nm (0 at 450 and 650), Φ = 0.9, e flat on
+    // 350–450 nm (λ̄e = 400): ρ(600) = 0.9·600/400 = 1.35 (beyond, the vertex of
+    // 0.5·(1 − a) + 0.9·(λ/400)·a lies below 600 nm). The energy form with Q = 0.9 holds.
+    let a = Spectrum::new(
+        vec![450.0, 500.0, 600.0, 650.0],
+        vec![0.0, 1.0, 1.0, 0.0],
+        "a",
+    )
+    .unwrap();
+    let e = Spectrum::new(vec![350.0, 450.0], vec![0.01, 0.01], "e").unwrap();
+    let r = Spectrum::new(vec![300.0, 800.0], vec![0.5, 0.5], "r").unwrap();
+    let f = Fluorophore {
+        concentration: 1.0,
+        quantum_yield: 0.9,
+        yield_form: YieldForm::Photon,
+        concentration_range: None,
+        absorption: a,
+        emission: e,
+    };
+    let m = Material::new("anti-Stokes", r, vec![f]);
+    let report = check_material(&m);
+    assert_eq!(report.failed(), vec![Law::Energy], "{}", report.to_text());
+    let energy = report.law(Law::Energy);
+    assert!((energy.worst_value - 1.35).abs() < 1e-12, "{energy:?}");
+    assert_eq!(energy.worst_nm, Some(600.0));
+    assert!(m.validate().is_err());
+    let mut energy_form = m.clone();
+    energy_form.fluorophores[0].yield_form = YieldForm::Energy;
+    let report = check_material(&energy_form);
+    assert!(
+        (report.law(Law::Energy).worst_value - 0.9).abs() < 1e-12,
+        "{}",
+        report.to_text()
+    );
+}
+
+#[test]
+fn a_yield_given_wrongly_for_its_form_is_reported_not_fatal() {
+    let dir = temp_dir("yield-form");
+    let good: serde_json::Value = serde_json::from_str(&base_photon(0.7).to_json()).unwrap();
+    assert_eq!(good["fluorophores"][0]["yield_form"], "photon");
+    assert_eq!(good["fluorophores"][0]["photon_yield"], 0.7);
+    let edit = |f: &dyn Fn(&mut serde_json::Map<String, serde_json::Value>)| {
+        let mut v = good.clone();
+        f(v["fluorophores"][0].as_object_mut().unwrap());
+        v.to_string()
+    };
+    let cases = [
+        (
+            "photon form without photon_yield",
+            edit(&|f| {
+                f.remove("photon_yield");
+            }),
+            "photon_yield is missing",
+        ),
+        (
+            "photon form with quantum_yield",
+            edit(&|f| {
+                f.remove("photon_yield");
+                f.insert("quantum_yield".into(), 0.7.into());
+            }),
+            "gives `quantum_yield`",
+        ),
+        (
+            "photon form with both yields",
+            edit(&|f| {
+                f.insert("quantum_yield".into(), 0.7.into());
+            }),
+            "drop `quantum_yield`",
+        ),
+        (
+            "photon_yield without the form",
+            edit(&|f| {
+                f.remove("yield_form");
+            }),
+            "without \"yield_form\": \"photon\"",
+        ),
+        (
+            "unknown form",
+            edit(&|f| {
+                f.insert("yield_form".into(), "photons".into());
+            }),
+            "yield_form is \"photons\"",
+        ),
+        (
+            "energy form without any yield",
+            edit(&|f| {
+                f.remove("yield_form");
+                f.remove("photon_yield");
+            }),
+            "quantum_yield is missing",
+        ),
+    ];
+    for (n, (what, text, expected)) in cases.iter().enumerate() {
+        let path = dir.join(format!("yield{n}.json"));
+        std::fs::write(&path, text).unwrap();
+        let report = check_file(&path).unwrap();
+        assert_eq!(
+            report.failed(),
+            vec![Law::QuantumYieldRange],
+            "{what}: {}",
+            report.to_text()
+        );
+        let law = report.law(Law::QuantumYieldRange);
+        assert!(
+            law.violations.iter().any(|v| v.contains(expected)),
+            "{what}: {:?}",
+            law.violations
+        );
+        // Nothing is guessed: the laws that need the yield are not evaluated.
+        assert_eq!(
+            report.law(Law::Energy).status,
+            Status::NotEvaluated,
+            "{what}"
+        );
+        // The strict reader refuses the same file.
+        assert!(Material::load(&path).is_err(), "{what}");
+        let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .arg("check")
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{what}");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -8,7 +8,7 @@ use fluorite::Units;
 use fluorite::export::{ExportFormat, ExportOptions, export};
 use fluorite::fit::{FitOptions, FitOutcome, fit};
 use fluorite::formats::{ReadOptions, read};
-use fluorite::material::Material;
+use fluorite::material::{Fluorophore, Material, YieldForm};
 use fluorite::parametric::SpectralForm;
 use fluorite::synth::SynthSpec;
 
@@ -248,18 +248,45 @@ fn widths(grid: &[f64]) -> Vec<f64> {
 
 /// The model's matrix cell from the material's spectra, independently of `model`: the
 /// fluorescence of every fluorophore summed, plus (1 − Σc·a)·r on the diagonal.
+/// A photon-form fluorophore's energy yield is Φ·λi/λ̄e (`excitation_factor`).
 fn cell(m: &Material, li: f64, lo: f64, width: f64) -> f64 {
     let mut v = 0.0;
     let mut absorbed = 0.0;
     for f in &m.fluorophores {
         let a = f.absorption.eval_zero_outside(li);
-        v += f.concentration * f.quantum_yield * a * f.emission.eval_zero_outside(lo) * width;
+        v += f.concentration
+            * f.quantum_yield
+            * excitation_factor(f, li)
+            * a
+            * f.emission.eval_zero_outside(lo)
+            * width;
         absorbed += f.concentration * a;
     }
     if (li - lo).abs() < 1e-9 {
         v += (1.0 - absorbed) * m.reflectance.eval_clamped(li);
     }
     v
+}
+
+/// λ̄e = ∫λ·e dλ / ∫e dλ by the trapezoid rule on the emission's samples (the
+/// material's documented definition), written out here.
+fn mean_emission(f: &Fluorophore) -> f64 {
+    let w = widths(&f.emission.wavelength_nm);
+    let e = &f.emission;
+    let num: f64 = (0..e.len())
+        .map(|i| w[i] * e.value[i] * e.wavelength_nm[i])
+        .sum();
+    let den: f64 = (0..e.len()).map(|i| w[i] * e.value[i]).sum();
+    num / den
+}
+
+/// The factor of the fluorescent term beside c·y·a(λi)·e(λo) (y the yield parameter): 1
+/// for a constant energy yield, λi/λ̄e for a constant photon yield.
+fn excitation_factor(f: &Fluorophore, li: f64) -> f64 {
+    match f.yield_form {
+        YieldForm::Energy => 1.0,
+        YieldForm::Photon => li / mean_emission(f),
+    }
 }
 
 fn close(got: f64, want: f64) -> bool {
@@ -934,4 +961,170 @@ fn mitsuba_takes_a_grid_only_when_it_writes_the_matrix() {
     let header = text.lines().find(|l| l.starts_with("ex_nm")).unwrap();
     assert_eq!(header.split(',').count(), 1 + 25);
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+// ---- the photon-yield form ----------------------------------------------------------------
+
+/// The green-dye truth with its yield read as a constant photon yield Φ = 0.8.
+fn photon_truth() -> Material {
+    let mut m = truth();
+    m.name = "green-photon".into();
+    m.fluorophores[0].yield_form = YieldForm::Photon;
+    m.fluorophores[0].quantum_yield = 0.8;
+    m.validate().unwrap();
+    m
+}
+
+#[test]
+fn photon_form_exports_write_the_form_and_the_photon_yield() {
+    let m = photon_truth();
+    let f = &m.fluorophores[0];
+    let mean = mean_emission(f);
+    // The factor λi/λ̄e matters across the absorption (the test is not vacuous).
+    let [lo, hi] = [
+        f.absorption.wavelength_nm[0],
+        *f.absorption.wavelength_nm.last().unwrap(),
+    ];
+    assert!(hi / mean - lo / mean > 0.3, "{lo} {hi} {mean}");
+
+    // csv: the form, Φ and λ̄e in the header, no constant energy yield.
+    let files = render(&m, ExportFormat::Csv);
+    let (header, _) = split_header(file(&files, "green-photon.csv"), "#");
+    let scalar = |key: &str| -> f64 {
+        header
+            .iter()
+            .find_map(|h| h.strip_prefix(key))
+            .unwrap_or_else(|| panic!("{key} missing: {header:?}"))
+            .split_whitespace()
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    assert!(
+        header.iter().any(|h| h.starts_with("yield_form: photon")),
+        "{header:?}"
+    );
+    assert_eq!(scalar("photon_yield: Φ = "), 0.8);
+    assert!((scalar("mean_emission: λ̄e = ") - mean).abs() < 1e-9 * mean);
+    assert!(
+        !header.iter().any(|h| h.starts_with("quantum_yield")),
+        "{header:?}"
+    );
+
+    // matrix (both units) and BFC: every cell c·Φ·(λi/λ̄e)·a(λi)·e(λo)·Δλo off the diagonal.
+    for per_nm in [false, true] {
+        let options = ExportOptions {
+            units: if per_nm { Units::PerNm } else { Units::PerBin },
+            ..ExportOptions::new(ExportFormat::Matrix)
+        };
+        let files = export(&m, &options).unwrap();
+        let text = std::str::from_utf8(&files[0].contents).unwrap();
+        check_wide_matrix(text, &m, per_nm);
+        assert!(
+            text.contains("c·Q(λi)·a(λi)") && text.contains("Φ = 0.8"),
+            "{text}"
+        );
+    }
+    let files = render(&m, ExportFormat::Bfc);
+    let text = file(&files, "green-photon.BFC");
+    assert!(
+        text.contains(";photon-form yield: energy yield Q(li) = Phi*li"),
+        "{text}"
+    );
+    let (ex, em, rows) = parse_bfc(text);
+    let w = widths(&em);
+    for (j, row) in rows.iter().enumerate() {
+        for (i, &li) in ex.iter().enumerate() {
+            assert!(close(row[i], cell(&m, li, em[j], w[j])), "{li} {}", em[j]);
+        }
+    }
+
+    // Mitsuba and pbrt: the excitation file holds c·Φ·(λ/λ̄e)·a(λ), at least every 1 nm
+    // (λ·a is quadratic between the absorption samples), through every absorption sample.
+    for format in [ExportFormat::Mitsuba, ExportFormat::Pbrt] {
+        let files = render(&m, format);
+        let text = file(&files, "green-photon_excitation.spd");
+        check_spd(
+            text,
+            &m,
+            "excitation c*Q(λ)*a(λ) with the energy yield Q(λ) = Φ*λ/λ̄e",
+            "Φ = 0.8",
+            |l| f.concentration * 0.8 * l / mean * f.absorption.eval_zero_outside(l),
+        );
+        let (_, data) = split_header(text, "#");
+        let grid: Vec<f64> = data.iter().map(|l| numbers(l, " ")[0]).collect();
+        assert!(
+            grid.windows(2)
+                .all(|w| w[1] > w[0] && w[1] - w[0] <= 1.0 + 1e-9)
+        );
+        for l in &f.absorption.wavelength_nm {
+            assert!(grid.iter().any(|g| (g - l).abs() < 1e-9), "{l} missing");
+        }
+        let snippet = match format {
+            ExportFormat::Mitsuba => file(&files, "green-photon.xml"),
+            _ => file(&files, "green-photon.pbrt"),
+        };
+        assert!(
+            snippet.contains("constant PHOTON yield Φ = 0.8") && snippet.contains("cannot express"),
+            "{snippet}"
+        );
+        match format {
+            ExportFormat::Mitsuba => {
+                assert!(snippet.contains("<float name=\"photon_yield\" value=\"0.8\"/>"));
+                assert!(snippet.contains("<string name=\"yield_form\" value=\"photon\"/>"));
+                assert!(!snippet.contains("quantum_yield\" value"), "{snippet}");
+            }
+            _ => assert!(snippet.contains("photon form, Φ = 0.8"), "{snippet}"),
+        }
+    }
+}
+
+#[test]
+fn mixed_forms_keep_each_fluorophores_own_yield() {
+    // two-dyes with the orange dye in the photon form (Φ = 0.9), the brightener energy.
+    let mut m = two_dyes();
+    m.fluorophores[1].yield_form = YieldForm::Photon;
+    m.fluorophores[1].quantum_yield = 0.9;
+    m.validate().unwrap();
+    let files = render(&m, ExportFormat::Bfc);
+    let (ex, em, rows) = parse_bfc(file(&files, "two-dyes.BFC"));
+    let w = widths(&em);
+    for (j, row) in rows.iter().enumerate() {
+        for (i, &li) in ex.iter().enumerate() {
+            assert!(close(row[i], cell(&m, li, em[j], w[j])), "{li} {}", em[j]);
+        }
+    }
+    let files = render(&m, ExportFormat::Mitsuba);
+    let xml = file(&files, "two-dyes.xml");
+    let q0 = m.fluorophores[0].quantum_yield;
+    assert!(
+        xml.contains(&format!("<float name=\"quantum_yield_0\" value=\"{q0}\"/>")),
+        "{xml}"
+    );
+    assert!(
+        xml.contains("<float name=\"photon_yield_1\" value=\"0.9\"/>"),
+        "{xml}"
+    );
+    assert!(xml.contains("Lobe_1 has a constant PHOTON yield") && !xml.contains("Lobe_0 has"));
+    let f = &m.fluorophores[0];
+    check_spd(
+        file(&files, "two-dyes_excitation_0.spd"),
+        &m,
+        "excitation c*Q*a(λ)",
+        "dimensionless",
+        |l| f.concentration * q0 * f.absorption.eval_zero_outside(l),
+    );
+    let files = render(&m, ExportFormat::Csv);
+    let (header, _) = split_header(file(&files, "two-dyes.csv"), "#");
+    assert!(
+        header
+            .iter()
+            .any(|h| h.starts_with("quantum_yield_0: Q = "))
+    );
+    assert!(
+        header
+            .iter()
+            .any(|h| h.starts_with("photon_yield_1: Φ = 0.9"))
+    );
 }

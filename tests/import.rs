@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use fluorite::YieldForm;
 use fluorite::check::Law;
 use fluorite::import::{ImportOptions, ReflectanceSource, SpectrumSource, import_spectra};
 
@@ -68,6 +69,7 @@ fn options(path: &Path, q: f64) -> ImportOptions {
         reflectance: ReflectanceSource::Constant(0.8),
         concentration: 0.6,
         quantum_yield: q,
+        yield_form: YieldForm::Energy,
     }
 }
 
@@ -173,4 +175,121 @@ fn cli_writes_a_checked_material_or_nothing() {
     );
     assert!(!refused.exists());
     std::fs::remove_dir_all(&out).unwrap();
+}
+
+/// λ̄e of the source emission (trapezoid mean), written out here.
+fn mean_emission(rows: &[[f64; 3]]) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for w in rows.windows(2) {
+        let h = w[1][0] - w[0][0];
+        num += 0.5 * h * (w[0][0] * w[0][2] + w[1][0] * w[1][2]);
+        den += 0.5 * h * (w[0][2] + w[1][2]);
+    }
+    num / den
+}
+
+#[test]
+fn a_published_photon_yield_builds_a_photon_form_material() {
+    let Some(dir) = spectra_dir() else { return };
+    for dye in DYES {
+        let path = dir.join(dye);
+        let rows = source(&path);
+        let limit = photon_limit(&rows);
+        // 0.95 is above every dye's energy-form photon limit: refused as Q, kept as Φ.
+        assert!(limit < 0.95, "{dye}: {limit}");
+        assert!(import_spectra(&options(&path, 0.95)).is_err());
+        let photon = ImportOptions {
+            yield_form: YieldForm::Photon,
+            ..options(&path, 0.95)
+        };
+        let (material, report) = import_spectra(&photon).unwrap();
+        assert!(report.valid, "{dye}: {}", report.to_text());
+        let f = &material.fluorophores[0];
+        assert_eq!(f.yield_form, YieldForm::Photon);
+        assert_eq!((f.concentration, f.quantum_yield), (0.6, 0.95));
+        // The summary: Φ = 0.95 everywhere, the energy yield Φ·λ/λ̄e over the absorbed
+        // wavelengths (the zero samples beside the positive ones bound them).
+        let s = &report.fluorophores[0];
+        assert_eq!(s.photon_yield_range, Some([0.95, 0.95]));
+        let first = rows.iter().position(|r| r[1] > 0.0).unwrap();
+        let last = rows.iter().rposition(|r| r[1] > 0.0).unwrap();
+        let (lo, hi) = (
+            rows[first.saturating_sub(1)][0],
+            rows[(last + 1).min(rows.len() - 1)][0],
+        );
+        let mean = mean_emission(&rows);
+        let [qlo, qhi] = s.energy_yield_range.unwrap();
+        assert!((qlo - 0.95 * lo / mean).abs() < 1e-9, "{dye}: {qlo}");
+        assert!((qhi - 0.95 * hi / mean).abs() < 1e-9, "{dye}: {qhi}");
+        let json: serde_json::Value = serde_json::from_str(&material.to_json()).unwrap();
+        assert_eq!(json["fluorophores"][0]["yield_form"], "photon");
+        assert_eq!(json["fluorophores"][0]["photon_yield"], 0.95);
+        assert!(json["fluorophores"][0].get("quantum_yield").is_none());
+
+        // Φ above 1 (a percentage, say) is refused naming --photon-yield.
+        let err = import_spectra(&ImportOptions {
+            quantum_yield: 95.0,
+            ..photon.clone()
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("--photon-yield") && err.contains("divided by 100"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn cli_takes_a_photon_yield() {
+    let Some(dir) = spectra_dir() else { return };
+    let out = tempfile::tempdir().unwrap();
+    let dye = dir.join(DYES[0]);
+    let bin = env!("CARGO_BIN_EXE_fluorite");
+    let target = out.path().join("fluorescein.json");
+    let run = |extra: &[&str], target: &Path| {
+        Command::new(bin)
+            .args(["import-spectra", "--absorption"])
+            .arg(&dye)
+            .args(["--reflectance", "0.9", "-c", "0.5", "--name", "fluorescein"])
+            .args(extra)
+            .arg("-o")
+            .arg(target)
+            .output()
+            .unwrap()
+    };
+    // Fluorescein's published photon yield, 0.93.
+    let o = run(&["--photon-yield", "0.93"], &target);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let stdout = String::from_utf8(o.stdout).unwrap();
+    assert!(stdout.contains("photon form, Φ = 0.930000"), "{stdout}");
+    let material = fluorite::Material::load(&target).unwrap();
+    assert_eq!(material.fluorophores[0].yield_form, YieldForm::Photon);
+    assert_eq!(material.fluorophores[0].quantum_yield, 0.93);
+    let check = Command::new(bin)
+        .arg("check")
+        .arg(&target)
+        .output()
+        .unwrap();
+    assert_eq!(check.status.code(), Some(0));
+    // Both yields, or neither: a usage error, nothing written.
+    let other = out.path().join("other.json");
+    for extra in [&["-q", "0.4", "--photon-yield", "0.9"][..], &[][..]] {
+        let o = run(extra, &other);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}");
+        assert!(!other.exists());
+    }
+    let o = run(&["--photon-yield", "1.5"], &other);
+    assert_ne!(o.status.code(), Some(0));
+    let stderr = String::from_utf8(o.stderr).unwrap();
+    assert!(
+        stderr.contains("--photon-yield") && stderr.contains("[0, 1]"),
+        "{stderr}"
+    );
+    assert!(!other.exists());
 }

@@ -1066,3 +1066,110 @@ fn two_fluorophore_heat_map_and_swatches_sum_the_components() {
     let (fitted, data) = (uv.pair.fitted_srgb, uv.pair.measured_srgb);
     assert!(fitted[2] as i32 - fitted[0] as i32 > data[2] as i32 - data[0] as i32);
 }
+
+// ---- the photon-yield form --------------------------------------------------------------
+
+/// λ̄e = ∫λ·e dλ / ∫e dλ by the trapezoid rule on the emission's samples, written out here.
+fn mean_emission(f: &Fluorophore) -> f64 {
+    let w = bin_widths(&f.emission.wavelength_nm);
+    let e = &f.emission;
+    let num: f64 = (0..e.len())
+        .map(|i| w[i] * e.value[i] * e.wavelength_nm[i])
+        .sum();
+    let den: f64 = (0..e.len()).map(|i| w[i] * e.value[i]).sum();
+    num / den
+}
+
+#[test]
+fn photon_form_profiles_follow_the_absorption_and_the_figure_states_phi() {
+    // A single photon-form fluorophore: the profile is the data's absorption, on the drawn
+    // a curve (the measured/fitted row ratio cancels the factor λ/λ̄e).
+    let mut material = synthetic_material();
+    material.fluorophores[0].yield_form = fluorite::YieldForm::Photon;
+    material.fluorophores[0].quantum_yield = 0.8;
+    material.validate().unwrap();
+    let measured = synthetic_measurement(&material, 0.0, false);
+    let comparison = plot::Comparison::new(&material, &measured, GUARD_NM);
+    let profiles = plot::spectra::data_profiles(&material, &comparison);
+    let f = &material.fluorophores[0];
+    let e_max = f.emission.max();
+    assert!(profiles.excitation.len() > 10 && profiles.emission.len() > 10);
+    for &(l, v) in &profiles.excitation {
+        assert!(
+            (v - f.absorption.eval_zero_outside(l)).abs() < 1e-9,
+            "a at {l}: {v}"
+        );
+    }
+    for &(l, v) in &profiles.emission {
+        assert!(
+            (v - f.emission.eval_zero_outside(l) / e_max).abs() < 1e-9,
+            "e at {l}: {v}"
+        );
+    }
+    // The parameters: Φ and the energy yield over the absorbed wavelengths (300–780 nm,
+    // the Gaussian absorption is positive on the whole grid).
+    let options = PlotOptions {
+        format: ImageFormat::Svg,
+        guard_nm: None,
+    };
+    let plots = plot::plot(&material, Some(&measured), &options).unwrap();
+    let spectra = plots
+        .figures
+        .iter()
+        .find(|f| f.kind == FigureKind::Spectra)
+        .unwrap();
+    let svg = std::str::from_utf8(&spectra.bytes).unwrap();
+    let mean = mean_emission(f);
+    let q = |l: f64| 0.8 * l / mean;
+    assert!(svg.contains("k = c·Φ = 0.48"), "k line missing");
+    let prefix = "Φ = 0.8 (photon yield), Q(λ) ";
+    let at = svg.find(prefix).expect("yield line missing") + prefix.len();
+    let range: String = svg[at..]
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == '–')
+        .collect();
+    let (lo, hi) = range.split_once('–').unwrap();
+    // Two significant digits.
+    let (lo, hi): (f64, f64) = (lo.parse().unwrap(), hi.parse().unwrap());
+    assert!((lo - q(300.0)).abs() <= 0.005, "{lo} vs {}", q(300.0));
+    assert!((hi - q(780.0)).abs() <= 0.05, "{hi} vs {}", q(780.0));
+}
+
+#[test]
+fn mixed_form_profiles_follow_the_combined_row_factor() {
+    // Two dyes, the second in the photon form: the excitation profile follows
+    // Σ c·Q(λ)·a(λ) with Q(λ) = Φ·λ/λ̄e for the second, scaled to peak 1 (computed here).
+    let (_, mut material) = two_dyes();
+    material.fluorophores[1].yield_form = fluorite::YieldForm::Photon;
+    material.fluorophores[1].quantum_yield = 0.9;
+    material.validate().unwrap();
+    let ex = uniform_grid(300.0, 780.0, 10.0);
+    let em = uniform_grid(380.0, 780.0, 10.0);
+    let measured = model::predict(&material, "MIXED", &ex, &em, Units::PerBin, true);
+    let comparison = plot::Comparison::new(&material, &measured, GUARD_NM);
+    let profiles = plot::spectra::data_profiles(&material, &comparison);
+    let means: Vec<f64> = material.fluorophores.iter().map(mean_emission).collect();
+    let row = |l: f64| -> f64 {
+        material
+            .fluorophores
+            .iter()
+            .zip(&means)
+            .map(|(f, mean)| {
+                let x = match f.yield_form {
+                    fluorite::YieldForm::Energy => 1.0,
+                    fluorite::YieldForm::Photon => l / mean,
+                };
+                f.concentration * f.quantum_yield * x * f.absorption.eval_zero_outside(l)
+            })
+            .sum()
+    };
+    let peak = ex.iter().map(|&l| row(l)).fold(0.0, f64::max);
+    assert!(profiles.excitation.len() > 5);
+    for &(l, v) in &profiles.excitation {
+        assert!(
+            (v - row(l) / peak).abs() < 1e-9,
+            "{l}: {v} vs {}",
+            row(l) / peak
+        );
+    }
+}

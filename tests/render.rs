@@ -160,25 +160,46 @@ fn dye_material() -> Option<Material> {
 // own spectra, not the renderer's tables).
 
 fn fine_integral(f: impl Fn(f64) -> f64) -> f64 {
+    fine_integral_over(300.0, 780.0, f)
+}
+
+fn fine_integral_over(from: f64, to: f64, f: impl Fn(f64) -> f64) -> f64 {
     let step = 0.05;
-    let n = ((780.0 - 300.0) / step) as usize;
+    let n = ((to - from) / step).round() as usize;
+    let step = (to - from) / n as f64;
     (0..=n)
         .map(|i| {
-            let l = 300.0 + step * i as f64;
+            let l = from + step * i as f64;
             let w = if i == 0 || i == n { 0.5 * step } else { step };
             f(l) * w
         })
         .sum()
 }
 
-/// Exact furnace radiance (model.md §6): d(λo)·L(λo) + Σ k·e(λo)·∫a·L dλ, with L the
-/// light's power times the scene's normalisation.
+/// The excitation factor x(λ) of a fluorophore's fluorescent term c·y·x(λi)·a(λi)·e(λo)
+/// (y its yield parameter): 1 for a constant energy yield, λ/λ̄e for a constant photon
+/// yield, with λ̄e = ∫λ·e dλ / ∫e dλ integrated here over the emission's samples.
+fn excitation_factor(f: &Fluorophore) -> impl Fn(f64) -> f64 + use<> {
+    let form = f.yield_form;
+    let e = &f.emission;
+    let (from, to) = (e.wavelength_nm[0], e.wavelength_nm[e.len() - 1]);
+    let mean = fine_integral_over(from, to, |l| l * e.eval_zero_outside(l))
+        / fine_integral_over(from, to, |l| e.eval_zero_outside(l));
+    move |l| match form {
+        YieldForm::Energy => 1.0,
+        YieldForm::Photon => l / mean,
+    }
+}
+
+/// Exact furnace radiance (model.md §6): d(λo)·L(λo) + Σ c·y·e(λo)·∫a·x·L dλ, with L the
+/// light's power times the scene's normalisation and x the form's excitation factor.
 fn exact_furnace(material: &Material, light: &Light, scale: f64, lo: f64) -> f64 {
     let power = |l: f64| scale * light.power(l);
     let mut value = material.diagonal(lo) * power(lo);
     for f in &material.fluorophores {
-        let absorbed = fine_integral(|l| f.absorption.eval_zero_outside(l) * power(l));
-        value += f.k() * f.emission.eval_zero_outside(lo) * absorbed;
+        let x = excitation_factor(f);
+        let absorbed = fine_integral(|l| f.absorption.eval_zero_outside(l) * x(l) * power(l));
+        value += f.concentration * f.quantum_yield * f.emission.eval_zero_outside(lo) * absorbed;
     }
     value
 }
@@ -449,6 +470,195 @@ fn furnace_matches_exact_radiance_for_fitted_real_materials() {
 }
 
 // ---------------------------------------------------------------------------------------
+// The photon-yield form: a constant photon yield Φ, energy yield Φ·λi/λ̄e.
+
+/// A Gaussian fluorophore in the photon form with photon yield `phi`.
+fn photon_fluorophore(
+    concentration: f64,
+    phi: f64,
+    absorption: (f64, f64),
+    emission: (f64, f64),
+) -> Fluorophore {
+    let mut f = gaussian_fluorophore(concentration, phi, absorption, emission);
+    f.yield_form = YieldForm::Photon;
+    f
+}
+
+/// One photon-form fluorophore absorbing blue and emitting yellow-green (Φ = 0.8; in the
+/// energy form this yield would break photon conservation: the absorption reaches 300 nm).
+fn photon_synthetic() -> Material {
+    let m = Material::new(
+        "photon synthetic",
+        ramp_reflectance(0.2, 0.8),
+        vec![photon_fluorophore(0.7, 0.8, (450.0, 30.0), (560.0, 25.0))],
+    );
+    m.validate().unwrap();
+    m
+}
+
+/// Two photon-form fluorophores: a UV brightener and a blue-green absorber emitting
+/// orange.
+fn photon_two_fluorophores() -> Material {
+    let m = Material::new(
+        "two photon-form fluorophores",
+        ramp_reflectance(0.7, 0.5),
+        vec![
+            photon_fluorophore(0.5, 0.9, (360.0, 20.0), (450.0, 20.0)),
+            photon_fluorophore(0.4, 0.85, (480.0, 25.0), (590.0, 30.0)),
+        ],
+    );
+    m.validate().unwrap();
+    m
+}
+
+/// Mixed forms: an energy-form brightener (Q within its photon limit 300/λ̄e) and a
+/// photon-form dye with a small Stokes shift, whose energy yield Φ·λ/λ̄e exceeds 1 on the
+/// long-wave side of its absorption (energy is still conserved: c·a stays small there).
+fn mixed_forms() -> Material {
+    let m = Material::new(
+        "mixed forms",
+        ramp_reflectance(0.6, 0.4),
+        vec![
+            gaussian_fluorophore(0.5, 0.6, (360.0, 20.0), (450.0, 20.0)),
+            photon_fluorophore(0.5, 0.95, (520.0, 30.0), (545.0, 20.0)),
+        ],
+    );
+    m.validate().unwrap();
+    let f = &m.fluorophores[1];
+    assert!(f.energy_yield_with_mean(600.0, f.emission_mean_nm()) > 1.0);
+    m
+}
+
+#[test]
+fn furnace_matches_exact_radiance_for_photon_form_materials() {
+    let dir = tempfile::tempdir().unwrap();
+    for material in [photon_synthetic(), photon_two_fluorophores(), mixed_forms()] {
+        for light in every_light(dir.path()) {
+            check_furnace(&material, &light);
+        }
+    }
+}
+
+#[test]
+fn furnace_tells_the_photon_form_from_the_energy_form() {
+    // The same numbers read as a constant energy yield give a different exact radiance:
+    // under a bare 365 nm lamp all light at 450 nm is the brightener's emission, and its
+    // energy yield Φ·λi/λ̄e at λi ≈ 365 nm is about 0.8·Φ, so the photon-form render must
+    // match its own exact value and be many standard errors away from the energy-form
+    // one (the furnace test above is not vacuous).
+    let material = photon_two_fluorophores();
+    let mut as_energy = material.clone();
+    for f in &mut as_energy.fluorophores {
+        f.yield_form = YieldForm::Energy;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let light = uv_lamp(dir.path());
+    let settings = RenderSettings {
+        width: 64,
+        height: 64,
+        samples_per_pixel: 1024,
+        seed: 4,
+    };
+    let scene = Scene::build(SceneKind::Furnace, &material, &light, false, 1.0).unwrap();
+    let scale = scene.light().scale;
+    let est = spectral_radiance(
+        &scene,
+        &settings,
+        PixelRegion::centre(&settings, 8),
+        &[450.0],
+    )
+    .unwrap();
+    let exact = exact_furnace(&material, &light, scale, 450.0);
+    let energy = exact_furnace(&as_energy, &light, scale, 450.0);
+    assert!(
+        (est.mean[0] - exact).abs() <= 5.0 * est.std_error[0] + 2e-3 * exact,
+        "{est:?} vs {exact}"
+    );
+    assert!(
+        (est.mean[0] - energy).abs() > 15.0 * est.std_error[0],
+        "{est:?} vs the energy form's {energy}"
+    );
+}
+
+#[test]
+fn flat_patch_colour_of_a_photon_form_material_weights_absorption_by_wavelength() {
+    // material_xyz against the patch colour summed here at 1 nm over 300–830 nm:
+    // Σ L·d·x̄ + Σ_f (Σ L·c·y·x_f·a) · (Σ e·x̄), per unit of the white's Y = 100.
+    let observer = cie1931();
+    let grid = uniform_grid(300.0, 830.0, 1.0);
+    let w = |i: usize| {
+        if i == 0 || i == grid.len() - 1 {
+            0.5
+        } else {
+            1.0
+        }
+    };
+    for material in [photon_synthetic(), mixed_forms()] {
+        for light in Light::standard() {
+            let cmf = |l: f64| {
+                [
+                    observer.x.eval_zero_outside(l),
+                    observer.y.eval_zero_outside(l),
+                    observer.z.eval_zero_outside(l),
+                ]
+            };
+            let mut xyz = [0.0; 3];
+            let mut white = [0.0; 3];
+            for (i, &l) in grid.iter().enumerate() {
+                let p = light.power(l) * w(i);
+                for c in 0..3 {
+                    xyz[c] += p * material.diagonal(l) * cmf(l)[c];
+                    white[c] += p * cmf(l)[c];
+                }
+            }
+            for f in &material.fluorophores {
+                let x = excitation_factor(f);
+                let reemitted: f64 = grid
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &l)| {
+                        light.power(l)
+                            * f.concentration
+                            * f.quantum_yield
+                            * x(l)
+                            * f.absorption.eval_zero_outside(l)
+                            * w(i)
+                    })
+                    .sum();
+                for (i, &l) in grid.iter().enumerate() {
+                    let e = reemitted * f.emission.eval_zero_outside(l) * w(i);
+                    for (v, m) in xyz.iter_mut().zip(cmf(l)) {
+                        *v += e * m;
+                    }
+                }
+            }
+            let (got, got_white) = material_xyz(&material, &light);
+            for c in 0..3 {
+                let want = xyz[c] * 100.0 / white[1];
+                assert!(
+                    (got[c] - want).abs() < 1e-4 * want.abs().max(1.0),
+                    "{} under {}: XYZ[{c}] {} vs {want}",
+                    material.name,
+                    light.name,
+                    got[c]
+                );
+                assert!((got_white[c] - white[c] * 100.0 / white[1]).abs() < 1e-9);
+            }
+        }
+    }
+}
+
+#[test]
+fn photon_form_integrating_sphere_matches_the_exact_multi_bounce_solution() {
+    for (material, light) in [
+        (photon_synthetic(), Light::builtin("d65").unwrap()),
+        (mixed_forms(), Light::builtin("uv").unwrap()),
+    ] {
+        integrating_sphere(&material, &light, 0.2, 15);
+    }
+}
+
+// ---------------------------------------------------------------------------------------
 // c = 0: a Lambertian renderer, against independent estimates.
 
 /// ∫ cos θp · cos θl / dist² dA over a downward-facing horizontal quad, seen from the
@@ -567,25 +777,29 @@ fn integrating_sphere(material: &Material, light: &Light, emission: f32, seed: u
     )
     .unwrap();
 
-    // Exact: L = (Le + Σ_g k_g e_g S_g) / (1 − d) with S_f = ∫ a_f L, a linear system
-    // (I − M) S = b, b_f = ∫ a_f Le / (1 − d), M_fg = k_g ∫ a_f e_g / (1 − d).
+    // Exact: L = (Le + Σ_g k_g e_g S_g) / (1 − d) with S_f = ∫ a_f x_f L (x_f the form's
+    // excitation factor, k = c·y), a linear system (I − M) S = b,
+    // b_f = ∫ a_f x_f Le / (1 − d), M_fg = k_g ∫ a_f x_f e_g / (1 − d).
     let le = |l: f64| emission as f64 * scale * light.power(l);
     let fl = &material.fluorophores;
     let n = fl.len();
     let b: Vec<f64> = fl
         .iter()
         .map(|f| {
+            let x = excitation_factor(f);
             fine_integral(|l| {
-                f.absorption.eval_zero_outside(l) * le(l) / (1.0 - material.diagonal(l))
+                f.absorption.eval_zero_outside(l) * x(l) * le(l) / (1.0 - material.diagonal(l))
             })
         })
         .collect();
     let mut m = vec![vec![0.0; n]; n];
     for (i, fi) in fl.iter().enumerate() {
+        let x = excitation_factor(fi);
         for (j, fj) in fl.iter().enumerate() {
-            m[i][j] = fj.k()
+            m[i][j] = fj.concentration
+                * fj.quantum_yield
                 * fine_integral(|l| {
-                    fi.absorption.eval_zero_outside(l) * fj.emission.eval_zero_outside(l)
+                    fi.absorption.eval_zero_outside(l) * x(l) * fj.emission.eval_zero_outside(l)
                         / (1.0 - material.diagonal(l))
                 });
         }
@@ -609,7 +823,9 @@ fn integrating_sphere(material: &Material, light: &Light, emission: f32, seed: u
             let emitted: f64 = fl
                 .iter()
                 .zip(&s)
-                .map(|(f, s)| f.k() * f.emission.eval_zero_outside(l) * s)
+                .map(|(f, s)| {
+                    f.concentration * f.quantum_yield * f.emission.eval_zero_outside(l) * s
+                })
                 .sum();
             (le(l) + emitted) / (1.0 - material.diagonal(l))
         })
@@ -782,6 +998,7 @@ fn furnace_film_colour_matches_flat_patch_colorimetry() {
     for material in [
         synthetic(),
         two_fluorophores(),
+        photon_synthetic(),
         plain(ramp_reflectance(0.6, 0.6)),
     ] {
         for light in Light::standard() {

@@ -233,3 +233,42 @@ fn bench_on_a_real_matrix_reports_the_fitted_accuracy() {
     // Refinement lowers the fluorescent residual below the closed-form estimate's.
     assert!(rows[1].rel_residual < rows[0].rel_residual);
 }
+
+#[test]
+fn recovery_compares_the_row_factor_whatever_the_yield_form() {
+    // A photon-form truth (row factor c·Φ·(λ/λ̄e)·a) and an energy-form "fit" whose
+    // absorption is λ·a rescaled to peak 1 with k = c·Φ·max(λ·a)/λ̄e: the same matrix,
+    // so the recovery error is zero; read as k·a against k·a it would not be.
+    let mut truth = SynthSpec::preset("green-dye").unwrap().truth().unwrap();
+    let t = &mut truth.fluorophores[0];
+    t.yield_form = fluorite::YieldForm::Photon;
+    t.quantum_yield = 0.8;
+    let t = truth.fluorophores[0].clone();
+    let e = &t.emission;
+    let w = fluorite::spectrum::bin_widths(&e.wavelength_nm);
+    let mean = (0..e.len())
+        .map(|i| w[i] * e.value[i] * e.wavelength_nm[i])
+        .sum::<f64>()
+        / (0..e.len()).map(|i| w[i] * e.value[i]).sum::<f64>();
+    let la: Vec<f64> = t
+        .absorption
+        .wavelength_nm
+        .iter()
+        .zip(&t.absorption.value)
+        .map(|(l, a)| l * a)
+        .collect();
+    let peak = la.iter().cloned().fold(0.0, f64::max);
+    let mut fitted = truth.clone();
+    let f = &mut fitted.fluorophores[0];
+    f.yield_form = fluorite::YieldForm::Energy;
+    f.absorption.value = la.iter().map(|v| v / peak).collect();
+    f.concentration = 1.0;
+    f.quantum_yield = t.concentration * 0.8 * peak / mean;
+    assert!(f.quantum_yield < 1.0);
+    let error = stability::recovery_error(&fitted, &truth);
+    assert!(error < 1e-12, "{error}");
+    // The same truth read in the energy form differs by the factor λ/λ̄e.
+    let mut energy_truth = truth.clone();
+    energy_truth.fluorophores[0].yield_form = fluorite::YieldForm::Energy;
+    assert!(stability::recovery_error(&fitted, &energy_truth) > 0.05);
+}

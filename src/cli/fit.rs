@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
+use fluorite::YieldForm;
 use fluorite::colour::Light;
 use fluorite::export::write_atomic;
 use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, Solver, Start, fit};
@@ -340,17 +341,39 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
                 } else {
                     "  ".into()
                 };
+                let mean = f.emission_mean_nm();
+                // The yield that varies with λi, over the absorbed wavelengths: Φ(λ) from
+                // the longest to the shortest (energy form), Q(λ) from the shortest to the
+                // longest (photon form).
+                let [lo, hi] = absorbed_nm(f).unwrap_or([f64::NAN; 2]);
+                let (symbol, varying) = match f.yield_form {
+                    YieldForm::Energy => (
+                        "Q",
+                        format!(
+                            "photon yield Φ(λ) = {:.3}–{:.3} (Φ(λmin) = Q·λ̄e/λmin)",
+                            f.photon_yield_with_mean(hi, mean),
+                            f.photon_yield_with_mean(lo, mean)
+                        ),
+                    ),
+                    YieldForm::Photon => (
+                        "Φ",
+                        format!(
+                            "energy yield Q(λ) = Φ·λ/λ̄e = {:.3}–{:.3}",
+                            f.energy_yield_with_mean(lo, mean),
+                            f.energy_yield_with_mean(hi, mean)
+                        ),
+                    ),
+                };
                 let _ = writeln!(
                     s,
-                    "{label}k = c·Q = {:.4}   c = {:.4} (feasible {:.4}–{:.4})   Q = {:.4}   λ̄e = {:.1} nm   photon yield Φ(λmin) = {:.3}",
+                    "{label}k = c·{symbol} = {:.4}   c = {:.4} (feasible {:.4}–{:.4})   {symbol} = {:.4} ({} form)   λ̄e = {:.1} nm   {varying}",
                     f.k(),
                     f.concentration,
                     c_lo,
                     c_hi,
                     f.quantum_yield,
-                    f.emission_mean_nm(),
-                    f.quantum_yield * f.emission_mean_nm()
-                        / f.shortest_absorbed_nm().unwrap_or(f64::NAN)
+                    f.yield_form.name(),
+                    mean,
                 );
             }
             if !material.fluorophores.is_empty() {
@@ -448,6 +471,18 @@ fn model_table_row(m: &Measurement, outcome: &FitOutcome) -> String {
     )
 }
 
+/// Shortest and longest wavelength where a > 0 (nm): the zero samples beside the absorbed
+/// ones bound the interval (a is linear between samples).
+fn absorbed_nm(f: &fluorite::Fluorophore) -> Option<[f64; 2]> {
+    let a = &f.absorption;
+    let first = a.value.iter().position(|&v| v > 0.0)?;
+    let last = a.value.iter().rposition(|&v| v > 0.0)?;
+    Some([
+        a.wavelength_nm[first.saturating_sub(1)],
+        a.wavelength_nm[(last + 1).min(a.len() - 1)],
+    ])
+}
+
 /// One Markdown table row for `--table`.
 fn table_row(m: &Measurement, outcome: &FitOutcome) -> String {
     let report = outcome.report();
@@ -462,10 +497,11 @@ fn table_row(m: &Measurement, outcome: &FitOutcome) -> String {
         FitOutcome::Material(material) => match material.fluorophores.first() {
             Some(f) => {
                 let [lo, hi] = f.concentration_range.unwrap_or([f.concentration; 2]);
-                (
-                    format!("{:.3}", f.k()),
-                    format!("{:.3} ({lo:.3}–{hi:.3})", f.concentration),
-                )
+                let k = match f.yield_form {
+                    YieldForm::Energy => format!("{:.3}", f.k()),
+                    YieldForm::Photon => format!("{:.3} (c·Φ, photon form)", f.k()),
+                };
+                (k, format!("{:.3} ({lo:.3}–{hi:.3})", f.concentration))
             }
             None => ("0".into(), "0 (plain reflector)".into()),
         },
@@ -486,4 +522,66 @@ fn table_row(m: &Measurement, outcome: &FitOutcome) -> String {
         report.iterations,
         1e3 * report.seconds
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fluorite::material::FitReport;
+    use fluorite::{Fluorophore, Material, Spectrum};
+
+    /// a: a triangle 400–500 nm (absorbed 400–500), e: flat on 550–650 nm (λ̄e = 600),
+    /// c = 0.5 with the yield 0.8 in `form`.
+    fn material(form: YieldForm) -> Material {
+        let mut m = Material::new(
+            "hand",
+            Spectrum::new(vec![300.0, 800.0], vec![0.5, 0.5], "r").unwrap(),
+            vec![Fluorophore {
+                concentration: 0.5,
+                quantum_yield: 0.8,
+                yield_form: form,
+                concentration_range: None,
+                absorption: Spectrum::new(vec![400.0, 450.0, 500.0], vec![0.0, 1.0, 0.0], "a")
+                    .unwrap(),
+                emission: Spectrum::new(vec![550.0, 650.0], vec![0.01, 0.01], "e").unwrap(),
+            }],
+        );
+        m.fit = Some(FitReport::default());
+        m
+    }
+
+    fn lines(form: YieldForm) -> (String, String) {
+        let m = material(form);
+        let grid: Vec<f64> = (0..=40).map(|i| 380.0 + 10.0 * i as f64).collect();
+        let data =
+            fluorite::model::predict(&m, "hand", &grid, &grid, fluorite::Units::PerBin, true);
+        let outcome = FitOutcome::Material(Box::new(m));
+        (
+            summary(Path::new("in.csv"), Path::new("out.json"), &data, &outcome),
+            table_row(&data, &outcome),
+        )
+    }
+
+    #[test]
+    fn summary_states_the_yield_form_and_the_varying_yield() {
+        // Photon form: Φ = 0.8, energy yield Φ·λ/600 from 400/600·0.8 to 500/600·0.8.
+        let (text, row) = lines(YieldForm::Photon);
+        assert!(
+            text.contains("k = c·Φ = 0.4000")
+                && text.contains("Φ = 0.8000 (photon form)")
+                && text.contains("λ̄e = 600.0 nm")
+                && text.contains("energy yield Q(λ) = Φ·λ/λ̄e = 0.533–0.667"),
+            "{text}"
+        );
+        assert!(row.contains("| 0.400 (c·Φ, photon form) |"), "{row}");
+        // Energy form: Q = 0.8, photon yield 0.8·600/λ from 0.960 (500 nm) to 1.200.
+        let (text, row) = lines(YieldForm::Energy);
+        assert!(
+            text.contains("k = c·Q = 0.4000")
+                && text.contains("Q = 0.8000 (energy form)")
+                && text.contains("photon yield Φ(λ) = 0.960–1.200"),
+            "{text}"
+        );
+        assert!(row.contains("| 0.400 |"), "{row}");
+    }
 }

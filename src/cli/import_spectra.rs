@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use fluorite::YieldForm;
 use fluorite::export::write_atomic;
 use fluorite::import::{ImportOptions, ReflectanceSource, SpectrumSource, import_spectra};
 
@@ -31,10 +32,22 @@ pub struct ImportSpectraArgs {
     /// Concentration c: fraction of light absorbed at the absorption peak, in [0, 1].
     #[arg(short = 'c', long)]
     pub concentration: f64,
-    /// Energy quantum yield Q (emitted / absorbed energy), in [0, 1]; photon conservation
-    /// requires Q·λ̄e/λ ≤ 1 at every absorbed λ.
-    #[arg(short = 'q', long)]
-    pub quantum_yield: f64,
+    /// Energy quantum yield Q (emitted / absorbed energy), in [0, 1], constant over the
+    /// excitation wavelength; photon conservation requires Q·λ̄e/λ ≤ 1 at every absorbed
+    /// λ. Give this or --photon-yield.
+    #[arg(
+        short = 'q',
+        long,
+        required_unless_present = "photon_yield",
+        conflicts_with = "photon_yield"
+    )]
+    pub quantum_yield: Option<f64>,
+    /// Photon quantum yield Φ (emitted / absorbed photons), in [0, 1], constant over the
+    /// excitation wavelength (Kasha–Vavilov): the yield chemists tabulate. The material
+    /// then has the photon form, with energy yield Φ·λi/λ̄e. Give this or
+    /// --quantum-yield.
+    #[arg(long)]
+    pub photon_yield: Option<f64>,
     /// Material name (default: the absorption file's stem).
     #[arg(long)]
     pub name: Option<String>,
@@ -73,7 +86,12 @@ pub fn run(args: ImportSpectraArgs) -> anyhow::Result<ExitCode> {
         },
         reflectance,
         concentration: args.concentration,
-        quantum_yield: args.quantum_yield,
+        quantum_yield: args.quantum_yield.or(args.photon_yield).unwrap_or(f64::NAN),
+        yield_form: if args.photon_yield.is_some() {
+            YieldForm::Photon
+        } else {
+            YieldForm::Energy
+        },
     };
     let (material, report) = import_spectra(&options)?;
     write_atomic(&args.out, material.to_json().as_bytes())?;

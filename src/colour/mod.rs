@@ -616,16 +616,19 @@ pub fn material_xyz(material: &Material, light: &Light) -> (Xyz, Xyz) {
         }
     }
     for f in &material.fluorophores {
-        let absorbed: f64 = grid
+        // Energy re-emitted: ∫ L·c·Q(λ)·a(λ) dλ, the row factor c·Q(λ)·a of either yield
+        // form (Q(λ) = Φ·λ/λ̄e in the photon form).
+        let mean = f.emission_mean_nm();
+        let reemitted: f64 = grid
             .iter()
             .zip(&widths)
-            .map(|(l, w)| light.power(*l) * f.absorption.eval_zero_outside(*l) * w)
+            .map(|(l, w)| light.power(*l) * f.reradiated_with_mean(*l, mean) * w)
             .sum();
         for (l, w) in grid.iter().zip(&widths) {
             let cmf = observer.at(*l);
             let e = f.emission.eval_zero_outside(*l) * w;
             for c in 0..3 {
-                xyz[c] += f.k() * absorbed * e * cmf[c];
+                xyz[c] += reemitted * e * cmf[c];
             }
         }
     }

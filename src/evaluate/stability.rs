@@ -272,8 +272,10 @@ pub fn material_delta_e(a: &Material, b: &Material, lights: &[Light]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Relative L2 error of the fitted k·a and e against the truth, on the fit's grids (the
-/// truth evaluated there). NaN when the truth has no fluorophore; 1 when the fit has none.
+/// Relative L2 error of the fitted row factor c·Q(λ)·a (k·a in the energy form,
+/// c·Φ·(λ/λ̄e)·a in the photon form: what the matrix determines, whatever the yield
+/// forms of fit and truth) and e against the truth, on the fit's grids (the truth
+/// evaluated there). NaN when the truth has no fluorophore; 1 when the fit has none.
 pub fn recovery_error(fitted: &Material, truth: &Material) -> f64 {
     let Some(t) = truth.fluorophores.first() else {
         return f64::NAN;
@@ -290,12 +292,18 @@ pub fn recovery_error(fitted: &Material, truth: &Material) -> f64 {
             f64::INFINITY
         }
     };
-    let ka_fit: Vec<f64> = f.absorption.value.iter().map(|a| f.k() * a).collect();
+    let (mean_fit, mean_true) = (f.emission_mean_nm(), t.emission_mean_nm());
+    let ka_fit: Vec<f64> = f
+        .absorption
+        .wavelength_nm
+        .iter()
+        .map(|&l| f.reradiated_with_mean(l, mean_fit))
+        .collect();
     let ka_true: Vec<f64> = f
         .absorption
         .wavelength_nm
         .iter()
-        .map(|&l| t.k() * t.absorption.eval_zero_outside(l))
+        .map(|&l| t.reradiated_with_mean(l, mean_true))
         .collect();
     let e_true: Vec<f64> = f
         .emission
@@ -360,7 +368,20 @@ fn one_run(sweep: Sweep, value: f64, method: &Method, seed: usize) -> Result<Run
                 report.warnings,
             );
             if truth.fluorophores.is_empty() {
-                let k = fitted.fluorophores.first().map(|f| f.k()).unwrap_or(0.0);
+                // The largest fitted row factor c·Q(λ)·a: k itself in the energy form
+                // (max a = 1), c·Φ·λ/λ̄e at its largest in the photon form.
+                let k = fitted
+                    .fluorophores
+                    .first()
+                    .map(|f| {
+                        let mean = f.emission_mean_nm();
+                        f.absorption
+                            .wavelength_nm
+                            .iter()
+                            .map(|&l| f.reradiated_with_mean(l, mean))
+                            .fold(0.0, f64::max)
+                    })
+                    .unwrap_or(0.0);
                 recovery = f64::NAN;
                 r.recovery_error = recovery;
                 r.success = k <= ZERO_K_TOLERANCE && delta_e <= DELTA_E_TOLERANCE;

@@ -3,7 +3,7 @@
 
 use crate::error::Result;
 use crate::formats::{RowsAre, write_bfc, write_wide_csv};
-use crate::material::Material;
+use crate::material::{Material, YieldForm};
 use crate::measurement::{Measurement, Units};
 use crate::model::predict;
 
@@ -55,20 +55,59 @@ pub fn matrix(
     Ok(m)
 }
 
-fn quantity(units: Units, components: usize) -> String {
+fn quantity(material: &Material, units: Units) -> String {
+    let components = material.fluorophores.len();
     let (sum, k) = if components > 1 {
         ("Σ", format!(" summed over the {components} fluorophores"))
     } else {
         ("", String::new())
     };
+    // The photon form's row factor is c·Φ·(λi/λ̄e)·a(λi): write the energy yield Q(λi).
+    let row = if any_photon(material) {
+        "c·Q(λi)·a(λi)"
+    } else {
+        "k·a(λi)"
+    };
     match units {
         Units::PerBin => format!(
-            "bispectral radiance factor per emission bin (dimensionless; off the diagonal {sum}k·a(λi)·e(λo)·Δλo with trapezoid bin widths Δλo{k})"
+            "bispectral radiance factor per emission bin (dimensionless; off the diagonal {sum}{row}·e(λo)·Δλo with trapezoid bin widths Δλo{k})"
         ),
         Units::PerNm => format!(
-            "bispectral radiance factor density per nm of emission (1/nm; off the diagonal {sum}k·a(λi)·e(λo){k}); read back with `fluorite fit --per-nm`"
+            "bispectral radiance factor density per nm of emission (1/nm; off the diagonal {sum}{row}·e(λo){k}); read back with `fluorite fit --per-nm`"
         ),
     }
+}
+
+fn any_photon(material: &Material) -> bool {
+    material
+        .fluorophores
+        .iter()
+        .any(|f| f.yield_form == YieldForm::Photon)
+}
+
+/// One line per photon-form fluorophore: its Φ, λ̄e and energy yield (the matrix holds
+/// the energy yield Q(λi) = Φ·λi/λ̄e, which grows with λi).
+fn photon_lines(material: &Material, prefix: &str) -> String {
+    let n = material.fluorophores.len();
+    material
+        .fluorophores
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.yield_form == YieldForm::Photon)
+        .map(|(i, f)| {
+            let which = if n > 1 {
+                format!("fluorophore {i}")
+            } else {
+                "the fluorophore".to_string()
+            };
+            format!(
+                "{prefix}yield: {which} has a constant photon yield Φ = {} (yield_form photon): its energy yield is Q(λi) = Φ·λi/λ̄e with λ̄e = {} nm, c = {}\n",
+                f.quantum_yield,
+                f.emission_mean_nm(),
+                f.concentration
+            )
+        })
+        .collect()
 }
 
 /// The diagonal's formula: `(1 − c·a)·r`, or `(1 − Σc·a)·r` for several fluorophores.
@@ -92,10 +131,8 @@ pub(super) fn wide(
         "# fluorite {VERSION} export of material \"{}\": model reradiation matrix (Jung et al. 2018)\n",
         one_line(&material.name)
     );
-    out.push_str(&format!(
-        "# quantity: {}\n",
-        quantity(units, material.fluorophores.len())
-    ));
+    out.push_str(&format!("# quantity: {}\n", quantity(material, units)));
+    out.push_str(&photon_lines(material, "# "));
     out.push_str(&format!(
         "# diagonal (λo = λi): reflectance factor d = {} (dimensionless) plus the fluorescence emitted at the same wavelength\n",
         diagonal_formula(material, "·", "−")
@@ -131,9 +168,16 @@ pub(super) fn bfc(
             diagonal_formula(material, "*", "-")
         ),
         ";rows: emission nm; columns: excitation nm".to_string(),
-        match material.fluorophores.len() {
-            0 | 1 => String::new(),
-            n => format!(";fluorescence summed over {n} fluorophores"),
+        // BFC metadata is plain ASCII; the photon form shares this line (six are free).
+        match (material.fluorophores.len(), any_photon(material)) {
+            (0 | 1, false) => String::new(),
+            (n, false) => format!(";fluorescence summed over {n} fluorophores"),
+            (0 | 1, true) => {
+                ";photon-form yield: energy yield Q(li) = Phi*li/mean emission wavelength".into()
+            }
+            (n, true) => format!(
+                ";fluorescence summed over {n} fluorophores; photon-form ones: Q(li) = Phi*li/mean emission"
+            ),
         },
         match &material.forms {
             Some(f) => format!(

@@ -1,6 +1,6 @@
 //! Spectra tables: the `csv` export and the two-column files renderers read.
 
-use crate::material::Material;
+use crate::material::{Fluorophore, Material, YieldForm};
 
 use super::{VERSION, one_line};
 
@@ -29,8 +29,9 @@ pub(super) fn csv(material: &Material) -> String {
     for (i, f) in material.fluorophores.iter().enumerate() {
         let s = suffix(i);
         out.push_str(&format!(
-            "# absorption{s}: a(λ), dimensionless, max a = 1, zero outside the samples\n# emission{s}: e(λ), emission density in 1/nm, ∫e dλ = 1, zero outside the samples\n# concentration{s}: c = {}\n# quantum_yield{s}: Q = {} (energy yield)\n",
-            f.concentration, f.quantum_yield
+            "# absorption{s}: a(λ), dimensionless, max a = 1, zero outside the samples\n# emission{s}: e(λ), emission density in 1/nm, ∫e dλ = 1, zero outside the samples\n# concentration{s}: c = {}\n{}",
+            f.concentration,
+            yield_lines(f, &s, "# ")
         ));
     }
     out.push_str(
@@ -55,6 +56,23 @@ pub(super) fn csv(material: &Material) -> String {
         out.push_str(&format!(",{}\n", material.reflectance.eval_clamped(l)));
     }
     out
+}
+
+/// Header lines (each starting with `prefix`) stating a fluorophore's yield: `quantum_yield`
+/// Q in the energy form; `yield_form` and `photon_yield` Φ (with the energy yield it
+/// implies) in the photon form. `s` is the fluorophore's column suffix.
+pub(super) fn yield_lines(f: &Fluorophore, s: &str, prefix: &str) -> String {
+    match f.yield_form {
+        YieldForm::Energy => format!(
+            "{prefix}quantum_yield{s}: Q = {} (energy yield, constant over the excitation wavelength)\n",
+            f.quantum_yield
+        ),
+        YieldForm::Photon => format!(
+            "{prefix}yield_form{s}: photon (a constant photon yield Φ; the energy yield is Q(λi) = Φ·λi/λ̄e)\n{prefix}photon_yield{s}: Φ = {}\n{prefix}mean_emission{s}: λ̄e = {} nm\n",
+            f.quantum_yield,
+            f.emission_mean_nm()
+        ),
+    }
 }
 
 /// Header lines (each starting with `prefix`) describing the material's continuous forms:

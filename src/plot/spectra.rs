@@ -24,7 +24,7 @@ use super::common::{
 };
 use super::{Comparison, FigureKind, ImageFormat, Layout};
 use crate::error::Result;
-use crate::material::Material;
+use crate::material::{Fluorophore, Material, YieldForm};
 use crate::measurement::CellKind;
 use crate::parametric::{FluorophoreForms, MaterialForms, SpectralForm};
 use crate::spectrum::Spectrum;
@@ -51,34 +51,54 @@ pub struct Profiles {
     pub emission: Vec<(f64, f64)>,
 }
 
-/// The combined excitation shape Σ k·a(λ), scaled to peak 1 on the excitation grid (a(λ)
-/// itself for one fluorophore). None when the material does not fluoresce.
+/// The curve the excitation profile is drawn against, scaled to peak 1 on the excitation
+/// grid: the combined row factor Σ c·Q(λ)·a(λ) (Q(λ) = Q, or Φ·λ/λ̄e in the photon form)
+/// with several fluorophores, a(λ) itself with one (the profile is then the data's
+/// absorption, on the drawn a curve, whatever the yield form: the ratio of measured to
+/// fitted row sums already cancels the row factor). None when the material does not
+/// fluoresce.
 fn excitation_reference(material: &Material, grid: &[f64]) -> Option<Vec<f64>> {
+    if let [f] = material.fluorophores.as_slice() {
+        if f.k() <= 0.0 {
+            return None;
+        }
+        return normalise(
+            grid.iter()
+                .map(|&l| f.absorption.eval_zero_outside(l))
+                .collect(),
+        );
+    }
+    let means: Vec<f64> = material
+        .fluorophores
+        .iter()
+        .map(|f| f.emission_mean_nm())
+        .collect();
     let v: Vec<f64> = grid
         .iter()
         .map(|&l| {
             material
                 .fluorophores
                 .iter()
-                .map(|f| f.k() * f.absorption.eval_zero_outside(l))
+                .zip(&means)
+                .map(|(f, &mean)| f.reradiated_with_mean(l, mean))
                 .sum()
         })
         .collect();
     normalise(v)
 }
 
-/// The combined emission shape Σ k·(Σa)·e(λ), scaled to peak 1 on the emission grid
-/// (e(λ)/max e for one fluorophore).
+/// The combined emission shape Σ (Σλ c·Q(λ)·a(λ))·e(λ), scaled to peak 1 on the emission
+/// grid (e(λ)/max e for one fluorophore).
 fn emission_reference(material: &Material, ex_grid: &[f64], em_grid: &[f64]) -> Option<Vec<f64>> {
     let weights: Vec<f64> = material
         .fluorophores
         .iter()
         .map(|f| {
-            f.k()
-                * ex_grid
-                    .iter()
-                    .map(|&l| f.absorption.eval_zero_outside(l))
-                    .sum::<f64>()
+            let mean = f.emission_mean_nm();
+            ex_grid
+                .iter()
+                .map(|&l| f.reradiated_with_mean(l, mean))
+                .sum::<f64>()
         })
         .collect();
     let v: Vec<f64> = em_grid
@@ -462,8 +482,8 @@ impl Draw for SpectraFigure<'_> {
                     "data emission profile".to_string(),
                 ));
             }
-            // With several fluorophores the profiles follow the sums Σk·a and Σk·(Σa)·e,
-            // which no single curve shows: draw them thin.
+            // With several fluorophores the profiles follow the sums Σc·Q(λ)·a and
+            // Σ(Σλ c·Q(λ)·a)·e, which no single curve shows: draw them thin.
             if several && !(profiles.excitation.is_empty() && profiles.emission.is_empty()) {
                 let on = |grid: &[f64], v: Option<Vec<f64>>| -> Vec<(f64, f64)> {
                     v.map(|v| grid.iter().copied().zip(v).collect())
@@ -477,7 +497,15 @@ impl Draw for SpectraFigure<'_> {
                     &m.emission_nm,
                     emission_reference(material, &m.excitation_nm, &m.emission_nm),
                 );
-                let label = "Σk·a, Σk·e: what the profiles follow".to_string();
+                let photon = material
+                    .fluorophores
+                    .iter()
+                    .any(|f| f.yield_form == YieldForm::Photon);
+                let label = if photon {
+                    "Σc·Q(λ)·a, Σc·Q·A·e: what the profiles follow".to_string()
+                } else {
+                    "Σk·a, Σk·e: what the profiles follow".to_string()
+                };
                 legend.push((Glyph::Thin(COMBINED_COLOUR), label.clone()));
                 lines.push((ex, Glyph::Thin(COMBINED_COLOUR), label.clone()));
                 lines.push((em, Glyph::Thin(COMBINED_COLOUR), label));
@@ -664,6 +692,42 @@ fn draw_glyph<DB: DrawingBackend>(
     }
 }
 
+/// The yield line of a fluorophore: `Q = …, mean emission … nm` in the energy form;
+/// `Φ = …, Q(λ) = … to …` (the energy yield Φ·λ/λ̄e over the absorbed wavelengths) in
+/// the photon form.
+fn yield_line(f: &Fluorophore, tag: &str) -> String {
+    let mean = f.emission_mean_nm();
+    match f.yield_form {
+        YieldForm::Energy => format!(
+            "{tag}Q = {}, mean emission {} nm",
+            format_significant(f.quantum_yield, 3),
+            format_significant(mean, 3)
+        ),
+        YieldForm::Photon => {
+            let a = &f.absorption;
+            let first = a.value.iter().position(|&v| v > 0.0);
+            let last = a.value.iter().rposition(|&v| v > 0.0);
+            let range = match (first, last) {
+                (Some(first), Some(last)) if mean.is_finite() => {
+                    // The zero samples beside the absorbed ones bound the interval.
+                    let lo = a.wavelength_nm[first.saturating_sub(1)];
+                    let hi = a.wavelength_nm[(last + 1).min(a.len() - 1)];
+                    format!(
+                        ", Q(λ) {}–{}",
+                        format_significant(f.energy_yield_with_mean(lo, mean), 2),
+                        format_significant(f.energy_yield_with_mean(hi, mean), 2)
+                    )
+                }
+                _ => String::new(),
+            };
+            format!(
+                "{tag}Φ = {} (photon yield){range}",
+                format_significant(f.quantum_yield, 3)
+            )
+        }
+    }
+}
+
 /// Text lines with the fitted parameters.
 fn parameter_lines(material: &Material, comparison: Option<&Comparison>) -> Vec<String> {
     let mut lines = Vec::new();
@@ -676,16 +740,23 @@ fn parameter_lines(material: &Material, comparison: Option<&Comparison>) -> Vec<
         } else {
             String::new()
         };
+        let symbol = match f.yield_form {
+            YieldForm::Energy => "Q",
+            YieldForm::Photon => "Φ",
+        };
         if compact {
             lines.push(format!(
-                "{tag}k = {}, c = {}, Q = {}",
+                "{tag}k = {}, c = {}, {symbol} = {}",
                 format_significant(f.k(), 3),
                 format_significant(f.concentration, 3),
                 format_significant(f.quantum_yield, 3)
             ));
             continue;
         }
-        lines.push(format!("{tag}k = c·Q = {}", format_significant(f.k(), 3)));
+        lines.push(format!(
+            "{tag}k = c·{symbol} = {}",
+            format_significant(f.k(), 3)
+        ));
         let range = f
             .concentration_range
             .map(|[lo, hi]| {
@@ -700,11 +771,7 @@ fn parameter_lines(material: &Material, comparison: Option<&Comparison>) -> Vec<
             "{tag}c = {}{range}",
             format_significant(f.concentration, 3)
         ));
-        lines.push(format!(
-            "{tag}Q = {}, mean emission {} nm",
-            format_significant(f.quantum_yield, 3),
-            format_significant(f.emission_mean_nm(), 3)
-        ));
+        lines.push(yield_line(f, &tag));
     }
     if let Some(forms) = &material.forms
         && forms.fluorophores.len() == material.fluorophores.len()

@@ -8,10 +8,15 @@
 //! - the elastic branch, probability d(λo) / (d(λo) + F(λo)), keeping λo, and
 //! - the fluorescent branch, probability F(λo) / (d(λo) + F(λo)) with
 //!   F(λo) = Σ k·A·e(λo): a fluorophore with probability ∝ its k·A·e(λo), then the
-//!   excitation wavelength λi with density a(λi)/A, which becomes the channel's wavelength.
+//!   excitation wavelength λi with density x(λi)·a(λi)/A, which becomes the channel's
+//!   wavelength. x is the yield form's excitation factor: 1 for a constant energy yield
+//!   Q (k = c·Q), λi/λ̄e for a constant photon yield Φ (k = c·Φ, energy yield Φ·λi/λ̄e),
+//!   and A = ∫x·a dλ.
 //!
 //! In both branches the channel's weight is multiplied by d(λo) + F(λo), the camera-side
-//! row albedo (model.md §6), which is exactly f/p for these choices. Light arriving at the
+//! row albedo (model.md §6), which is exactly f/p for these choices: the fluorescent
+//! term k·x(λi)·a(λi)·e(λo) over P(branch)·P(fluorophore)·p(λi) =
+//! [F/(d + F)]·[k·A·e(λo)/F]·[x·a/A] is d + F in either form. Light arriving at the
 //! surface is then gathered at the (possibly new) wavelength by next-event estimation
 //! towards the area lights and by the continued path, combined with the power heuristic.
 //! Russian roulette ends paths whose weight has fallen.
@@ -86,7 +91,8 @@ fn excite(surface: &SurfaceTables, lambda_o: f32, albedo: f32, rng: &mut Rng) ->
         }
         chosen
     };
-    chosen.sample_excitation(rng.next_f32())
+    let u = rng.next_f32();
+    chosen.sample_excitation(u, || rng.next_f32())
 }
 
 /// Spectral radiance arriving along `ray` at the four wavelengths `lambda` (nm, each in

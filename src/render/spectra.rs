@@ -6,7 +6,7 @@ use glam::Vec4;
 
 use crate::colour::{Light, cie1931};
 use crate::error::{Error, Result};
-use crate::material::Material;
+use crate::material::{Material, YieldForm};
 
 /// Shortest wavelength the renderer carries (nm): UV excitation from here on can reach
 /// visible emission.
@@ -198,45 +198,126 @@ impl IntervalCdf {
     }
 }
 
-/// One fluorophore as a camera path meets it: k, its absorption and emission, and a
-/// sampler for the excitation wavelength with density a(λ)/A.
+/// One fluorophore as a camera path meets it: its yield scale k, absorption and
+/// emission, and a sampler for the excitation wavelength with density x(λ)·a(λ)/A, where
+/// x is the excitation factor of the yield form: 1 in the energy form, λ/λ̄e in the
+/// photon form (the energy yield Φ·λ/λ̄e grows with λ).
 #[derive(Debug, Clone)]
 pub struct FluorophoreTables {
-    /// k = c·Q.
+    /// k = c·Q (energy form) or c·Φ (photon form).
     pub k: f32,
+    /// The yield form.
+    pub yield_form: YieldForm,
+    /// λ̄e (nm): the photon form's excitation factor is λ/λ̄e.
+    pub emission_mean_nm: f64,
     /// a(λ).
     pub absorption: Table,
     /// e(λ) (1/nm).
     pub emission: Table,
-    /// A = ∫a dλ over the rendered range.
+    /// A = ∫x·a dλ over the rendered range (∫a in the energy form, ∫λ·a dλ/λ̄e in the
+    /// photon form), exact for the table's piecewise-linear a.
     pub absorption_integral: f32,
     /// k·A·e(λo): this fluorophore's share of the fluorescent albedo at λo.
     pub albedo: Table,
     cdf: Option<IntervalCdf>,
 }
 
+/// Proposals the photon form's excitation sampler may reject before it keeps one; each
+/// is accepted with probability ≥ 300/301, so this is never reached in practice.
+const MAX_EXCITATION_PROPOSALS: usize = 64;
+
 impl FluorophoreTables {
-    /// Draws an excitation wavelength with density exactly a(λ)/A for the table's
-    /// piecewise-linear a: an interval by its trapezoid mass, then a point inside it by
-    /// inverting the linear density's quadratic CDF. `u` is uniform in [0, 1).
+    /// The tables of one fluorophore of a material.
+    fn new(f: &crate::material::Fluorophore) -> FluorophoreTables {
+        let absorption = Table::from_fn(|nm| f.absorption.eval_zero_outside(nm));
+        let emission = Table::from_fn(|nm| f.emission.eval_zero_outside(nm));
+        let emission_mean_nm = f.emission_mean_nm();
+        // Per 1 nm interval [λj, λj + 1] with a linear from a0 to a1: ∫a = (a0 + a1)/2,
+        // and ∫λ·a = λj·(a0 + a1)/2 + (a0 + 2·a1)/6 (exact).
+        let masses: Vec<f64> = absorption
+            .values
+            .windows(2)
+            .enumerate()
+            .map(|(j, w)| {
+                let (a0, a1) = (w[0] as f64, w[1] as f64);
+                match f.yield_form {
+                    YieldForm::Energy => 0.5 * (a0 + a1),
+                    YieldForm::Photon => {
+                        (table_nm(j) * 0.5 * (a0 + a1) + (a0 + 2.0 * a1) / 6.0) / emission_mean_nm
+                    }
+                }
+            })
+            .collect();
+        let absorption_integral = masses.iter().sum::<f64>() as f32;
+        let k = f.k() as f32;
+        let albedo = Table {
+            values: emission
+                .values
+                .iter()
+                .map(|e| k * absorption_integral * e)
+                .collect(),
+        };
+        // A photon-form fluorophore whose emission has no mean (no emission) never fires.
+        let cdf = if absorption_integral.is_finite() {
+            IntervalCdf::new(masses.into_iter())
+        } else {
+            None
+        };
+        FluorophoreTables {
+            k,
+            yield_form: f.yield_form,
+            emission_mean_nm,
+            absorption,
+            emission,
+            absorption_integral,
+            albedo,
+            cdf,
+        }
+    }
+
+    /// Draws an excitation wavelength with density exactly x(λ)·a(λ)/A for the table's
+    /// piecewise-linear a: an interval by its exact mass, then a point inside it by
+    /// inverting the linear density a's quadratic CDF. In the photon form that point is
+    /// kept with probability λ/(λj + 1) (λj the interval's start), else another is drawn
+    /// with `next()`: the kept point then has density ∝ λ·a(λ) in the interval, exactly.
+    /// `u` and `next()` are uniform in [0, 1).
     #[inline]
-    pub fn sample_excitation(&self, u: f32) -> f32 {
+    pub fn sample_excitation(&self, u: f32, mut next: impl FnMut() -> f32) -> f32 {
         let Some(cdf) = &self.cdf else {
             return LAMBDA_MIN_NM;
         };
-        let (i, v) = cdf.locate(u);
+        let (i, mut v) = cdf.locate(u);
         let a0 = self.absorption.values[i];
         let a1 = self.absorption.values[i + 1];
-        // Solve a0·t + (a1 − a0)·t²/2 = v·(a0 + a1)/2 in the cancellation-free form.
-        let den = a0 + (a0 * a0 + v * (a1 * a1 - a0 * a0)).max(0.0).sqrt();
-        let t = if den > 0.0 { v * (a0 + a1) / den } else { v };
-        LAMBDA_MIN_NM + i as f32 + t.clamp(0.0, 1.0)
+        let start = LAMBDA_MIN_NM + i as f32;
+        let point = |v: f32| {
+            // Solve a0·t + (a1 − a0)·t²/2 = v·(a0 + a1)/2 in the cancellation-free form.
+            let den = a0 + (a0 * a0 + v * (a1 * a1 - a0 * a0)).max(0.0).sqrt();
+            let t = if den > 0.0 { v * (a0 + a1) / den } else { v };
+            start + t.clamp(0.0, 1.0)
+        };
+        match self.yield_form {
+            YieldForm::Energy => point(v),
+            YieldForm::Photon => {
+                let end = start + 1.0;
+                let mut nm = point(v);
+                for _ in 0..MAX_EXCITATION_PROPOSALS {
+                    if next() * end < nm {
+                        break;
+                    }
+                    v = next();
+                    nm = point(v);
+                }
+                nm
+            }
+        }
     }
 }
 
 /// A surface's spectral behaviour for a camera path (model.md §6): the diagonal
-/// reflectance d(λ) = (1 − Σc·a)·r, the fluorescent albedo F(λo) = Σ k·A·e(λo), and the
-/// fluorophores to sample the excitation wavelength from.
+/// reflectance d(λ) = (1 − Σc·a)·r, the fluorescent albedo F(λo) = Σ k·A·e(λo) (A = ∫x·a,
+/// x = 1 or λ/λ̄e by the yield form), and the fluorophores to sample the excitation
+/// wavelength from.
 #[derive(Debug, Clone)]
 pub struct SurfaceTables {
     /// A short name for messages.
@@ -257,31 +338,7 @@ impl SurfaceTables {
         let diagonal = Table::from_fn(|nm| material.diagonal(nm));
         let mut fluorophores = Vec::new();
         for f in &material.fluorophores {
-            let absorption = Table::from_fn(|nm| f.absorption.eval_zero_outside(nm));
-            let emission = Table::from_fn(|nm| f.emission.eval_zero_outside(nm));
-            let absorption_integral = absorption.integral() as f32;
-            let k = f.k() as f32;
-            let albedo = Table {
-                values: emission
-                    .values
-                    .iter()
-                    .map(|e| k * absorption_integral * e)
-                    .collect(),
-            };
-            let cdf = IntervalCdf::new(
-                absorption
-                    .values
-                    .windows(2)
-                    .map(|w| 0.5 * (w[0] as f64 + w[1] as f64)),
-            );
-            fluorophores.push(FluorophoreTables {
-                k,
-                absorption,
-                emission,
-                absorption_integral,
-                albedo,
-                cdf,
-            });
+            fluorophores.push(FluorophoreTables::new(f));
         }
         // Fluorophores that absorb nothing in the rendered range or emit nothing there
         // never fire; dropping them keeps the fast path for such surfaces.
@@ -501,6 +558,8 @@ mod tests {
         let cdf = IntervalCdf::new(a.values.windows(2).map(|w| 0.5 * (w[0] + w[1]) as f64));
         let f = FluorophoreTables {
             k: 1.0,
+            yield_form: YieldForm::Energy,
+            emission_mean_nm: 500.0,
             absorption_integral: a.integral() as f32,
             albedo: Table::constant(0.0),
             emission: Table::constant(0.0),
@@ -511,7 +570,7 @@ mod tests {
         let mut hist = [0u32; 10];
         for s in 0..n {
             let u = (s as f32 + 0.5) / n as f32;
-            let nm = f.sample_excitation(u);
+            let nm = f.sample_excitation(u, || panic!("the energy form draws once"));
             assert!((400.0..=500.0).contains(&nm), "{nm}");
             hist[((nm - 400.0) / 10.0).min(9.0) as usize] += 1;
         }
@@ -522,6 +581,66 @@ mod tests {
                 .map(|s| {
                     let nm = lo + (s as f64 + 0.5) * 0.1;
                     f.absorption.eval(nm as f32) as f64 * 0.1
+                })
+                .sum::<f64>()
+                / total;
+            let got = *count as f64 / n as f64;
+            assert!((got - mass).abs() < 2e-3, "bin {b}: {got} vs {mass}");
+        }
+    }
+
+    #[test]
+    fn photon_form_excitation_sampling_follows_wavelength_times_absorption() {
+        // The same triangle in the photon form: density ∝ λ·a(λ), compared per 10 nm bin
+        // with the exact masses of λ·a (0.01 nm midpoint sums of the triangle itself).
+        let triangle = |nm: f64| {
+            if (400.0..=430.0).contains(&nm) {
+                (nm - 400.0) / 30.0
+            } else if (430.0..=500.0).contains(&nm) {
+                (500.0 - nm) / 70.0
+            } else {
+                0.0
+            }
+        };
+        let grid: Vec<f64> = (0..=481).map(|i| 300.0 + i as f64).collect();
+        let fluorophore = crate::material::Fluorophore {
+            concentration: 0.5,
+            quantum_yield: 0.8,
+            yield_form: YieldForm::Photon,
+            concentration_range: None,
+            absorption: crate::spectrum::Spectrum {
+                wavelength_nm: grid.clone(),
+                value: grid.iter().map(|&l| triangle(l)).collect(),
+            },
+            emission: crate::spectrum::Spectrum {
+                wavelength_nm: vec![550.0, 650.0],
+                value: vec![0.01, 0.01],
+            },
+        };
+        let f = FluorophoreTables::new(&fluorophore);
+        // A = ∫λ·a dλ/λ̄e: the triangle's area 50 times its centroid (400 + 430 + 500)/3.
+        let centroid = (400.0 + 430.0 + 500.0) / 3.0;
+        assert!(
+            (f.absorption_integral as f64 - 50.0 * centroid / 600.0).abs() < 1e-4,
+            "{}",
+            f.absorption_integral
+        );
+        let mut rng = crate::render::rng::Rng::new(7, 0);
+        let n = 200_000;
+        let mut hist = [0u32; 10];
+        for s in 0..n {
+            let u = (s as f32 + 0.5) / n as f32;
+            let nm = f.sample_excitation(u, || rng.next_f32());
+            assert!((400.0..=500.0).contains(&nm), "{nm}");
+            hist[((nm - 400.0) / 10.0).min(9.0) as usize] += 1;
+        }
+        let total = 50.0 * centroid;
+        for (b, count) in hist.iter().enumerate() {
+            let lo = 400.0 + 10.0 * b as f64;
+            let mass = (0..1000)
+                .map(|s| {
+                    let nm = lo + (s as f64 + 0.5) * 0.01;
+                    nm * triangle(nm) * 0.01
                 })
                 .sum::<f64>()
                 / total;
