@@ -28,6 +28,7 @@ fn synthetic() -> (Material, fluorite::Measurement) {
         vec![Fluorophore {
             concentration: 0.6,
             quantum_yield: 0.5,
+            yield_form: fluorite::YieldForm::Energy,
             concentration_range: None,
             absorption: Spectrum::new(ex.clone(), a, "a").unwrap(),
             emission: Spectrum::new(em.clone(), e, "e").unwrap(),

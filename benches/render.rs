@@ -33,6 +33,7 @@ fn material() -> Material {
         vec![Fluorophore {
             concentration: 0.7,
             quantum_yield: 0.5,
+            yield_form: fluorite::YieldForm::Energy,
             concentration_range: None,
             absorption: Spectrum::new(grid.clone(), gaussian(&grid, 450.0, 30.0), "a").unwrap(),
             emission: Spectrum::new(grid, emission.value.iter().map(|v| v / area).collect(), "e")

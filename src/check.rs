@@ -358,8 +358,10 @@ pub struct RawSpectrum {
 pub struct RawFluorophore {
     /// c (NaN when not a number).
     pub concentration: f64,
-    /// Q (NaN when not a number).
+    /// Q, or Φ in the photon form (NaN when not a number).
     pub quantum_yield: f64,
+    /// Which yield is constant (`yield_form`; energy when absent or unknown).
+    pub yield_form: crate::material::YieldForm,
     /// a(λ).
     pub absorption: RawSpectrum,
     /// e(λ).
@@ -413,6 +415,7 @@ impl From<&Material> for RawMaterial {
                 .map(|f| RawFluorophore {
                     concentration: f.concentration,
                     quantum_yield: f.quantum_yield,
+                    yield_form: f.yield_form,
                     absorption: (&f.absorption).into(),
                     emission: (&f.emission).into(),
                 })
@@ -505,9 +508,17 @@ impl RawMaterial {
                 })?;
                 Ok(v.as_f64().unwrap_or(f64::NAN))
             };
+            let yield_form = match f.get("yield_form").and_then(Value::as_str) {
+                Some("photon") => crate::material::YieldForm::Photon,
+                _ => crate::material::YieldForm::Energy,
+            };
             fluorophores.push(RawFluorophore {
                 concentration: scalar("concentration")?,
-                quantum_yield: scalar("quantum_yield")?,
+                quantum_yield: match yield_form {
+                    crate::material::YieldForm::Photon => scalar("photon_yield")?,
+                    crate::material::YieldForm::Energy => scalar("quantum_yield")?,
+                },
+                yield_form,
                 absorption: spectrum(f.get("absorption"), &format!("{p}.absorption"))?,
                 emission: spectrum(f.get("emission"), &format!("{p}.emission"))?,
             });
@@ -844,7 +855,7 @@ pub fn check(m: &RawMaterial) -> CheckReport {
                 .map(|f| crate::material::Fluorophore {
                     concentration: f.concentration,
                     quantum_yield: f.quantum_yield,
-                    yield_form: crate::material::YieldForm::Energy,
+                    yield_form: f.yield_form,
                     concentration_range: None,
                     absorption: to_spectrum(&f.absorption),
                     emission: to_spectrum(&f.emission),
@@ -881,8 +892,9 @@ pub fn check(m: &RawMaterial) -> CheckReport {
                 && mean.is_finite()
             {
                 let q = f.quantum_yield;
-                let ratio = q * mean / lo;
-                summary.photon_yield_range = Some([q * mean / hi, ratio]);
+                // Photons per absorbed photon: Q·λ̄e/λ (energy form) or Φ (photon form).
+                let ratio = f.photon_yield_with_mean(lo, mean);
+                summary.photon_yield_range = Some([f.photon_yield_with_mean(hi, mean), ratio]);
                 photons.observe(1.0 - ratio, ratio, &format!("fluorophores[{n}]"), Some(lo), || {
                     format!(
                         "fluorophores[{n}] emits Q·λ̄e/λ = {ratio:.6} photons per absorbed photon at {lo} nm (Q = {q}, λ̄e = {mean:.2} nm); photon conservation allows Q ≤ {:.6}",

@@ -103,6 +103,7 @@ fn base() -> Material {
         vec![Fluorophore {
             concentration: 0.5,
             quantum_yield: 0.3,
+            yield_form: fluorite::YieldForm::Energy,
             concentration_range: None,
             absorption: a,
             emission: e,
@@ -324,6 +325,7 @@ fn margins_and_worst_wavelengths_are_the_analytic_ones() {
         vec![Fluorophore {
             concentration: 1.0,
             quantum_yield: 0.0,
+            yield_form: fluorite::YieldForm::Energy,
             concentration_range: None,
             absorption: a,
             emission: e,

@@ -43,6 +43,7 @@ fn synthetic_material() -> Material {
         vec![Fluorophore {
             concentration: 0.6,
             quantum_yield: 0.5,
+            yield_form: fluorite::YieldForm::Energy,
             concentration_range: Some([0.3, 0.9]),
             absorption: Spectrum::new(ex, a, "a").unwrap(),
             emission: Spectrum::new(em, e, "e").unwrap(),
@@ -657,6 +658,7 @@ pub fn crude_rank1_material(m: &Measurement, guard_nm: f64) -> Material {
             concentration: c,
             // Photon conservation may cap Q below k/c where the data's crude k is too big.
             quantum_yield: (k / c).min(1.0).min(shortest / mean_emission),
+            yield_form: fluorite::YieldForm::Energy,
             concentration_range: None,
             absorption,
             emission,
