@@ -104,6 +104,7 @@ fn bench_objective(c: &mut Criterion) {
         emission_bands: 1,
         reflectance: ReflectanceForm::Polynomial(9),
         domain: BandDomain::Wavenumber,
+        yield_form: fluorite::YieldForm::Energy,
     };
     let lights = Light::standard();
     let layout = Layout::new(spec);

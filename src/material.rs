@@ -360,6 +360,11 @@ pub struct Candidate {
     /// Why the candidate failed to fit, if it did (then the figures are empty).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+    /// The objective the candidate reached (matrix and colour terms, the same function for
+    /// every candidate of one search, so a larger model's can be compared with the smaller
+    /// models it contains).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub objective: Option<f64>,
 }
 
 /// Conservation margins of a material (the `conservation` block).

@@ -13,7 +13,7 @@
 
 use crate::colour::{Light, PatchColorimeter, Xyz, lab_jacobian};
 use crate::error::{Error, Result};
-use crate::material::{Fluorophore, Material};
+use crate::material::{Fluorophore, Material, YieldForm};
 use crate::parametric::{
     BandDomain, FluorophoreForms, GaussianBands, MaterialForms, PARAMS_PER_BAND, SigmoidPolynomial,
     SpectralForm, bands_value_gradient, legendre, position, sigmoid,
@@ -64,12 +64,19 @@ pub struct ModelSpec {
     pub reflectance: ReflectanceForm,
     /// The axis the bands are Gaussian in.
     pub domain: BandDomain,
+    /// The yield form of every component: a constant energy yield Q (the paper's form) or
+    /// a constant photon yield Φ (row factor a(λi)·λi/λ̄e, model.md §3).
+    pub yield_form: YieldForm,
 }
+
+/// The suffix naming the photon-yield form in model names (`gaussian:1x1+r6/photon`).
+pub const PHOTON_SUFFIX: &str = "/photon";
 
 impl ModelSpec {
     /// The model's name: `gaussian:KxB` (A = E = B bands) or `gaussian:KxA/E`, then
     /// `+rD` (sigmoid-polynomial reflectance of degree D) or `+rt` (tabulated), then
-    /// `@wavelength` when the bands are Gaussian in wavelength.
+    /// `@wavelength` when the bands are Gaussian in wavelength, then `/photon` when the
+    /// components have a constant photon yield (none: the energy form).
     pub fn name(&self) -> String {
         let bands = if self.absorption_bands == self.emission_bands {
             format!("{}", self.absorption_bands)
@@ -84,7 +91,19 @@ impl ModelSpec {
             BandDomain::Wavenumber => "",
             BandDomain::Wavelength => "@wavelength",
         };
-        format!("gaussian:{}x{bands}{reflectance}{domain}", self.components)
+        let form = match self.yield_form {
+            YieldForm::Energy => "",
+            YieldForm::Photon => PHOTON_SUFFIX,
+        };
+        format!(
+            "gaussian:{}x{bands}{reflectance}{domain}{form}",
+            self.components
+        )
+    }
+
+    /// Whether component rows carry the photon factor λi/λ̄e.
+    fn photon(&self) -> bool {
+        self.yield_form == YieldForm::Photon
     }
 
     /// Solver parameters per component (bands only).
@@ -223,7 +242,7 @@ pub struct GridModel {
     /// G_k: the unnormalised absorption peak on the grid, per component.
     pub absorption_peak: Vec<f64>,
     /// Index of the absorption peak.
-    peak_index: Vec<usize>,
+    pub peak_index: Vec<usize>,
     /// e_jk (unnormalised density), per component.
     pub emission: Vec<Vec<f64>>,
     /// S_k = Σ e_j·Δλ_j.
@@ -232,10 +251,17 @@ pub struct GridModel {
     pub emission_mean_nm: Vec<f64>,
     /// λmin_k (absorption above [`ABSORPTION_FLOOR`]).
     pub shortest_absorbed_nm: Vec<f64>,
-    /// γ_k.
+    /// γ_k: max(1, λ̄e/λmin) in the energy form (c = κ is the smallest feasible c =
+    /// k·γ), 1 in the photon form (c = k, Φ = 1).
     pub photon_factor: Vec<f64>,
     /// s_k = κ_k/(γ_k·S_k).
     pub scale: Vec<f64>,
+    /// x_ik: the row factor beside a_ik on the excitation grid, 1 in the energy form and
+    /// λi/λ̄e in the photon form (the energy yield over Φ).
+    pub excitation_factor: Vec<Vec<f64>>,
+    /// m_ik = max(1, x_ik): the diagonal's cap is 1 − Σk κ_k·a_ik·m_ik (r ≤ 1 and, where
+    /// a photon-form component emits more energy than it absorbs, ρ ≤ 1).
+    pub cap_factor: Vec<Vec<f64>>,
     /// r at each diagonal sample (polynomial reflectance only).
     pub reflectance: Vec<f64>,
     /// ∂g/∂(band parameters) of the unnormalised absorption at each excitation sample,
@@ -375,6 +401,8 @@ impl<'a> Problem<'a> {
             shortest_absorbed_nm: Vec::with_capacity(k_count),
             photon_factor: Vec::with_capacity(k_count),
             scale: Vec::with_capacity(k_count),
+            excitation_factor: Vec::with_capacity(k_count),
+            cap_factor: Vec::with_capacity(k_count),
             reflectance: Vec::new(),
             absorption_jacobian: Vec::with_capacity(k_count),
             emission_jacobian: Vec::with_capacity(k_count),
@@ -421,8 +449,21 @@ impl<'a> Problem<'a> {
                 .position(|&a| a >= ABSORPTION_FLOOR)
                 .map(|i| data.excitation_nm[i.saturating_sub(1)])
                 .unwrap_or(data.excitation_nm[0]);
-            let photon_factor = (mean / shortest).max(1.0);
+            let photon = layout.spec.photon();
+            let photon_factor = if photon {
+                1.0
+            } else {
+                (mean / shortest).max(1.0)
+            };
             m.scale.push(m.kappa[k] / (photon_factor * normaliser));
+            let excitation_factor: Vec<f64> = if photon {
+                data.excitation_nm.iter().map(|l| l / mean).collect()
+            } else {
+                vec![1.0; data.excitation_nm.len()]
+            };
+            m.cap_factor
+                .push(excitation_factor.iter().map(|x| x.max(1.0)).collect());
+            m.excitation_factor.push(excitation_factor);
             m.absorption.push(absorption);
             m.absorption_peak.push(peak);
             m.peak_index.push(peak_index);
@@ -447,12 +488,11 @@ impl<'a> Problem<'a> {
         m
     }
 
-    /// Σk κ_k·a_k at diagonal sample `d`.
+    /// Σk κ_k·a_k·m_k at diagonal sample `d`: one minus the diagonal's cap (Σk κ_k·a_k
+    /// in the energy form).
     fn absorbed(&self, m: &GridModel, d: &DiagonalSample) -> f64 {
-        m.kappa
-            .iter()
-            .zip(&m.absorption)
-            .map(|(kappa, a)| kappa * a[d.row])
+        (0..m.kappa.len())
+            .map(|k| m.kappa[k] * m.absorption[k][d.row] * m.cap_factor[k][d.row])
             .sum()
     }
 
@@ -460,7 +500,9 @@ impl<'a> Problem<'a> {
     fn fluorescence(&self, m: &GridModel, i: usize, j: usize) -> f64 {
         let u = self.column_factor[j];
         (0..m.kappa.len())
-            .map(|k| m.scale[k] * m.absorption[k][i] * m.emission[k][j] * u)
+            .map(|k| {
+                m.scale[k] * m.absorption[k][i] * m.excitation_factor[k][i] * m.emission[k][j] * u
+            })
             .sum()
     }
 
@@ -511,7 +553,7 @@ impl<'a> Problem<'a> {
         let mut model = vec![0.0; n_ex * n_em];
         for k in 0..k_count {
             for (i, row) in model.chunks_exact_mut(n_em).enumerate() {
-                let sa = m.scale[k] * m.absorption[k][i];
+                let sa = m.scale[k] * m.absorption[k][i] * m.excitation_factor[k][i];
                 for (f, ue) in row.iter_mut().zip(&weighted_emission[k]) {
                     *f += sa * ue;
                 }
@@ -591,6 +633,8 @@ impl<'a> Problem<'a> {
         let mut a_bar = vec![vec![0.0; n_ex]; k_count];
         let mut e_bar = vec![vec![0.0; n_em]; k_count];
         let mut kappa_bar = vec![0.0; k_count];
+        // ∂cost/∂λ̄e_k through the photon form's row and cap factors.
+        let mut mean_bar = vec![0.0; k_count];
         let mut r_bar = vec![0.0; self.diagonal.len()];
         let mut f_bar = vec![0.0; n_ex * n_em];
         let mut pull = vec![0.0; n_em];
@@ -634,8 +678,13 @@ impl<'a> Problem<'a> {
                 _ => 0.0,
             };
             for k in 0..k_count {
-                kappa_bar[k] += absorbed_bar * m.absorption[k][s.row];
-                a_bar[k][s.row] += absorbed_bar * m.kappa[k];
+                let (a, cf) = (m.absorption[k][s.row], m.cap_factor[k][s.row]);
+                kappa_bar[k] += absorbed_bar * a * cf;
+                a_bar[k][s.row] += absorbed_bar * m.kappa[k] * cf;
+                if m.excitation_factor[k][s.row] > 1.0 {
+                    // m = λ/λ̄e: ∂m/∂λ̄e = −m/λ̄e.
+                    mean_bar[k] -= absorbed_bar * m.kappa[k] * a * cf / m.emission_mean_nm[k];
+                }
             }
         }
 
@@ -643,7 +692,8 @@ impl<'a> Problem<'a> {
         for k in 0..k_count {
             column_adjoint.iter_mut().for_each(|v| *v = 0.0);
             for (i, row) in f_bar.chunks_exact(n_em).enumerate() {
-                let a = m.absorption[k][i];
+                let x = m.excitation_factor[k][i];
+                let a = m.absorption[k][i] * x;
                 let mut t = 0.0;
                 for ((fb, ue), v) in row
                     .iter()
@@ -653,8 +703,12 @@ impl<'a> Problem<'a> {
                     t += fb * ue;
                     *v += fb * a;
                 }
-                a_bar[k][i] += m.scale[k] * t;
+                a_bar[k][i] += m.scale[k] * x * t;
                 scale_bar[k] += a * t;
+                if self.layout.spec.photon() {
+                    // x = λi/λ̄e: ∂x/∂λ̄e = −x/λ̄e.
+                    mean_bar[k] -= m.scale[k] * a * t / m.emission_mean_nm[k];
+                }
             }
             for ((eb, v), u) in e_bar[k]
                 .iter_mut()
@@ -665,18 +719,24 @@ impl<'a> Problem<'a> {
             }
         }
 
-        // Σk κ_k·a_ik ≤ 1 on the excitation grid (several components only).
-        if k_count > 1 {
+        // Σk κ_k·a_ik·m_ik ≤ 1 on the excitation grid (several components, or the photon
+        // form, whose m exceeds 1 where a component absorbs above its mean emission).
+        if k_count > 1 || self.layout.spec.photon() {
             for i in 0..n_ex {
                 let excess: f64 = (0..k_count)
-                    .map(|k| m.kappa[k] * m.absorption[k][i])
+                    .map(|k| m.kappa[k] * m.absorption[k][i] * m.cap_factor[k][i])
                     .sum::<f64>()
                     - 1.0;
                 if excess > 0.0 {
                     cost += 0.5 * ABSORPTION_PENALTY * excess * excess;
                     for k in 0..k_count {
-                        kappa_bar[k] += ABSORPTION_PENALTY * excess * m.absorption[k][i];
-                        a_bar[k][i] += ABSORPTION_PENALTY * excess * m.kappa[k];
+                        let (a, cf) = (m.absorption[k][i], m.cap_factor[k][i]);
+                        let p = ABSORPTION_PENALTY * excess;
+                        kappa_bar[k] += p * a * cf;
+                        a_bar[k][i] += p * m.kappa[k] * cf;
+                        if m.excitation_factor[k][i] > 1.0 {
+                            mean_bar[k] -= p * m.kappa[k] * a * cf / m.emission_mean_nm[k];
+                        }
                     }
                 }
             }
@@ -686,17 +746,21 @@ impl<'a> Problem<'a> {
             // s = κ/(γ·S): through κ, S and γ (γ = λ̄e/λmin when photon-limited).
             kappa_bar[k] += scale_bar[k] / (m.photon_factor[k] * m.normaliser[k]);
             let s = m.scale[k];
-            let photon_limited = m.emission_mean_nm[k] / m.shortest_absorbed_nm[k] > 1.0;
+            let photon_limited = !self.layout.spec.photon()
+                && m.emission_mean_nm[k] / m.shortest_absorbed_nm[k] > 1.0;
             let gauge_s = m.normaliser[k] - 1.0;
             for j in 0..n_em {
                 let w = data.emission_bin_widths[j];
                 let mut d_scale = -s * w / m.normaliser[k];
+                // ∂λ̄e/∂e_j = w_j·(λ_j − λ̄e)/S.
+                let d_mean = w * (data.emission_nm[j] - m.emission_mean_nm[k]) / m.normaliser[k];
                 if photon_limited {
-                    let d_gamma = w * (data.emission_nm[j] - m.emission_mean_nm[k])
-                        / (m.normaliser[k] * m.shortest_absorbed_nm[k]);
+                    let d_gamma = d_mean / m.shortest_absorbed_nm[k];
                     d_scale -= s * d_gamma / m.photon_factor[k];
                 }
-                e_bar[k][j] += scale_bar[k] * d_scale + HEIGHT_GAUGE_WEIGHT * gauge_s * w;
+                e_bar[k][j] += scale_bar[k] * d_scale
+                    + mean_bar[k] * d_mean
+                    + HEIGHT_GAUGE_WEIGHT * gauge_s * w;
             }
             // a = g/G with G the grid peak.
             let peak = m.absorption_peak[k];
@@ -930,6 +994,7 @@ impl Problem<'_> {
             // c·a is what the fit determined: c = κ·(fine peak); k = c·Q keeps the
             // fitted product: k = (κ/γ)·peak·∫/S.
             let concentration = (gm.kappa[k] * fine_peak).min(1.0);
+            // (γ = 1 in the photon form: c = k, Φ = 1.)
             let k_product =
                 gm.kappa[k] / gm.photon_factor[k] * fine_peak * integral / gm.normaliser[k];
             let mut absorption_samples = absorption_samples;
@@ -941,17 +1006,14 @@ impl Problem<'_> {
             let mut fluorophore = Fluorophore {
                 concentration,
                 quantum_yield: 0.0,
-                yield_form: crate::material::YieldForm::Energy,
+                yield_form: spec.yield_form,
                 concentration_range: None,
                 absorption: absorption_samples,
                 emission: emission_samples,
             };
-            let photon_limit = fluorophore
-                .shortest_absorbed_nm()
-                .map(|l| (l / fluorophore.emission_mean_nm()).min(1.0))
-                .unwrap_or(1.0);
+            let limit = yield_limit(&fluorophore);
             fluorophore.quantum_yield = if concentration > 0.0 {
-                (k_product / concentration).min(photon_limit)
+                (k_product / concentration).min(limit)
             } else {
                 0.0
             };
@@ -966,24 +1028,29 @@ impl Problem<'_> {
         // the yield allows).
         let mut wavelengths: Vec<f64> = excitation_fine.clone();
         wavelengths.extend(&emission_fine);
+        let means: Vec<f64> = fluorophores.iter().map(|f| f.emission_mean_nm()).collect();
+        // Σ c·a·m with m = max(1, λ/λ̄e) in the photon form: where the energy yield
+        // exceeds Φ the emitted energy must fit under 1 too.
+        let capped_by = |fluorophores: &[Fluorophore], l: f64| -> f64 {
+            fluorophores
+                .iter()
+                .zip(&means)
+                .map(|(f, &mean)| {
+                    f.concentration
+                        * f.absorption.eval_zero_outside(l)
+                        * f.excitation_factor_with_mean(l, mean).max(1.0)
+                })
+                .sum()
+        };
         let total_peak = wavelengths
             .iter()
-            .map(|&l| {
-                fluorophores
-                    .iter()
-                    .map(|f| f.concentration * f.absorption.eval_zero_outside(l))
-                    .sum::<f64>()
-            })
+            .map(|&l| capped_by(&fluorophores, l))
             .fold(0.0, f64::max);
         if total_peak > 1.0 {
             for f in &mut fluorophores {
                 let k_product = f.k();
                 f.concentration /= total_peak;
-                let photon_limit = f
-                    .shortest_absorbed_nm()
-                    .map(|l| (l / f.emission_mean_nm()).min(1.0))
-                    .unwrap_or(1.0);
-                f.quantum_yield = (k_product / f.concentration).min(photon_limit);
+                f.quantum_yield = (k_product / f.concentration).min(yield_limit(f));
             }
         }
         // Reflectance.
@@ -1004,10 +1071,29 @@ impl Problem<'_> {
                     support_nm: self.reflectance_support,
                     coefficients: theta[self.layout.reflectance()].to_vec(),
                 });
-                (
-                    form.tabulate(&fine_grid(&diagonal_nm), "reflectance")?,
-                    Some(form),
-                )
+                let mut samples = form.tabulate(&fine_grid(&diagonal_nm), "reflectance")?;
+                if spec.photon() {
+                    // The fit's diagonal is d = (1 − Σκ·a·m)·σ(p): r = d/(1 − Σc·a) is the
+                    // sigmoid only where no component absorbs above its mean emission.
+                    for (r, &l) in samples.value.iter_mut().zip(&samples.wavelength_nm) {
+                        let transmitted = 1.0 - absorbed_by(l);
+                        if transmitted > 0.0 {
+                            *r = (*r * (1.0 - capped_by(&fluorophores, l)) / transmitted)
+                                .clamp(0.0, 1.0);
+                        }
+                    }
+                    let agrees = form
+                        .agreement(
+                            &samples.wavelength_nm,
+                            &samples.value,
+                            0.5 * crate::material::FORM_TOLERANCE,
+                        )
+                        .is_none_or(|a| a.worst <= 0.5 * crate::material::FORM_TOLERANCE);
+                    let form = agrees.then_some(form);
+                    (samples, form)
+                } else {
+                    (samples, Some(form))
+                }
             }
             ReflectanceForm::Tabulated => {
                 let mut values: Vec<f64> = (0..self.diagonal.len())
@@ -1072,6 +1158,18 @@ impl Problem<'_> {
         });
         material.conservation = Some(material.conservation_margins());
         Ok(material)
+    }
+}
+
+/// The largest yield of a fluorophore's form in the gauge of the smallest feasible c: Φ ≤ 1
+/// in the photon form; Q ≤ min(1, λmin/λ̄e) in the energy form (photon conservation).
+fn yield_limit(f: &Fluorophore) -> f64 {
+    match f.yield_form {
+        YieldForm::Photon => 1.0,
+        YieldForm::Energy => f
+            .shortest_absorbed_nm()
+            .map(|l| (l / f.emission_mean_nm()).min(1.0))
+            .unwrap_or(1.0),
     }
 }
 
@@ -1143,6 +1241,7 @@ mod tests {
             emission_bands: 1,
             reflectance: ReflectanceForm::Tabulated,
             domain: BandDomain::Wavenumber,
+            yield_form: YieldForm::Energy,
         };
         let problem = Problem::new(&data, spec, &[], &[], 0.0);
         let layout = problem.layout;
@@ -1168,7 +1267,10 @@ mod tests {
     fn gradient_matches_central_differences() {
         let data = problem_data();
         let lights = Light::standard();
-        for reflectance in [ReflectanceForm::Polynomial(4), ReflectanceForm::Tabulated] {
+        let cases = [ReflectanceForm::Polynomial(4), ReflectanceForm::Tabulated]
+            .into_iter()
+            .flat_map(|r| [YieldForm::Energy, YieldForm::Photon].map(|y| (r, y)));
+        for (reflectance, yield_form) in cases {
             for (components, absorption_bands, emission_bands) in [(1, 1, 1), (2, 2, 1)] {
                 let spec = ModelSpec {
                     components,
@@ -1176,6 +1278,7 @@ mod tests {
                     emission_bands,
                     reflectance,
                     domain: BandDomain::Wavenumber,
+                    yield_form,
                 };
                 let reference: Vec<Xyz> = lights.iter().map(|_| [40.0, 35.0, 20.0]).collect();
                 let problem = Problem::new(&data, spec, &lights, &reference, 0.3);
