@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::material::{Fluorophore, Material};
+use crate::material::{Fluorophore, Material, YieldForm};
 use crate::measurement::{Measurement, Units};
 use crate::model::predict;
 use crate::parametric::{
@@ -72,8 +72,12 @@ pub struct SynthComponent {
     pub emission: Vec<Band>,
     /// Concentration c.
     pub concentration: f64,
-    /// Quantum yield as a fraction of its photon limit λmin/λ̄e.
+    /// Quantum yield as a fraction of its photon limit: of λmin/λ̄e for the energy yield
+    /// Q (energy form), of 1 for the photon yield Φ (photon form).
     pub yield_fraction_of_limit: f64,
+    /// Which yield is constant over the excitation wavelength (default: energy).
+    #[serde(default, skip_serializing_if = "YieldForm::is_energy")]
+    pub yield_form: YieldForm,
 }
 
 /// Everything that defines a synthetic measurement.
@@ -100,8 +104,14 @@ pub struct SynthSpec {
     pub reflectance_width_nm: f64,
     /// Concentration c.
     pub concentration: f64,
-    /// Quantum yield as a fraction of its photon limit λmin/λ̄e (so it is always valid).
+    /// Quantum yield as a fraction of its photon limit (so it always conserves photons):
+    /// Q = fraction·λmin/λ̄e in the energy form, Φ = fraction in the photon form.
     pub yield_fraction_of_limit: f64,
+    /// Which yield of the first component is constant over the excitation wavelength
+    /// (default: energy). A photon-form truth must still conserve energy where it absorbs
+    /// above its mean emission wavelength; [`SynthSpec::truth`] checks.
+    #[serde(default, skip_serializing_if = "YieldForm::is_energy")]
+    pub yield_form: YieldForm,
     /// Further fluorescent components beside the one above (absent in one-fluorophore
     /// specs). The truth lists the first component first, then these in order.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -139,6 +149,7 @@ impl SynthSpec {
             reflectance_width_nm: 20.0,
             concentration: 0.8,
             yield_fraction_of_limit: 0.9,
+            yield_form: YieldForm::Energy,
             components: vec![],
             noise_sigma: MEASURED_NOISE_SIGMA,
             crosstalk: 0.001,
@@ -260,6 +271,7 @@ impl SynthSpec {
                     ],
                     concentration: 0.7,
                     yield_fraction_of_limit: 0.85,
+                    yield_form: YieldForm::Energy,
                 }];
                 spec.reflectance_low = 0.55;
                 spec.reflectance_high = 0.9;
@@ -317,6 +329,7 @@ impl SynthSpec {
             emission: self.emission.clone(),
             concentration: self.concentration,
             yield_fraction_of_limit: self.yield_fraction_of_limit,
+            yield_form: self.yield_form,
         };
         std::iter::once(first)
             .chain(self.components.iter().cloned())
@@ -416,11 +429,16 @@ impl SynthSpec {
             .position(|&x| x > 0.0)
             .map(|i| self.excitation_nm[i.saturating_sub(1)])
             .unwrap_or(self.excitation_nm[0]);
-        let limit = (shortest / emission.mean_wavelength_nm()).min(1.0);
+        // The photon limit of the form's yield: λmin/λ̄e for a constant energy yield Q,
+        // 1 for a constant photon yield Φ.
+        let limit = match component.yield_form {
+            YieldForm::Energy => (shortest / emission.mean_wavelength_nm()).min(1.0),
+            YieldForm::Photon => 1.0,
+        };
         let fluorophore = Fluorophore {
             concentration: component.concentration,
             quantum_yield: component.yield_fraction_of_limit * limit,
-            yield_form: crate::material::YieldForm::Energy,
+            yield_form: component.yield_form,
             concentration_range: None,
             absorption,
             emission,

@@ -7,7 +7,7 @@ use fluorite::formats::{RowsAre, write_wide_csv};
 use fluorite::model::predict;
 use fluorite::spectrum::bin_widths;
 use fluorite::synth::{Band, PRESETS, SynthSpec};
-use fluorite::{Material, Units};
+use fluorite::{Material, Units, YieldForm};
 
 fn data(name: &str) -> String {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -292,4 +292,84 @@ fn truth_with_forms_holds_the_generating_bands() {
     // Zero outside the grids, like the samples.
     assert_eq!(forms.fluorophores[0].absorption.eval(299.0), 0.0);
     assert_eq!(forms.fluorophores[0].emission.eval(379.0), 0.0);
+}
+
+#[test]
+fn a_photon_form_component_gives_a_photon_form_truth_and_matrix() {
+    // two-dyes with the dye (second component) in the photon form: Φ = the fraction of
+    // its limit 1, and the matrix cell c·Φ·(λi/λ̄e)·a(λi)·e(λo)·Δλo (λ̄e by the trapezoid
+    // rule, computed here).
+    let mut spec = SynthSpec::preset("two-dyes").unwrap();
+    spec.noise_sigma = 0.0;
+    spec.crosstalk = 0.0;
+    spec.missing_fraction = 0.0;
+    spec.components[0].yield_form = YieldForm::Photon;
+    spec.components[0].yield_fraction_of_limit = 0.9;
+    let (m, truth) = spec.generate().unwrap();
+    assert_eq!(truth.fluorophores[0].yield_form, YieldForm::Energy);
+    let dye = &truth.fluorophores[1];
+    assert_eq!(dye.yield_form, YieldForm::Photon);
+    assert_eq!(dye.quantum_yield, 0.9);
+    let widths = bin_widths(&spec.emission_nm);
+    let mean = |f: &fluorite::Fluorophore| {
+        let e = &f.emission.value;
+        let num: f64 = (0..e.len())
+            .map(|j| widths[j] * e[j] * spec.emission_nm[j])
+            .sum();
+        let den: f64 = (0..e.len()).map(|j| widths[j] * e[j]).sum();
+        num / den
+    };
+    let means: Vec<f64> = truth.fluorophores.iter().map(mean).collect();
+    for (i, &li) in spec.excitation_nm.iter().enumerate() {
+        for (j, &lo) in spec.emission_nm.iter().enumerate() {
+            if (li - lo).abs() < 1e-9 {
+                continue;
+            }
+            let expected: f64 = truth
+                .fluorophores
+                .iter()
+                .zip(&means)
+                .map(|(f, mean)| {
+                    let x = match f.yield_form {
+                        YieldForm::Energy => 1.0,
+                        YieldForm::Photon => li / mean,
+                    };
+                    f.concentration
+                        * f.quantum_yield
+                        * x
+                        * f.absorption.value[i]
+                        * f.emission.value[j]
+                        * widths[j]
+                })
+                .sum();
+            assert!(
+                (m.get(i, j) - expected).abs() < 1e-12,
+                "cell ({li}, {lo}): {} against {expected}",
+                m.get(i, j)
+            );
+        }
+    }
+
+    // The spec's JSON: the form is written only when it is not the default, and read
+    // back; a spec without it is the energy form.
+    let json = serde_json::to_string(&spec).unwrap();
+    assert_eq!(
+        json.matches("\"yield_form\":\"photon\"").count(),
+        1,
+        "{json}"
+    );
+    let back: SynthSpec = serde_json::from_str(&json).unwrap();
+    assert_eq!(back, spec);
+    let energy = serde_json::to_string(&SynthSpec::preset("two-dyes").unwrap()).unwrap();
+    assert!(!energy.contains("yield_form"));
+
+    // The first component in the photon form too.
+    let mut spec = SynthSpec::preset("green-dye").unwrap();
+    spec.yield_form = YieldForm::Photon;
+    let truth = spec.truth().unwrap();
+    assert_eq!(truth.fluorophores[0].yield_form, YieldForm::Photon);
+    assert_eq!(
+        truth.fluorophores[0].quantum_yield,
+        spec.yield_fraction_of_limit
+    );
 }
