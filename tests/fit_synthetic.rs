@@ -29,10 +29,11 @@ fn noise_free_recovery_is_exact() {
         for solver in [Solver::Init, Solver::Lbfgs, Solver::GaussNewton] {
             let mut spec = SynthSpec::preset(preset).unwrap();
             spec.noise_sigma = 0.0;
-            spec.crosstalk = 0.05;
+            spec.crosstalk = 0.0;
             let (m, truth) = spec.generate().unwrap();
             let options = FitOptions {
                 solver,
+                colour_weight: 0.0,
                 ..FitOptions::default()
             };
             let material = fitted(fit(&m, &options).unwrap());
@@ -79,7 +80,16 @@ fn noisy_recovery_within_propagated_noise() {
         spec.missing_fraction = 0.02;
         spec.seed = 7;
         let (m, truth) = spec.generate().unwrap();
-        let material = fitted(fit(&m, &FitOptions::default()).unwrap());
+        let material = fitted(
+            fit(
+                &m,
+                &FitOptions {
+                    colour_weight: 0.0,
+                    ..FitOptions::default()
+                },
+            )
+            .unwrap(),
+        );
         let (f, t) = (&material.fluorophores[0], &truth.fluorophores[0]);
         let widths = fluorite::spectrum::bin_widths(&m.emission_nm);
         let guard = m.default_guard_nm();
@@ -157,7 +167,16 @@ fn colour_of_fit_matches_truth_at_measured_noise() {
             spec.noise_sigma = 0.0006;
             spec.seed = seed;
             let (m, truth) = spec.generate().unwrap();
-            let material = fitted(fit(&m, &FitOptions::default()).unwrap());
+            let material = fitted(
+                fit(
+                    &m,
+                    &FitOptions {
+                        colour_weight: 0.0,
+                        ..FitOptions::default()
+                    },
+                )
+                .unwrap(),
+            );
             for light in Light::standard() {
                 let (xyz_fit, white) = material_xyz(&material, &light);
                 let (xyz_true, _) = material_xyz(&truth, &light);
@@ -176,7 +195,16 @@ fn colour_of_fit_matches_truth_at_measured_noise() {
 fn a_plain_reflector_is_recognised() {
     let spec = SynthSpec::preset("plain").unwrap();
     let (m, truth) = spec.generate().unwrap();
-    let material = fitted(fit(&m, &FitOptions::default()).unwrap());
+    let material = fitted(
+        fit(
+            &m,
+            &FitOptions {
+                colour_weight: 0.0,
+                ..FitOptions::default()
+            },
+        )
+        .unwrap(),
+    );
     assert!(material.fluorophores.is_empty(), "no fluorophore expected");
     let report = material.fit.as_ref().unwrap();
     assert!(
@@ -201,11 +229,13 @@ fn a_plain_reflector_is_recognised() {
 fn pinned_quantum_yield_splits_k_or_is_refused() {
     let mut spec = SynthSpec::preset("green-dye").unwrap();
     spec.noise_sigma = 0.0;
+    spec.crosstalk = 0.0;
     let (m, truth) = spec.generate().unwrap();
     let t = &truth.fluorophores[0];
     // The true Q is feasible and gives back the true c.
     let options = FitOptions {
         quantum_yield: Some(t.quantum_yield),
+        colour_weight: 0.0,
         ..FitOptions::default()
     };
     let material = fitted(fit(&m, &options).unwrap());
@@ -223,6 +253,7 @@ fn pinned_quantum_yield_splits_k_or_is_refused() {
     // Q = 1 breaks photon conservation for a dye absorbing at 300 nm and emitting at 530.
     let options = FitOptions {
         quantum_yield: Some(1.0),
+        colour_weight: 0.0,
         ..FitOptions::default()
     };
     let err = fit(&m, &options).unwrap_err().to_string();
@@ -233,6 +264,7 @@ fn pinned_quantum_yield_splits_k_or_is_refused() {
     // A tiny concentration would need Q > 1.
     let options = FitOptions {
         concentration: Some(0.01),
+        colour_weight: 0.0,
         ..FitOptions::default()
     };
     let err = fit(&m, &options).unwrap_err().to_string();
@@ -247,7 +279,16 @@ fn the_smallest_feasible_concentration_is_the_default_gauge() {
     let mut spec = SynthSpec::preset("red-pigment").unwrap();
     spec.noise_sigma = 0.0;
     let (m, truth) = spec.generate().unwrap();
-    let material = fitted(fit(&m, &FitOptions::default()).unwrap());
+    let material = fitted(
+        fit(
+            &m,
+            &FitOptions {
+                colour_weight: 0.0,
+                ..FitOptions::default()
+            },
+        )
+        .unwrap(),
+    );
     let f = &material.fluorophores[0];
     let [lo, hi] = f.concentration_range.unwrap();
     assert_eq!(f.concentration, lo);
@@ -273,6 +314,7 @@ fn the_iteration_limit_is_reported_not_hidden() {
     let (m, _) = spec.generate().unwrap();
     let options = FitOptions {
         max_iterations: 1,
+        yield_choice: fluorite::fit::YieldChoice::Energy,
         ..FitOptions::default()
     };
     let outcome = fit(&m, &options).unwrap();
@@ -287,7 +329,16 @@ fn the_iteration_limit_is_reported_not_hidden() {
         report.warnings
     );
     // Given room, the same fit converges and the material is valid.
-    let material = fitted(fit(&m, &FitOptions::default()).unwrap());
+    let material = fitted(
+        fit(
+            &m,
+            &FitOptions {
+                colour_weight: 0.0,
+                ..FitOptions::default()
+            },
+        )
+        .unwrap(),
+    );
     assert!(material.fit.as_ref().unwrap().converged);
     material.validate().unwrap();
 }

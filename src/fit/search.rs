@@ -271,14 +271,13 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
             .map(|(light, de)| (light.clone(), *de)),
     };
     let bound = budget.unwrap_or(f64::INFINITY);
-    // A search never ends worse than the grid fit it starts from: when that fit meets the
-    // bound, a candidate must also match its worst ΔE2000.
+    // The bound is what a scene needs: the first candidate within it is kept, even when
+    // the grid fit is closer (a candidate had to match the grid's worst ΔE2000 before, and
+    // with the grid fit's colour term that chose two components for one-fluorophore
+    // matrices). When no candidate meets the bound, the closest fit is kept, the grid fit
+    // included, so a search never ends worse than the fit it starts from.
     let grid_de = worst(&base_report.delta_e2000);
-    let accept = match (options.model, budget) {
-        (ModelChoice::Fixed(_), _) | (_, None) => bound,
-        (_, Some(bound)) if grid_de <= bound => grid_de,
-        (_, Some(bound)) => bound,
-    };
+    let accept = bound;
     let mut skipped: Option<String> = None;
     let specs: Vec<(usize, usize, usize)> = match options.model {
         ModelChoice::Fixed(r) => vec![(r.components, r.absorption_bands, r.emission_bands)],
