@@ -229,10 +229,8 @@ fn refine_form<'a>(
     form: YieldForm,
     colour: Option<objective::ColourTerm>,
     options: &FitOptions,
-    noise_sigma: f64,
     total_energy: f64,
 ) -> Result<FormFit<'a>> {
-    let _ = noise_sigma;
     let objective = Objective::new(data, form).with_colour(colour);
     let estimate = start_spectra(&objective, start);
     let closed_form = estimate.spectra;
@@ -417,7 +415,6 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
         forms[0],
         colour.clone(),
         options,
-        noise_sigma,
         total_energy,
     )?;
     let mut yield_reason = match options.yield_choice {
@@ -443,7 +440,6 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
                 YieldForm::Photon,
                 colour.clone(),
                 options,
-                noise_sigma,
                 total_energy,
             )?;
             let margin = YIELD_FORM_MARGIN * chosen.cost + 0.5 * noise_sigma * noise_sigma;
@@ -648,7 +644,16 @@ fn noise_colour_check(
     let peak = material
         .fluorophores
         .iter()
-        .map(|f| f.k() * f.emission.value.iter().cloned().fold(0.0, f64::max) * bin)
+        .map(|f| {
+            let mean = f.emission_mean_nm();
+            let row_peak = f
+                .absorption
+                .wavelength_nm
+                .iter()
+                .map(|&l| f.reradiated_with_mean(l, mean))
+                .fold(0.0, f64::max);
+            row_peak * f.emission.value.iter().cloned().fold(0.0, f64::max) * bin
+        })
         .fold(0.0, f64::max);
     if peak > BOOTSTRAP_SIGNAL_RATIO * noise_sigma {
         return;
@@ -661,9 +666,16 @@ fn noise_colour_check(
         m.units,
         m.has_diagonal,
     );
+    // The closed-form estimate in the material's own form: the colour term and the
+    // choice of form belong to the refinement, which the draws skip.
     let refit_options = FitOptions {
         solver: Solver::Init,
         start: Start::ClosedForm,
+        colour_weight: 0.0,
+        yield_choice: match material.fluorophores.first().map(|f| f.yield_form) {
+            Some(YieldForm::Photon) => YieldChoice::Photon,
+            _ => YieldChoice::Energy,
+        },
         ..options.clone()
     };
     // Colour on the data's own grids, as in the accuracy report (cached colorimeters).

@@ -69,11 +69,11 @@ pub const COLOUR_SCALE: f64 = 1.0;
 /// colour, as linear functionals of the cell residuals (measured − model).
 #[derive(Debug, Clone)]
 pub struct ColourTerm {
-    /// w: the cost is ½·w·Σ_lights ΔE76².
+    /// w: the cost is ½·w·Σ_lights τ²·ln(1 + ΔE76²/τ²).
     weight: f64,
-    /// Per light: ∫L·h_i per excitation row.
-    light_weights: Vec<Vec<f64>>,
-    /// The same, row-major (row × light), for the per-cell passes.
+    /// Number of lights.
+    n_lights: usize,
+    /// ∫L·h_i, row-major (excitation row × light).
     row_lights: Vec<f64>,
     /// Per light and Lab channel: ∂Lab/∂(off-diagonal cell of column j) / L_i.
     emitted: Vec<[Vec<f64>; 3]>,
@@ -85,14 +85,15 @@ impl ColourTerm {
     /// The colour term of `lights` on the grids of `data`, linearised at the measured
     /// patch colours `reference` (XYZ per light, as [`PatchColorimeter::xyz`] gives them).
     pub fn new(data: &FitData, lights: &[Light], reference: &[Xyz], weight: f64) -> Self {
+        let n_lights = lights.len().min(reference.len());
         let mut term = ColourTerm {
             weight,
-            light_weights: Vec::new(),
-            row_lights: Vec::new(),
-            emitted: Vec::new(),
-            reflected: Vec::new(),
+            n_lights,
+            row_lights: vec![0.0; data.n_excitation() * n_lights],
+            emitted: Vec::with_capacity(n_lights),
+            reflected: Vec::with_capacity(n_lights),
         };
-        for (light, xyz) in lights.iter().zip(reference) {
+        for (l, (light, xyz)) in lights.iter().zip(reference).enumerate() {
             let pc = PatchColorimeter::cached(light, &data.excitation_nm, &data.emission_nm);
             let (light_weights, reflected, emitted, widths, scale) = pc.weights();
             let jacobian = crate::colour::lab_jacobian(*xyz, pc.white);
@@ -107,41 +108,37 @@ impl ColourTerm {
                     })
                     .collect()
             };
-            term.light_weights.push(light_weights.to_vec());
+            for (i, w) in light_weights.iter().enumerate() {
+                term.row_lights[i * n_lights + l] = *w;
+            }
             term.emitted
                 .push([0, 1, 2].map(|channel| project(emitted, channel, true)));
             term.reflected
                 .push([0, 1, 2].map(|channel| project(reflected, channel, false)));
         }
-        let n_lights = term.light_weights.len();
-        term.row_lights = vec![0.0; data.n_excitation() * n_lights];
-        for (l, weights) in term.light_weights.iter().enumerate() {
-            for (i, w) in weights.iter().enumerate() {
-                term.row_lights[i * n_lights + l] = *w;
-            }
-        }
         term
     }
 
-    /// ΔLab (measured − model, linearised) per light and channel, from the residuals of
-    /// the off-diagonal and guard cells and of the diagonal cells.
-    fn patch(&self, off: &[(Cell, f64)], diagonal: &[(Cell, f64)]) -> Vec<f64> {
-        let mut patch = vec![0.0; 3 * self.light_weights.len()];
-        for (l, (lw, (em, re))) in self
-            .light_weights
-            .iter()
-            .zip(self.emitted.iter().zip(&self.reflected))
-            .enumerate()
-        {
+    /// ∫L·h_i of every light for excitation row `row`.
+    fn lights_of_row(&self, row: usize) -> &[f64] {
+        &self.row_lights[row * self.n_lights..(row + 1) * self.n_lights]
+    }
+
+    /// ΔLab (measured − model, linearised) per light and channel, from the column sums
+    /// Σ_i L_li·r_ij of the off-diagonal residuals (light-major) and the diagonal
+    /// residuals (column, r).
+    fn patch(&self, column_sum: &[f64], diagonal: &[(usize, f64)], n_em: usize) -> Vec<f64> {
+        let mut patch = vec![0.0; 3 * self.n_lights];
+        for l in 0..self.n_lights {
+            let sums = &column_sum[l * n_em..(l + 1) * n_em];
             for channel in 0..3 {
-                let mut v = 0.0;
-                for (c, r) in off {
-                    v += lw[c.row] * em[channel][c.column] * r;
-                }
-                for (c, r) in diagonal {
-                    v += re[channel][c.column] * r;
-                }
-                patch[3 * l + channel] = v;
+                let re = &self.reflected[l][channel];
+                patch[3 * l + channel] = self.emitted[l][channel]
+                    .iter()
+                    .zip(sums)
+                    .map(|(e, s)| e * s)
+                    .sum::<f64>()
+                    + diagonal.iter().map(|&(j, r)| re[j] * r).sum::<f64>();
             }
         }
         patch
@@ -179,23 +176,44 @@ impl ColourTerm {
         (phi, dphi)
     }
 
-    /// ∂(colour cost)/∂(residual) of an off-diagonal cell and of a diagonal cell, given
-    /// the patch ΔLab: w·Σ_l,ch p_l,ch·coefficient.
-    fn pulls(&self, patch: &[f64], n_em: usize) -> (Vec<Vec<f64>>, Vec<f64>) {
-        // Off-diagonal: L_i·q_lj summed over lights; keep q per light.
-        let mut q = vec![vec![0.0; n_em]; self.light_weights.len()];
+    /// The colour cost's pull on the residuals, given ∂cost/∂ΔLab / w: per light and
+    /// column q_lj (light-major; an off-diagonal cell's pull is Σ_l L_li·q_lj) and per
+    /// column h_j (a diagonal cell's pull).
+    fn pulls(&self, pull_patch: &[f64], n_em: usize) -> (Vec<f64>, Vec<f64>) {
+        let mut q = vec![0.0; self.n_lights * n_em];
         let mut h = vec![0.0; n_em];
-        for (l, (em, re)) in self.emitted.iter().zip(&self.reflected).enumerate() {
-            for j in 0..n_em {
-                for channel in 0..3 {
-                    let p = self.weight * patch[3 * l + channel];
-                    q[l][j] += p * em[channel][j];
-                    h[j] += p * re[channel][j];
+        for l in 0..self.n_lights {
+            for channel in 0..3 {
+                let p = self.weight * pull_patch[3 * l + channel];
+                let (em, re) = (&self.emitted[l][channel], &self.reflected[l][channel]);
+                for j in 0..n_em {
+                    q[l * n_em + j] += p * em[j];
+                    h[j] += p * re[j];
                 }
             }
         }
         (q, h)
     }
+
+    /// The pull Σ_l L_li·q_lj on an off-diagonal cell.
+    fn cell_pull(&self, q: &[f64], n_em: usize, row: usize, column: usize) -> f64 {
+        self.lights_of_row(row)
+            .iter()
+            .enumerate()
+            .map(|(l, w)| w * q[l * n_em + column])
+            .sum()
+    }
+}
+
+/// One diagonal cell as the fit sees it.
+#[derive(Debug, Clone, Copy)]
+struct DiagonalFit {
+    /// The fitted reflectance d_j: M_jj − F_jj projected onto [0, cap].
+    reflectance: f64,
+    /// Measured − model (0 inside the interval).
+    residual: f64,
+    /// Where d_j sits.
+    regime: DiagonalRegime,
 }
 
 /// The objective for one measurement.
@@ -309,43 +327,65 @@ impl<'a> Objective<'a> {
         1.0 - sp.kappa * sp.absorption[row] * self.cap_factor(d, row)
     }
 
-    /// The fitted diagonal reflectance d_j (per diagonal cell of `data.diagonal`) and where
-    /// it sits in its feasible interval.
-    pub fn diagonal(&self, sp: &GridSpectra, d: &Derived) -> Vec<(f64, DiagonalRegime)> {
+    /// Every diagonal cell of `data.diagonal` projected onto its feasible interval.
+    fn diagonal_fits(&self, sp: &GridSpectra, d: &Derived) -> Vec<DiagonalFit> {
         self.data
             .diagonal
             .iter()
             .map(|c| {
                 let raw = c.value - self.fitted(sp, d, c.row, c.column);
                 let cap = self.cap(sp, d, c.row);
-                if raw < 0.0 {
+                let (reflectance, regime) = if raw < 0.0 {
                     (0.0, DiagonalRegime::AtZero)
                 } else if raw > cap {
                     (cap, DiagonalRegime::AtCap)
                 } else {
                     (raw, DiagonalRegime::Free)
+                };
+                DiagonalFit {
+                    reflectance,
+                    residual: raw - reflectance,
+                    regime,
                 }
             })
             .collect()
     }
 
-    /// The residual (measured − model) of each diagonal cell and its regime.
-    fn diagonal_residuals(&self, sp: &GridSpectra, d: &Derived) -> Vec<(f64, DiagonalRegime)> {
-        self.data
+    /// The fitted diagonal reflectance d_j (per diagonal cell of `data.diagonal`) and where
+    /// it sits in its feasible interval.
+    pub fn diagonal(&self, sp: &GridSpectra, d: &Derived) -> Vec<(f64, DiagonalRegime)> {
+        self.diagonal_fits(sp, d)
+            .into_iter()
+            .map(|f| (f.reflectance, f.regime))
+            .collect()
+    }
+
+    /// The colour term's ΔLab (measured − model) per light and channel: one pass over the
+    /// off-diagonal and guard cells (the colour sees every measured cell) for the column
+    /// sums, then the diagonal.
+    fn colour_patch(
+        &self,
+        colour: &ColourTerm,
+        sp: &GridSpectra,
+        d: &Derived,
+        diagonal: &[DiagonalFit],
+    ) -> Vec<f64> {
+        let data = self.data;
+        let n_em = data.n_emission();
+        let mut column_sum = vec![0.0; colour.n_lights * n_em];
+        for c in data.off_diagonal.iter().chain(&data.guard) {
+            let r = c.value - self.fitted(sp, d, c.row, c.column);
+            for (l, w) in colour.lights_of_row(c.row).iter().enumerate() {
+                column_sum[l * n_em + c.column] += w * r;
+            }
+        }
+        let diagonal: Vec<(usize, f64)> = data
             .diagonal
             .iter()
-            .map(|c| {
-                let raw = c.value - self.fitted(sp, d, c.row, c.column);
-                let cap = self.cap(sp, d, c.row);
-                if raw < 0.0 {
-                    (raw, DiagonalRegime::AtZero)
-                } else if raw > cap {
-                    (raw - cap, DiagonalRegime::AtCap)
-                } else {
-                    (0.0, DiagonalRegime::Free)
-                }
-            })
-            .collect()
+            .zip(diagonal)
+            .map(|(c, f)| (c.column, f.residual))
+            .collect();
+        colour.patch(&column_sum, &diagonal, n_em)
     }
 
     /// ½‖r‖² (plus the colour term) and its gradient with respect to (κ, a, v).
@@ -360,55 +400,27 @@ impl<'a> Objective<'a> {
         let mut g_kappa = 0.0;
         let mut g_a = vec![0.0; a.len()];
         let mut g_v = vec![0.0; v.len()];
-        let diagonal = self.diagonal_residuals(sp, &d);
-        for (r, _) in &diagonal {
-            cost += 0.5 * r * r;
-        }
-        // The colour term: per light, the column sums Σ_i L_i·r_ij of the residuals (one
-        // pass over the cells), then ΔLab, then each column's pull q_lj (and h_j on the
-        // diagonal); a cell's pull is Σ_l L_li·q_lj.
-        let n_lights = self.colour.as_ref().map_or(0, |c| c.light_weights.len());
-        let mut q = vec![0.0; n_lights * n_em];
-        let mut h = vec![0.0; n_em];
-        if let Some(colour) = &self.colour {
-            let mut column_sum = vec![0.0; n_lights * n_em];
-            for c in data.off_diagonal.iter().chain(&data.guard) {
-                let r = c.value - model(c);
-                let weights = &colour.row_lights[c.row * n_lights..(c.row + 1) * n_lights];
-                for (l, w) in weights.iter().enumerate() {
-                    column_sum[l * n_em + c.column] += w * r;
-                }
+        let diagonal = self.diagonal_fits(sp, &d);
+        cost += 0.5
+            * diagonal
+                .iter()
+                .map(|f| f.residual * f.residual)
+                .sum::<f64>();
+        // The colour term pulls on every cell's residual: Σ_l L_li·q_lj off the diagonal,
+        // h_j on it.
+        let (q, h) = match &self.colour {
+            Some(colour) => {
+                let patch = self.colour_patch(colour, sp, &d, &diagonal);
+                let (colour_cost, pull_patch) = colour.robust(&patch);
+                cost += colour_cost;
+                colour.pulls(&pull_patch, n_em)
             }
-            let mut patch = vec![0.0; 3 * n_lights];
-            for l in 0..n_lights {
-                let sums = &column_sum[l * n_em..(l + 1) * n_em];
-                for channel in 0..3 {
-                    let em = &colour.emitted[l][channel];
-                    let re = &colour.reflected[l][channel];
-                    let mut value: f64 = em.iter().zip(sums).map(|(e, s)| e * s).sum();
-                    for (cell, (r, _)) in data.diagonal.iter().zip(&diagonal) {
-                        value += re[cell.column] * r;
-                    }
-                    patch[3 * l + channel] = value;
-                }
-            }
-            let (colour_cost, pull_patch) = colour.robust(&patch);
-            cost += colour_cost;
-            let (per_light, diagonal_pull) = colour.pulls(&pull_patch, n_em);
-            for (l, row) in per_light.iter().enumerate() {
-                q[l * n_em..(l + 1) * n_em].copy_from_slice(row);
-            }
-            h = diagonal_pull;
-        }
+            None => (Vec::new(), vec![0.0; n_em]),
+        };
         let pull = |c: &Cell| -> f64 {
-            match &self.colour {
-                Some(colour) => colour.row_lights[c.row * n_lights..(c.row + 1) * n_lights]
-                    .iter()
-                    .enumerate()
-                    .map(|(l, w)| w * q[l * n_em + c.column])
-                    .sum(),
-                None => 0.0,
-            }
+            self.colour
+                .as_ref()
+                .map_or(0.0, |colour| colour.cell_pull(&q, n_em, c.row, c.column))
         };
         // Off-diagonal cells: ∂cost/∂F = −(r + colour pull); guard cells only the pull.
         for c in &data.off_diagonal {
@@ -429,8 +441,9 @@ impl<'a> Objective<'a> {
                 g_v[c.column] -= effective * s * ai * xi;
             }
         }
-        for (c, (r, regime)) in data.diagonal.iter().zip(&diagonal) {
-            if *regime == DiagonalRegime::Free {
+        for (c, fit) in data.diagonal.iter().zip(&diagonal) {
+            let (r, regime) = (fit.residual, fit.regime);
+            if regime == DiagonalRegime::Free {
                 continue;
             }
             let effective = r + h[c.column];
@@ -438,7 +451,7 @@ impl<'a> Objective<'a> {
             g_scale -= effective * ai * xi * vj;
             g_a[c.row] -= effective * s * xi * vj;
             g_v[c.column] -= effective * s * ai * xi;
-            if *regime == DiagonalRegime::AtCap {
+            if regime == DiagonalRegime::AtCap {
                 // r = raw − cap, cap = 1 − κ·a·m: ∂r/∂κ = a·m, ∂r/∂a = κ·m, ∂r/∂v via m.
                 let m = self.cap_factor(&d, c.row);
                 g_kappa += effective * ai * m;
@@ -494,23 +507,11 @@ impl<'a> Objective<'a> {
         for c in &data.off_diagonal {
             r.push(c.value - self.fitted(sp, &d, c.row, c.column));
         }
-        let diagonal = self.diagonal_residuals(sp, &d);
-        r.extend(diagonal.iter().map(|x| x.0));
+        let diagonal = self.diagonal_fits(sp, &d);
+        r.extend(diagonal.iter().map(|f| f.residual));
         if let Some(colour) = &self.colour {
-            let off: Vec<(Cell, f64)> = data
-                .off_diagonal
-                .iter()
-                .chain(&data.guard)
-                .map(|c| (*c, c.value - self.fitted(sp, &d, c.row, c.column)))
-                .collect();
-            let diag_cells: Vec<(Cell, f64)> = data
-                .diagonal
-                .iter()
-                .zip(&diagonal)
-                .map(|(c, (x, _))| (*c, *x))
-                .collect();
             let w = colour.weight.sqrt();
-            for light in colour.patch(&off, &diag_cells).chunks_exact(3) {
+            for light in self.colour_patch(colour, sp, &d, &diagonal).chunks_exact(3) {
                 let t = light.iter().map(|p| p * p).sum::<f64>().sqrt();
                 let (phi, _) = ColourTerm::residual_factor(t);
                 r.extend(light.iter().map(|p| w * phi * p));
@@ -566,11 +567,7 @@ impl<'a> Objective<'a> {
         let data = self.data;
         let d = self.derived(sp);
         let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
-        let n_colour = self
-            .colour
-            .as_ref()
-            .map(|c| 3 * c.light_weights.len())
-            .unwrap_or(0);
+        let n_colour = self.colour.as_ref().map_or(0, |c| 3 * c.n_lights);
         let rows = data.off_diagonal.len() + data.diagonal.len() + n_colour + 1;
         let n_params = 1 + n_ex + n_em;
         let mut j = DMatrix::zeros(rows, n_params);
@@ -579,12 +576,12 @@ impl<'a> Objective<'a> {
         } else {
             vec![0.0; n_em]
         };
-        let regimes = self.diagonal(sp, &d);
+        let diagonal = self.diagonal_fits(sp, &d);
         let cells = data
             .off_diagonal
             .iter()
             .map(|c| (c, DiagonalRegime::AtZero))
-            .chain(data.diagonal.iter().zip(regimes.iter().map(|x| x.1)));
+            .chain(data.diagonal.iter().zip(diagonal.iter().map(|f| f.regime)));
         let mut row_buffer = vec![0.0; n_params];
         for (row, (c, regime)) in cells.enumerate() {
             if regime == DiagonalRegime::Free {
@@ -597,68 +594,53 @@ impl<'a> Objective<'a> {
             }
         }
         if let Some(colour) = &self.colour {
-            let first = data.off_diagonal.len() + data.diagonal.len();
-            // ∂ΔLab/∂θ first (unit weight), then through the robust residual factor.
-            let w = 1.0;
-            let off_cells = data.off_diagonal.iter().chain(&data.guard);
-            for c in off_cells {
-                row_buffer.iter_mut().for_each(|x| *x = 0.0);
-                self.cell_jacobian(sp, &d, &ds, c, DiagonalRegime::AtZero, &mut row_buffer);
-                for (l, (lw, em)) in colour.light_weights.iter().zip(&colour.emitted).enumerate() {
-                    for channel in 0..3 {
-                        let coefficient = w * lw[c.row] * em[channel][c.column];
-                        for (k, v) in row_buffer.iter().enumerate() {
-                            j[(first + 3 * l + channel, k)] += coefficient * v;
-                        }
+            // ∂ΔLab/∂θ (every measured cell through its coefficient), then through the
+            // robust residual factor √w·φ(t).
+            let mut d_patch: DMatrix<f64> = DMatrix::zeros(n_colour, n_params);
+            let mut add = |coefficients: &mut dyn Iterator<Item = (usize, f64)>, row: &[f64]| {
+                for (patch_row, coefficient) in coefficients {
+                    for (k, v) in row.iter().enumerate() {
+                        d_patch[(patch_row, k)] += coefficient * v;
                     }
                 }
+            };
+            for c in data.off_diagonal.iter().chain(&data.guard) {
+                row_buffer.iter_mut().for_each(|x| *x = 0.0);
+                self.cell_jacobian(sp, &d, &ds, c, DiagonalRegime::AtZero, &mut row_buffer);
+                let lights = colour.lights_of_row(c.row);
+                add(
+                    &mut (0..n_colour)
+                        .map(|p| (p, lights[p / 3] * colour.emitted[p / 3][p % 3][c.column])),
+                    &row_buffer,
+                );
             }
-            for (c, (_, regime)) in data.diagonal.iter().zip(&regimes) {
-                if *regime == DiagonalRegime::Free {
+            for (c, fit) in data.diagonal.iter().zip(&diagonal) {
+                if fit.regime == DiagonalRegime::Free {
                     continue;
                 }
                 row_buffer.iter_mut().for_each(|x| *x = 0.0);
-                self.cell_jacobian(sp, &d, &ds, c, *regime, &mut row_buffer);
-                for (l, re) in colour.reflected.iter().enumerate() {
-                    for channel in 0..3 {
-                        let coefficient = w * re[channel][c.column];
-                        for (k, v) in row_buffer.iter().enumerate() {
-                            j[(first + 3 * l + channel, k)] += coefficient * v;
-                        }
-                    }
-                }
+                self.cell_jacobian(sp, &d, &ds, c, fit.regime, &mut row_buffer);
+                add(
+                    &mut (0..n_colour).map(|p| (p, colour.reflected[p / 3][p % 3][c.column])),
+                    &row_buffer,
+                );
             }
-        }
-        if let Some(colour) = &self.colour {
             let first = data.off_diagonal.len() + data.diagonal.len();
-            let off: Vec<(Cell, f64)> = data
-                .off_diagonal
-                .iter()
-                .chain(&data.guard)
-                .map(|c| (*c, c.value - self.fitted(sp, &d, c.row, c.column)))
-                .collect();
-            let diagonal = self.diagonal_residuals(sp, &d);
-            let diag_cells: Vec<(Cell, f64)> = data
-                .diagonal
-                .iter()
-                .zip(&diagonal)
-                .map(|(c, (x, _))| (*c, *x))
-                .collect();
-            let patch = colour.patch(&off, &diag_cells);
+            let patch = self.colour_patch(colour, sp, &d, &diagonal);
             let root_weight = colour.weight.sqrt();
             for (l, p) in patch.chunks_exact(3).enumerate() {
                 let t = p.iter().map(|x| x * x).sum::<f64>().sqrt();
                 let (phi, dphi) = ColourTerm::residual_factor(t);
-                let rows: Vec<usize> = (0..3).map(|ch| first + 3 * l + ch).collect();
                 for k in 0..n_params {
-                    let dp: Vec<f64> = rows.iter().map(|&row| j[(row, k)]).collect();
+                    let dp = [0, 1, 2].map(|ch| d_patch[(3 * l + ch, k)]);
                     let dt = if t > 0.0 {
                         (0..3).map(|ch| p[ch] * dp[ch]).sum::<f64>() / t
                     } else {
                         0.0
                     };
                     for ch in 0..3 {
-                        j[(rows[ch], k)] = root_weight * (phi * dp[ch] + p[ch] * dphi * dt);
+                        j[(first + 3 * l + ch, k)] =
+                            root_weight * (phi * dp[ch] + p[ch] * dphi * dt);
                     }
                 }
             }

@@ -1286,12 +1286,12 @@ fn split_components(
         }
         None => {
             let f = &base.fluorophores[0];
-            let row = f
-                .absorption
-                .resample_zero_outside(&data.excitation_nm)
-                .value
+            // The matrix's row factor c·Q(λi)·a(λi), in either yield form.
+            let mean = f.emission_mean_nm();
+            let row = data
+                .excitation_nm
                 .iter()
-                .map(|a| a * f.k())
+                .map(|&l| f.reradiated_with_mean(l, mean))
                 .collect();
             let column = f
                 .emission
