@@ -45,10 +45,10 @@ fn bench_fit(c: &mut Criterion) {
     let mut group = c.benchmark_group("fit");
     for m in inputs() {
         for solver in [Solver::Init, Solver::Lbfgs, Solver::GaussNewton] {
-            // The fit alone (no ΔE report): what the 2 ms budget covers.
+            // The default fit: colour term and ΔE2000 report under the four standard
+            // lights, --yield auto (what the 2 ms budget covers).
             let options = FitOptions {
                 solver,
-                lights: Vec::new(),
                 ..FitOptions::default()
             };
             if solver == Solver::GaussNewton {
@@ -60,17 +60,18 @@ fn bench_fit(c: &mut Criterion) {
                 b.iter(|| fit(black_box(&m), &options).unwrap())
             });
         }
-        // With the ΔE2000 report under the four standard lights.
-        let options = FitOptions::default();
-        group.bench_function(format!("{}/lbfgs+report", m.name), |b| {
+        // The matrix alone: no lights, so no colour term and no report.
+        let options = FitOptions {
+            lights: Vec::new(),
+            ..FitOptions::default()
+        };
+        group.bench_function(format!("{}/lbfgs-matrix-only", m.name), |b| {
             b.iter(|| fit(black_box(&m), &options).unwrap())
         });
     }
     group.finish();
 }
 
-/// A 100-file batch, as `fluorite fit data/*.csv` runs it (rayon over files): on one
-/// thread and on two. The ratio shows whether the batch uses both cores.
 fn bench_batch(c: &mut Criterion) {
     use rayon::prelude::*;
     let inputs = inputs();

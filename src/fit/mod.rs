@@ -37,9 +37,11 @@ use objective::{DiagonalRegime, Objective};
 use representation::{GridSpectra, Representation, Tabulated};
 pub use search::{ModelChoice, ModelRequest};
 
-/// Default relative tolerance of the refinement. Measured on the six BFC-450 files: k, c
-/// and ΔE2000 agree to the printed digits with 1e-9, at half the L-BFGS iterations.
-pub const DEFAULT_TOLERANCE: f64 = 1e-6;
+/// Default relative tolerance of the refinement. Measured on the four BFC-450 files with
+/// the colour term: against 1e-6, ΔE2000 moves by at most 0.017 and the objective by at
+/// most 2 %, at a fifth to a half of the L-BFGS iterations (CIBA12 28 against 152,
+/// HERPICER 76 against 162; `fluorite fit FILE --tolerance 1e-6`).
+pub const DEFAULT_TOLERANCE: f64 = 1e-5;
 
 /// The refinement method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
