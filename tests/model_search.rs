@@ -318,6 +318,7 @@ fn measured_surfaces_meet_the_bound() {
                 .collect();
             means.sort_by(f64::total_cmp);
             assert_eq!(means.len(), 2, "{}", fit.model);
+            assert!((410.0..=470.0).contains(&means[0]), "{means:?}");
             assert!((600.0..=650.0).contains(&means[1]), "{means:?}");
         } else {
             // One fluorophore suffices for the single-pigment surfaces the grid model

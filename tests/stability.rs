@@ -53,6 +53,9 @@ fn small_sweep_succeeds_at_the_bfc_noise_level_and_flags_wide_crosstalk() {
         .unwrap();
     assert_eq!(MEASURED_NOISE_SIGMA, 6e-4);
     assert_eq!(at_bfc.success_rate, 1.0);
+    // The colour term trades shape for colour: the median shape error at this noise is
+    // about 0.06 (0.015 for the closed form alone) while ΔE2000 against the truth falls
+    // from about 0.6 to 0.2 (`fluorite stability`, noise table).
     assert!(at_bfc.median_recovery_error < RECOVERY_TOLERANCE);
     assert!(at_bfc.median_delta_e < DELTA_E_TOLERANCE);
     assert_eq!(at_bfc.flagged_rate, 0.0, "no false alarm at the BFC level");
@@ -111,7 +114,7 @@ fn fit_flags_crosstalk_next_to_the_diagonal() {
 #[test]
 fn fit_flags_weak_fluorescence() {
     for seed in 0..3 {
-        let (w, _) = warnings_of(Sweep::Strength, 0.05, seed, Solver::Lbfgs);
+        let (w, _) = warnings_of(Sweep::Strength, 0.1, seed, Solver::Lbfgs);
         assert!(any_contains(&w, "weak fluorescence"), "{w:?}");
         let (w, _) = warnings_of(Sweep::Strength, 0.03, seed, Solver::Lbfgs);
         assert!(any_contains(&w, "no fluorescent signal"), "{w:?}");

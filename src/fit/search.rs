@@ -745,6 +745,15 @@ fn fit_candidate(
     };
     let m = ctx.m;
     let mut material = problem.material(&theta, &m.name)?;
+    // The model bounds ρ on the grid; between samples (photon form: c·Φ·a(λ)·λ/λ̄e is
+    // quadratic) it may pass 1 by a hair. Lowering r there keeps the law; a reflectance
+    // form no longer matches the lowered samples and is dropped (r stays tabulated).
+    if material.lower_reflectance_to_energy_bound() > 0.0
+        && let Some(forms) = material.forms.as_mut()
+    {
+        forms.reflectance = None;
+    }
+    material.conservation = Some(material.conservation_margins());
     material
         .validate()
         .map_err(|e| Error::Fit(format!("{}: candidate {}: {e}", m.name, spec.name())))?;
