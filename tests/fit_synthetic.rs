@@ -167,16 +167,7 @@ fn colour_of_fit_matches_truth_at_measured_noise() {
             spec.noise_sigma = 0.0006;
             spec.seed = seed;
             let (m, truth) = spec.generate().unwrap();
-            let material = fitted(
-                fit(
-                    &m,
-                    &FitOptions {
-                        colour_weight: 0.0,
-                        ..FitOptions::default()
-                    },
-                )
-                .unwrap(),
-            );
+            let material = fitted(fit(&m, &FitOptions::default()).unwrap());
             for light in Light::standard() {
                 let (xyz_fit, white) = material_xyz(&material, &light);
                 let (xyz_true, _) = material_xyz(&truth, &light);

@@ -243,12 +243,14 @@ fn refine_form<'a>(
     let theta0 = representation.encode(&start_spectra);
     let energy_scale = total_energy + data.diagonal.iter().map(|c| c.value * c.value).sum::<f64>();
     // Stop when the gradient is negligible against the data, or when an iteration
-    // improves the cost by less than `tolerance` of the starting cost.
+    // improves the cost by less than `tolerance` of the closed-form estimate's cost (the
+    // problem's scale: a worse start must not loosen the criterion).
     let start_cost = objective.cost_gradient(&start_spectra).0;
+    let scale_cost = objective.cost_gradient(&closed_form).0;
     let stopping = solve::Stopping {
         max_iterations: options.max_iterations,
         gradient_tolerance: options.tolerance * energy_scale.sqrt().max(1e-300),
-        cost_tolerance: options.tolerance * start_cost.max(1e-300),
+        cost_tolerance: options.tolerance * scale_cost.max(1e-300),
     };
     let refined = match options.solver {
         Solver::Init => solve::Refined {
@@ -391,11 +393,23 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
                 PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm).xyz(&per_bin)
             })
             .collect();
+        // The colour term is for structure the model cannot follow; where the rank-1
+        // start already leaves only noise (χ² per cell ≈ 1: the model is right), least
+        // squares is the right estimate and the colour term would fit the noise. Its
+        // weight is the share of the start's residual that noise does not explain.
+        let residual_energy = 2.0 * start.cost_history.last().copied().unwrap_or(0.0);
+        let noise_energy = data.off_diagonal.len() as f64 * noise_sigma * noise_sigma;
+        let misfit_share = if residual_energy > 0.0 {
+            (1.0 - noise_energy / residual_energy).max(0.0)
+        } else {
+            0.0
+        };
         Some(objective::ColourTerm::new(
             &data,
             &options.lights,
             &reference,
-            options.colour_weight,
+            options.colour_weight * misfit_share,
+            noise_sigma,
         ))
     } else {
         None

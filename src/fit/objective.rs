@@ -73,6 +73,9 @@ pub struct ColourTerm {
     weight: f64,
     /// Number of lights.
     n_lights: usize,
+    /// Per light: the RMS ΔE76 the measurement's noise alone gives the patch; the colour
+    /// term pulls only on the difference beyond it.
+    noise_delta_e: Vec<f64>,
     /// ∫L·h_i, row-major (excitation row × light).
     row_lights: Vec<f64>,
     /// Per light and Lab channel: ∂Lab/∂(off-diagonal cell of column j) / L_i.
@@ -84,11 +87,21 @@ pub struct ColourTerm {
 impl ColourTerm {
     /// The colour term of `lights` on the grids of `data`, linearised at the measured
     /// patch colours `reference` (XYZ per light, as [`PatchColorimeter::xyz`] gives them).
-    pub fn new(data: &FitData, lights: &[Light], reference: &[Xyz], weight: f64) -> Self {
+    /// `noise_sigma` is the cells' noise level: the colour difference it alone explains is
+    /// left to the matrix term (least squares is the right estimate under noise; the
+    /// colour term is for structure the model cannot follow).
+    pub fn new(
+        data: &FitData,
+        lights: &[Light],
+        reference: &[Xyz],
+        weight: f64,
+        noise_sigma: f64,
+    ) -> Self {
         let n_lights = lights.len().min(reference.len());
         let mut term = ColourTerm {
             weight,
             n_lights,
+            noise_delta_e: vec![0.0; n_lights],
             row_lights: vec![0.0; data.n_excitation() * n_lights],
             emitted: Vec::with_capacity(n_lights),
             reflected: Vec::with_capacity(n_lights),
@@ -116,6 +129,27 @@ impl ColourTerm {
             term.reflected
                 .push([0, 1, 2].map(|channel| project(reflected, channel, false)));
         }
+        // Var(ΔLab) = σ²·Σ over measured cells of the squared coefficients.
+        let sigma2 = if noise_sigma.is_finite() {
+            noise_sigma * noise_sigma
+        } else {
+            0.0
+        };
+        for l in 0..n_lights {
+            let mut sum = 0.0;
+            for c in data.off_diagonal.iter().chain(&data.guard) {
+                let w = term.row_lights[c.row * n_lights + l];
+                for channel in 0..3 {
+                    sum += (w * term.emitted[l][channel][c.column]).powi(2);
+                }
+            }
+            for c in &data.diagonal {
+                for channel in 0..3 {
+                    sum += term.reflected[l][channel][c.column].powi(2);
+                }
+            }
+            term.noise_delta_e[l] = (sigma2 * sum).sqrt();
+        }
         term
     }
 
@@ -140,36 +174,49 @@ impl ColourTerm {
         patch
     }
 
-    /// The colour cost ½·w·Σ_l τ²·ln(1 + ΔE_l²/τ²) of the patch ΔLab (ΔE_l = |ΔLab_l|,
-    /// τ = [`COLOUR_SCALE`]), and ∂cost/∂ΔLab / w. Quadratic (½·w·ΔE²) for differences
-    /// below τ; a light whose difference the model cannot bring near τ (a second emitter
+    /// The colour cost ½·w·Σ_l τ²·ln(1 + u_l²/τ²) of the patch ΔLab, with ΔE_l = |ΔLab_l|
+    /// beyond the noise, u_l = max(0, ΔE_l − δ_l) (δ_l = the noise's RMS ΔE76, τ =
+    /// [`COLOUR_SCALE`]), and ∂cost/∂ΔLab / w. A colour difference the noise explains costs
+    /// nothing (the matrix term alone decides there); beyond it the cost is ½·w·u² while
+    /// u < τ, and a light whose difference the model cannot bring near τ (a second emitter
     /// a one-fluorophore model cannot follow) pulls less and less instead of trading the
     /// other lights' colour for a small gain of its own.
     fn robust(&self, patch: &[f64]) -> (f64, Vec<f64>) {
         let tau2 = COLOUR_SCALE * COLOUR_SCALE;
         let mut cost = 0.0;
         let mut pull = patch.to_vec();
-        for light in pull.chunks_exact_mut(3) {
-            let t2: f64 = light.iter().map(|p| p * p).sum();
-            cost += 0.5 * self.weight * tau2 * (t2 / tau2).ln_1p();
-            let factor = 1.0 / (1.0 + t2 / tau2);
+        for (light, delta) in pull.chunks_exact_mut(3).zip(&self.noise_delta_e) {
+            let t = light.iter().map(|p| p * p).sum::<f64>().sqrt();
+            let u = (t - delta).max(0.0);
+            cost += 0.5 * self.weight * tau2 * (u * u / tau2).ln_1p();
+            // ∂cost/∂ΔLab = w·u/(1 + u²/τ²)·ΔLab/t.
+            let factor = if t > 0.0 {
+                u / (1.0 + u * u / tau2) / t
+            } else {
+                1.0
+            };
             light.iter_mut().for_each(|p| *p *= factor);
         }
         (cost, pull)
     }
 
-    /// φ(t) and φ′(t) for a light's ΔE t: the residual √w·φ(t)·ΔLab has ½‖·‖² equal to
-    /// that light's robust cost (φ → 1 as t → 0).
-    fn residual_factor(t: f64) -> (f64, f64) {
+    /// φ(t) and φ′(t) for light `l` at ΔE t: the residual √w·φ(t)·ΔLab has ½‖·‖² equal
+    /// to that light's cost in [`ColourTerm::robust`].
+    fn residual_factor(&self, l: usize, t: f64) -> (f64, f64) {
         let tau = COLOUR_SCALE;
-        let u = (t / tau).powi(2);
-        if u < 1e-10 {
-            return (1.0, 0.0);
+        let delta = self.noise_delta_e[l];
+        if t <= delta {
+            return (if t == 0.0 && delta == 0.0 { 1.0 } else { 0.0 }, 0.0);
         }
-        let l = u.ln_1p();
-        let phi = tau * l.sqrt() / t;
-        let dphi = 1.0 / (tau * l.sqrt() * (1.0 + u)) - tau * l.sqrt() / (t * t);
-        (phi, dphi)
+        let u = t - delta;
+        let x = (u / tau).powi(2);
+        if x < 1e-10 {
+            // g(t) = τ·√ln(1 + u²/τ²) ≈ u: φ = u/t, φ′ = δ/t².
+            return (u / t, delta / (t * t));
+        }
+        let g = tau * x.ln_1p().sqrt();
+        let dg = u / (tau * x.ln_1p().sqrt() * (1.0 + x));
+        (g / t, dg / t - g / (t * t))
     }
 
     /// The colour cost's pull on the residuals, given ∂cost/∂ΔLab / w: per light and
@@ -566,9 +613,10 @@ impl<'a> Objective<'a> {
         r.extend(diagonal.iter().map(|f| f.residual));
         if let Some(colour) = &self.colour {
             let w = colour.weight.sqrt();
-            for light in self.colour_patch(colour, sp, &d, &diagonal).chunks_exact(3) {
+            let patch = self.colour_patch(colour, sp, &d, &diagonal);
+            for (l, light) in patch.chunks_exact(3).enumerate() {
                 let t = light.iter().map(|p| p * p).sum::<f64>().sqrt();
-                let (phi, _) = ColourTerm::residual_factor(t);
+                let (phi, _) = colour.residual_factor(l, t);
                 r.extend(light.iter().map(|p| w * phi * p));
             }
         }
@@ -685,7 +733,7 @@ impl<'a> Objective<'a> {
             let root_weight = colour.weight.sqrt();
             for (l, p) in patch.chunks_exact(3).enumerate() {
                 let t = p.iter().map(|x| x * x).sum::<f64>().sqrt();
-                let (phi, dphi) = ColourTerm::residual_factor(t);
+                let (phi, dphi) = colour.residual_factor(l, t);
                 for k in 0..n_params {
                     let dp = [0, 1, 2].map(|ch| d_patch[(3 * l + ch, k)]);
                     let dt = if t > 0.0 {
@@ -798,11 +846,16 @@ mod tests {
         let data = data();
         let lights = Light::standard();
         let reference: Vec<Xyz> = lights.iter().map(|_| [40.0, 45.0, 30.0]).collect();
-        for form in [YieldForm::Energy, YieldForm::Photon] {
+        for (form, noise) in [
+            (YieldForm::Energy, 0.0),
+            (YieldForm::Photon, 0.0),
+            (YieldForm::Energy, 0.002),
+            (YieldForm::Photon, 0.002),
+        ] {
             for colour in [false, true] {
                 for kappa in [0.3, 0.99] {
                     let objective = Objective::new(&data, form).with_colour(
-                        colour.then(|| ColourTerm::new(&data, &lights, &reference, 0.01)),
+                        colour.then(|| ColourTerm::new(&data, &lights, &reference, 0.01, noise)),
                     );
                     let sp = spectra(&data, kappa);
                     let (cost, gk, ga, gv) = objective.cost_gradient(&sp);
