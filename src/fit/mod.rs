@@ -424,15 +424,35 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
             YieldChoice::Photon => &[YieldForm::Photon],
         }
     };
-    let mut chosen = refine_form(
-        &data,
-        &representation,
-        &start,
-        forms[0],
-        colour.clone(),
-        options,
-        total_energy,
-    )?;
+    let auto = options.yield_choice == YieldChoice::Auto
+        && options.quantum_yield.is_none()
+        && forms[0] == YieldForm::Energy
+        && m.has_diagonal
+        && !m.arbitrary_scale;
+    let refine = |form: YieldForm| {
+        refine_form(
+            &data,
+            &representation,
+            &start,
+            form,
+            colour.clone(),
+            options,
+            total_energy,
+        )
+    };
+    // When the start already shows the energy form's photon law binding, both forms are
+    // needed: fit them side by side (two cores halve the wait for one file; in a batch the
+    // pool is busy and they run in turn).
+    let binds_at_start = auto
+        && start_spectra(&Objective::new(&data, YieldForm::Energy), &start).kappa_unbounded > 1.0;
+    let (chosen, mut photon) = if binds_at_start {
+        let (energy, photon) =
+            rayon::join(|| refine(YieldForm::Energy), || refine(YieldForm::Photon));
+        (energy?, Some(photon?))
+    } else {
+        (refine(forms[0])?, None)
+    };
+    let mut chosen = chosen;
     let mut yield_reason = match options.yield_choice {
         YieldChoice::Energy => "energy form (constant Q), as asked (--yield energy)".to_string(),
         YieldChoice::Photon => "photon form (constant Φ), as asked (--yield photon)".to_string(),
@@ -442,22 +462,13 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
         yield_reason =
             "energy form (constant Q): --quantum-yield pins Q (give --yield photon to pin Φ)"
                 .into();
-    } else if options.yield_choice == YieldChoice::Auto
-        && forms[0] == YieldForm::Energy
-        && m.has_diagonal
-        && !m.arbitrary_scale
-    {
+    } else if auto {
         let binds = chosen.kappa_unbounded > 1.0 || chosen.spectra.kappa >= PHOTON_BINDS_KAPPA;
         if binds {
-            let photon = refine_form(
-                &data,
-                &representation,
-                &start,
-                YieldForm::Photon,
-                colour.clone(),
-                options,
-                total_energy,
-            )?;
+            let photon = match photon.take() {
+                Some(fitted) => fitted,
+                None => refine(YieldForm::Photon)?,
+            };
             let margin = YIELD_FORM_MARGIN * chosen.cost + 0.5 * noise_sigma * noise_sigma;
             if photon.cost < chosen.cost - margin {
                 yield_reason = format!(
