@@ -126,7 +126,7 @@ impl Sweep {
                 "The data determine k·a and e only as far as the fluorescence rises above the noise: as k falls to the noise level the shapes are lost (recovery fails) although the colour error stays small, and at k = 0 the fitter must (and does) report a plain reflector."
             }
             Sweep::Overlap => {
-                "With a small Stokes shift most of the fluorescence lies on the diagonal and in the guard band, which the fit excludes; a and e near the diagonal are then extrapolated from their tails."
+                "With a small Stokes shift most of the fluorescence lies on the diagonal, where it adds to the reflectance and the fit cannot tell them apart, and in the cells next to it; a and e near the diagonal rest on those neighbouring cells (fitted by default) and on their tails."
             }
             Sweep::Crosstalk => {
                 "The cells next to the diagonal are fitted as fluorescence (they mostly are, model.md §5). A monochromator offset puts a signed band along the diagonal there, which is not rank 1: a few per cent of the diagonal (POLGREE and TEXTYELL show 4 %) bias a and e near the diagonal and leave a residual concentrated next to it, which `fit` flags; `--guard` sets those cells aside."
