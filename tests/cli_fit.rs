@@ -93,6 +93,48 @@ fn synth_then_fit_writes_materials_and_summaries() {
     for light in ["d65", "a", "f11", "uv"] {
         assert!(fit.delta_e2000.contains_key(light));
     }
+    // The summary says what the colour is judged against and that every cell was fitted.
+    assert!(stdout.contains("every measured cell fitted"), "{stdout}");
+    assert!(
+        stdout.contains("against every cell as measured"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("yield form: energy form"), "{stdout}");
+    // With missing cells the summary and the material say how many were filled.
+    let o = fluorite(
+        &[
+            "synth",
+            "--out",
+            "gaps",
+            "--preset",
+            "green-dye",
+            "--missing",
+            "0.05",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = fluorite(
+        &["fit", "gaps/green-dye.csv", "-o", "gaps/fit.json"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let text = std::fs::read_to_string(dir.path().join("gaps/fit.json")).unwrap();
+    let gaps: fluorite::Material = serde_json::from_str(&text).unwrap();
+    let filled = gaps.fit.as_ref().unwrap().reference_filled_cells;
+    let m = fluorite::formats::read(
+        &dir.path().join("gaps/green-dye.csv"),
+        &fluorite::formats::ReadOptions::default(),
+    )
+    .unwrap();
+    let missing = m.values.iter().filter(|v| !v.is_finite()).count();
+    assert!(missing > 0);
+    assert_eq!(filled, missing);
+    assert!(
+        stdout.contains(&format!("{missing} missing cells filled from the model")),
+        "{stdout}"
+    );
     // Default output: fits/<stem>.json; --strict exits 1 on the plain reflector's warning.
     let o = fluorite(&["fit", "data/plain.csv", "--strict", "-q"], dir.path());
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));

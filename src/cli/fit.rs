@@ -379,6 +379,9 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
             if !material.fluorophores.is_empty() {
                 let _ = writeln!(s, "  gauge: {}", report.gauge);
             }
+            if !report.yield_choice.is_empty() {
+                let _ = writeln!(s, "  yield form: {}", report.yield_choice);
+            }
         }
         FitOutcome::Shapes(shapes) => {
             let _ = writeln!(
@@ -396,13 +399,20 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
     } else {
         String::new()
     };
+    let guard = if report.guard_nm > 0.0 {
+        format!(
+            "guard band ({} nm) set aside measured cells holding {:.1} % of the fluorescent signal",
+            report.guard_nm,
+            100.0 * report.guard_signal_fraction
+        )
+    } else {
+        "every measured cell fitted (no guard band)".to_string()
+    };
     let _ = writeln!(
         s,
-        "  residual: fluorescent cells {:.1} % (relative){diagonal}; noise σ ≈ {:.3e}; guard band ({} nm) held {:.1} % of the fluorescent signal (excluded)",
+        "  residual: fluorescent cells {:.1} % (relative){diagonal}; noise σ ≈ {:.3e}; {guard}",
         100.0 * report.rel_residual_fluorescence,
         report.noise_sigma,
-        report.guard_nm,
-        100.0 * report.guard_signal_fraction
     );
     if !report.delta_e2000.is_empty() {
         let de: Vec<String> = report
@@ -410,7 +420,16 @@ fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> S
             .iter()
             .map(|(l, v)| format!("{l} {v:.2}"))
             .collect();
-        let _ = writeln!(s, "  ΔE2000: {}", de.join("   "));
+        let reference = if report.reference_filled_cells == 0 {
+            "against every cell as measured".to_string()
+        } else {
+            format!(
+                "against the cells as measured; {} missing cells filled from the model carry {:.2} % of the patch's light",
+                report.reference_filled_cells,
+                100.0 * report.reference_filled_share
+            )
+        };
+        let _ = writeln!(s, "  ΔE2000: {}   ({reference})", de.join("   "));
     }
     let _ = writeln!(
         s,
