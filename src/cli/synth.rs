@@ -23,7 +23,9 @@ pub struct SynthArgs {
     /// Gaussian noise σ per cell (radiance-factor units). Default: 0.0006, what the real BFC-450 files show.
     #[arg(long)]
     pub noise: Option<f64>,
-    /// Crosstalk: fraction of the diagonal put into the cells one step off it.
+    /// Crosstalk: fraction of the diagonal a monochromator offset moves from the cell one
+    /// step above the diagonal to the cell one step below (default 0.001, as most real
+    /// files show; POLGREE and TEXTYELL show 0.04).
     #[arg(long)]
     pub crosstalk: Option<f64>,
     /// Fraction of off-diagonal cells left missing.

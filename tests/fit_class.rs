@@ -1,0 +1,84 @@
+//! The fit on variants of the synthetic presets that stand for materials not in
+//! `../shared`: crosstalk as strong as POLGREE's and TEXTYELL's, a pigment at the
+//! conservation limit, a small Stokes shift (optical brighteners), a weak UV absorption
+//! tail (which caps the constant-Q form's yield for every row), and a photon-form truth.
+//! The colour is judged against the matrix as generated (every cell, as `fit` reports it;
+//! `tests/colour_reference.rs` checks that report apart from the code).
+
+use fluorite::YieldForm;
+use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, fit};
+use fluorite::synth::{Band, SynthSpec};
+
+fn variants() -> Vec<(String, SynthSpec)> {
+    let mut out = Vec::new();
+    for preset in ["green-dye", "red-pigment", "brightener"] {
+        let base = SynthSpec::preset(preset).unwrap();
+        out.push((preset.to_string(), base.clone()));
+        let mut s = base.clone();
+        s.crosstalk = 0.04;
+        out.push((format!("{preset}, crosstalk 4 %"), s));
+        let mut s = base.clone();
+        s.concentration = 1.0;
+        s.yield_fraction_of_limit = 1.0;
+        out.push((format!("{preset} at the conservation limit"), s));
+        let mut s = base.clone();
+        let shift = s.absorption[0].centre_nm + 25.0 - s.emission[0].centre_nm;
+        s.emission.iter_mut().for_each(|b| b.centre_nm += shift);
+        out.push((format!("{preset}, Stokes shift 25 nm"), s));
+        let mut s = base.clone();
+        s.absorption.push(Band {
+            centre_nm: 310.0,
+            width_nm: 15.0,
+            weight: 0.15,
+        });
+        out.push((format!("{preset} with a UV tail"), s));
+        let mut s = base;
+        s.yield_form = YieldForm::Photon;
+        s.concentration = 0.9;
+        s.yield_fraction_of_limit = 0.95;
+        out.push((format!("{preset}, photon-form truth"), s));
+    }
+    out
+}
+
+fn material(outcome: FitOutcome) -> fluorite::Material {
+    match outcome {
+        FitOutcome::Material(m) => *m,
+        FitOutcome::Shapes(_) => panic!("expected a material"),
+    }
+}
+
+/// The search meets ΔE2000 ≤ 1 under all four lights with one fluorophore (each variant
+/// has one) and every law holding; the default grid fit meets it under d65, a and f11.
+#[test]
+fn one_fluorophore_variants_meet_the_bound() {
+    for (label, spec) in variants() {
+        let (m, _) = spec.generate().unwrap();
+        let grid = material(fit(&m, &FitOptions::default()).unwrap());
+        grid.validate().unwrap();
+        let report = grid.fit.as_ref().unwrap();
+        for light in ["d65", "a", "f11"] {
+            assert!(
+                report.delta_e2000[light] <= 1.0,
+                "{label}: default fit under {light}: {:?}",
+                report.delta_e2000
+            );
+        }
+        let options = FitOptions {
+            model: ModelChoice::Auto,
+            max_delta_e: Some(1.0),
+            ..FitOptions::default()
+        };
+        let searched = material(fit(&m, &options).unwrap());
+        searched.validate().unwrap();
+        let report = searched.fit.as_ref().unwrap();
+        println!("{label}: {} {:?}", report.model, report.delta_e2000);
+        assert!(report.model_search.as_ref().unwrap().met, "{label}");
+        assert!(
+            report.delta_e2000.values().all(|&v| v <= 1.0),
+            "{label}: {:?}",
+            report.delta_e2000
+        );
+        assert_eq!(searched.fluorophores.len(), 1, "{label}: {}", report.model);
+    }
+}
