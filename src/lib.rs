@@ -11,6 +11,7 @@ pub mod colour;
 pub mod error;
 pub mod evaluate;
 pub mod export;
+pub mod files;
 pub mod fit;
 pub mod formats;
 pub mod import;

@@ -701,7 +701,7 @@ impl Material {
 
     /// Writes the material atomically (temporary file, then rename).
     pub fn save(&self, path: &Path) -> Result<()> {
-        crate::export::write_atomic(path, self.to_json().as_bytes())
+        crate::files::write_atomic(path, self.to_json().as_bytes())
     }
 }
 

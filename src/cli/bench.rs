@@ -6,7 +6,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use fluorite::evaluate::{Method, all_methods, bench};
-use fluorite::export::write_atomic;
+use fluorite::files::write_atomic;
 use fluorite::formats::{ReadOptions, read};
 use fluorite::plot::ImageFormat;
 use fluorite::plot::evaluation::speed_accuracy;

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use fluorite::YieldForm;
-use fluorite::export::write_atomic;
+use fluorite::files::write_atomic;
 use fluorite::import::{ImportOptions, ReflectanceSource, SpectrumSource, import_spectra};
 
 /// Arguments of `fluorite import-spectra`.

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use fluorite::evaluate::stability::{self, Config};
-use fluorite::export::write_atomic;
+use fluorite::files::write_atomic;
 use fluorite::plot::evaluation::stability as stability_chart;
 
 use super::bench::image_format;

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
-use fluorite::export::write_atomic;
+use fluorite::files::write_atomic;
 use fluorite::formats::{RowsAre, write_wide_csv};
 use fluorite::synth::{PRESETS, SynthSpec};
 

@@ -1,5 +1,5 @@
-//! Writing results: atomic file output shared by every command that writes, and the
-//! export of materials to the forms renderers and other tools read.
+//! The export of materials to the forms renderers and other tools read (files are
+//! written through [`crate::files`]).
 //!
 //! | format | files | content |
 //! |---|---|---|
@@ -13,80 +13,21 @@
 //! and the fluorite version. Every fluorophore of a material is exported (per-component
 //! columns or files, and the matrices sum them); a material with continuous forms has
 //! them sampled, and the `csv` and matrix headers carry the forms' parameters. Exports are rendered in memory first ([`export`]) and then
-//! written all-or-nothing ([`write_files`]), so a failure leaves no partial output.
+//! written all-or-nothing ([`crate::files::write_files`]), so a failure leaves no partial
+//! output.
 
 mod grid;
 mod matrix;
 mod renderers;
 mod spectra;
 
-use std::io::Write;
-use std::path::{Path, PathBuf};
-
 use crate::error::{Error, Result};
 use crate::material::Material;
 use crate::measurement::Units;
 
+pub use crate::files::{write_atomic, write_files};
 pub use grid::parse_grid;
 pub use matrix::{default_grids, matrix};
-
-/// Writes `bytes` to `path` atomically: into a temporary file in the same folder, then
-/// renamed over the target, so an interrupted or failed run never leaves a half-written
-/// file. The folder must exist.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = temporary_beside(path, bytes)?;
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-    Ok(())
-}
-
-/// Writes `bytes` into a temporary file in `path`'s folder (deleted when dropped).
-fn temporary_beside(path: &Path, bytes: &[u8]) -> Result<tempfile::NamedTempFile> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        return Err(Error::io(
-            path,
-            std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                format!(
-                    "output folder {} does not exist; create it first",
-                    dir.display()
-                ),
-            ),
-        ));
-    }
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".fluorite-")
-        .tempfile_in(dir)
-        .map_err(|e| Error::io(path, e))?;
-    tmp.write_all(bytes).map_err(|e| Error::io(path, e))?;
-    tmp.as_file().sync_all().map_err(|e| Error::io(path, e))?;
-    // Temporary files are private (0600); results are ordinary files others may read.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(|e| Error::io(path, e))?;
-    }
-    Ok(tmp)
-}
-
-/// Writes several files all-or-nothing as far as the file system allows: every file is
-/// first written to a temporary file beside its target; only when all are written are
-/// they renamed into place.
-pub fn write_files(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
-    let mut staged = Vec::with_capacity(files.len());
-    for (path, bytes) in files {
-        staged.push((path, temporary_beside(path, bytes)?));
-    }
-    for (path, tmp) in staged {
-        tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-    }
-    Ok(())
-}
 
 /// The forms a material can be exported to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

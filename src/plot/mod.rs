@@ -23,7 +23,6 @@ pub mod spectra;
 pub mod swatches;
 mod text;
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
@@ -374,43 +373,11 @@ pub fn write_plots(plots: &Plots, dir: &Path, stem: &str) -> Result<Vec<PathBuf>
             ),
         ));
     }
-    // A folder in the way of a figure would fail its rename after others were written.
-    for figure in &plots.figures {
-        let path = dir.join(figure.file_name(stem));
-        if path.is_dir() {
-            return Err(Error::io(
-                &path,
-                std::io::Error::new(
-                    std::io::ErrorKind::AlreadyExists,
-                    "a folder of this name is in the way of the figure; remove it or choose another folder with -o DIR",
-                ),
-            ));
-        }
-    }
-    let mut staged = Vec::with_capacity(plots.figures.len());
-    for figure in &plots.figures {
-        let path = dir.join(figure.file_name(stem));
-        let mut tmp = tempfile::Builder::new()
-            .prefix(".fluorite-")
-            .tempfile_in(dir)
-            .map_err(|e| Error::io(&path, e))?;
-        tmp.write_all(&figure.bytes)
-            .map_err(|e| Error::io(&path, e))?;
-        // Temporary files are private (0600); figures are for sharing.
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            tmp.as_file()
-                .set_permissions(std::fs::Permissions::from_mode(0o644))
-                .map_err(|e| Error::io(&path, e))?;
-        }
-        tmp.as_file().sync_all().map_err(|e| Error::io(&path, e))?;
-        staged.push((tmp, path));
-    }
-    let mut written = Vec::with_capacity(staged.len());
-    for (tmp, path) in staged {
-        tmp.persist(&path).map_err(|e| Error::io(&path, e.error))?;
-        written.push(path);
-    }
-    Ok(written)
+    let files: Vec<(PathBuf, Vec<u8>)> = plots
+        .figures
+        .iter()
+        .map(|figure| (dir.join(figure.file_name(stem)), figure.bytes.clone()))
+        .collect();
+    crate::files::write_files(&files)?;
+    Ok(files.into_iter().map(|(path, _)| path).collect())
 }
