@@ -12,27 +12,13 @@ use fluorite::parametric::SpectralForm;
 use fluorite::spectrum::Spectrum;
 use fluorite::synth::{PRESETS, SynthSpec};
 
-fn measured() -> Option<Vec<PathBuf>> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/measured");
-    if !dir.is_dir() {
-        eprintln!("skipped: {} is absent", dir.display());
-        return None;
-    }
-    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| {
-            let e = p.extension().map(|e| e.to_string_lossy().to_lowercase());
-            matches!(e.as_deref(), Some("bfc") | Some("csv"))
-        })
-        .collect();
-    v.sort();
-    Some(v)
-}
+mod common;
 
 #[test]
 fn every_fitted_measured_material_passes() {
-    let Some(files) = measured() else { return };
+    let Some(files) = common::measured_files() else {
+        return;
+    };
     assert!(files.len() >= 6);
     for path in files {
         let m = read(&path, &ReadOptions::default()).unwrap();

@@ -6,27 +6,14 @@
 //! a 1 nm grid, its own CIELAB and CIEDE2000 (model.md §7). Only `fit` itself, the
 //! synthetic generator and the material's JSON come from the library.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use fluorite::fit::{FitOptions, FitOutcome, fit};
 use fluorite::formats::{ReadOptions, read};
 use fluorite::synth::SynthSpec;
 use serde_json::Value;
 
-fn shared(sub: &str) -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(sub);
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "skipped: {} is absent (CI always has ../shared)",
-            dir.display()
-        );
-        None
-    }
-}
+mod common;
 
 /// A matrix M[excitation][emission] on its grids.
 struct Matrix {
@@ -404,7 +391,7 @@ fn material_json(outcome: FitOutcome) -> (Value, std::collections::BTreeMap<Stri
 /// search meets ΔE2000 ≤ 1 under all four lights by this independent measure.
 #[test]
 fn reported_colour_equals_an_independent_recomputation() {
-    let (Some(measured), Some(cie)) = (shared("measured"), shared("cie")) else {
+    let (Some(measured), Some(cie)) = (common::shared("measured"), common::shared("cie")) else {
         return;
     };
     let colorimeter = Colorimeter::new(&cie);
@@ -451,7 +438,7 @@ fn reported_colour_equals_an_independent_recomputation() {
 /// would not.
 #[test]
 fn reported_colour_sees_fluorescence_next_to_the_diagonal() {
-    let Some(cie) = shared("cie") else {
+    let Some(cie) = common::shared("cie") else {
         return;
     };
     let colorimeter = Colorimeter::new(&cie);

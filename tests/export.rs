@@ -12,6 +12,8 @@ use fluorite::material::{Fluorophore, Material, YieldForm};
 use fluorite::parametric::SpectralForm;
 use fluorite::synth::SynthSpec;
 
+mod common;
+
 const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 fn temp_dir(tag: &str) -> PathBuf {
@@ -36,18 +38,6 @@ fn synthetic_fit(preset: &str) -> Material {
     spec.crosstalk = 0.0;
     let (m, _) = spec.generate().unwrap();
     fitted(fit(&m, &FitOptions::default()).unwrap())
-}
-
-fn measured(name: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/measured")
-        .join(name);
-    if p.is_file() {
-        Some(p)
-    } else {
-        eprintln!("skipped: {} is absent", p.display());
-        None
-    }
 }
 
 /// Exports the matrix of `material` on the grids to a file, reads it back and fits it.
@@ -101,7 +91,7 @@ fn matrix_round_trip_on_the_measurement_grid() {
     let dir = temp_dir("roundtrip");
     let mut materials = vec![synthetic_fit("green-dye"), synthetic_fit("red-pigment")];
     for name in ["HERPICER.BFC", "postit_yellow.csv"] {
-        if let Some(p) = measured(name) {
+        if let Some(p) = common::measured(name) {
             let m = read(&p, &ReadOptions::default()).unwrap();
             materials.push(fitted(fit(&m, &FitOptions::default()).unwrap()));
         }
@@ -154,7 +144,7 @@ fn matrix_round_trip_on_the_measurement_grid() {
 fn matrix_on_a_finer_grid_reproduces_within_the_interpolation_error() {
     let dir = temp_dir("fine");
     let mut materials = vec![synthetic_fit("green-dye"), synthetic_fit("brightener")];
-    if let Some(p) = measured("HERPICER.BFC") {
+    if let Some(p) = common::measured("HERPICER.BFC") {
         let m = read(&p, &ReadOptions::default()).unwrap();
         materials.push(fitted(fit(&m, &FitOptions::default()).unwrap()));
     }

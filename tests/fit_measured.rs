@@ -1,49 +1,18 @@
 //! Fits of the real measurements in ../shared/data (skipped with a message when absent).
 
-use std::path::{Path, PathBuf};
-
 use fluorite::fit::{FitOptions, FitOutcome, fit};
 use fluorite::formats::{ReadOptions, read};
 
-fn shared(sub: &str) -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(sub);
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "skipped: {} is absent (CI always has ../shared)",
-            dir.display()
-        );
-        None
-    }
-}
-
-fn files(dir: &Path, extensions: &[&str]) -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| {
-            let ext = p
-                .extension()
-                .map(|e| e.to_string_lossy().to_lowercase())
-                .unwrap_or_default();
-            extensions.contains(&ext.as_str()) && !p.to_string_lossy().contains("_meta")
-        })
-        .collect();
-    v.sort();
-    v
-}
+mod common;
 
 /// Acceptance: every measured surface converges, satisfies every constraint, and is
 /// within ΔE2000 1.5 under D65, A and F11 (mean ≤ 0.7); the `uv` figure is reported.
 #[test]
 fn every_measured_surface_fits_within_colour_tolerance() {
-    let Some(dir) = shared("measured") else {
+    let Some(dir) = common::shared("measured") else {
         return;
     };
-    let inputs = files(&dir, &["bfc", "csv"]);
+    let inputs = common::files_in(&dir, &["bfc", "csv"]);
     assert!(
         inputs.len() >= 6,
         "expected the six measured files, found {inputs:?}"
@@ -91,8 +60,10 @@ fn every_measured_surface_fits_within_colour_tolerance() {
 /// what it cannot determine.
 #[test]
 fn solution_eems_give_shapes_and_name_what_is_undetermined() {
-    let Some(dir) = shared("eem") else { return };
-    for path in files(&dir, &["txt"]) {
+    let Some(dir) = common::shared("eem") else {
+        return;
+    };
+    for path in common::files_in(&dir, &["txt"]) {
         let m = read(&path, &ReadOptions::default()).unwrap();
         let outcome = fit(&m, &FitOptions::default()).unwrap();
         let FitOutcome::Shapes(shapes) = outcome else {

@@ -1,7 +1,7 @@
 //! Reading matrices: the real files in ../shared, exact round trips of every layout
 //! fluorite writes, one test per kind of bad input, and fuzzing for panics.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use fluorite::Measurement;
 use fluorite::formats::{
@@ -11,18 +11,10 @@ use fluorite::measurement::Units;
 use fluorite::spectrum::uniform_grid;
 use proptest::prelude::*;
 
+mod common;
+
 // ---------------------------------------------------------------------------------------
 // Helpers
-
-fn shared_data() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("skipped: {} is absent", dir.display());
-        None
-    }
-}
 
 fn defaults() -> ReadOptions {
     ReadOptions::default()
@@ -148,7 +140,9 @@ fn webfluor_text(m: &Measurement) -> String {
 
 #[test]
 fn bfc_files_read_with_their_grid() {
-    let Some(data) = shared_data() else { return };
+    let Some(data) = common::shared("") else {
+        return;
+    };
     let excitation = uniform_grid(300.0, 780.0, 10.0);
     let emission = uniform_grid(380.0, 780.0, 10.0);
     for name in ["CIBA12", "HERPICER", "TEXTYELL", "POLGREE"] {
@@ -192,7 +186,9 @@ fn bfc_files_read_with_their_grid() {
 
 #[test]
 fn every_shared_matrix_reads() {
-    let Some(data) = shared_data() else { return };
+    let Some(data) = common::shared("") else {
+        return;
+    };
     let mut count = 0;
     for dir in ["measured", "eem"] {
         for entry in std::fs::read_dir(data.join(dir)).unwrap() {
@@ -213,7 +209,9 @@ fn every_shared_matrix_reads() {
 
 #[test]
 fn postit_csvs_are_transposed_from_emission_rows() {
-    let Some(data) = shared_data() else { return };
+    let Some(data) = common::shared("") else {
+        return;
+    };
     let excitation = uniform_grid(300.0, 780.0, 10.0);
     let emission = uniform_grid(380.0, 780.0, 10.0);
     for name in ["postit_yellow", "postit_pink"] {
@@ -240,7 +238,9 @@ fn postit_csvs_are_transposed_from_emission_rows() {
 
 #[test]
 fn webfluor_eems_sort_rows_and_mask_zeros() {
-    let Some(data) = shared_data() else { return };
+    let Some(data) = common::shared("") else {
+        return;
+    };
     let excitation = uniform_grid(250.0, 520.0, 10.0);
     let emission = uniform_grid(260.0, 750.0, 5.0);
     for name in ["FAD", "NADH", "collagen1", "tryptophan"] {

@@ -12,6 +12,8 @@ use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, ModelRequest, YieldChoi
 use fluorite::formats::read;
 use fluorite::parametric::BandDomain;
 
+mod common;
+
 fn search_options(bound: f64) -> FitOptions {
     FitOptions {
         model: ModelChoice::Auto,
@@ -267,19 +269,6 @@ fn cli_reports_the_search_and_refuses_bad_models() {
     assert!(stderr.contains("gaussian:9x1"), "{stderr}");
 }
 
-fn shared_measured() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/measured");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "skipped: {} is absent (CI always has ../shared)",
-            dir.display()
-        );
-        None
-    }
-}
-
 /// The acceptance of the search on the real surfaces: all six meet ΔE2000 ≤ 1 under
 /// D65, A, F11 and UV with every conservation law holding. HERPICER (a cerise pigment
 /// on a substrate with a weak blue emitter under UV) needs two fluorophores: the grid
@@ -288,7 +277,7 @@ fn shared_measured() -> Option<PathBuf> {
 /// 340–440 nm, emission 410–470 nm).
 #[test]
 fn measured_surfaces_meet_the_bound() {
-    let Some(dir) = shared_measured() else {
+    let Some(dir) = common::shared("measured") else {
         return;
     };
     for name in [
@@ -344,7 +333,7 @@ fn larger_models_never_end_above_the_models_they_contain() {
         .iter()
         .map(|n| data(&format!("{n}.csv")))
         .collect();
-    if let Some(dir) = shared_measured() {
+    if let Some(dir) = common::shared("measured") {
         for name in [
             "CIBA12.BFC",
             "HERPICER.BFC",

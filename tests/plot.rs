@@ -579,18 +579,6 @@ fn cli_plots_next_to_the_material_and_refuses_bad_input() {
     );
 }
 
-fn shared_measured(file: &str) -> Option<PathBuf> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/measured")
-        .join(file);
-    if path.exists() {
-        Some(path)
-    } else {
-        eprintln!("skipping: {} is absent", path.display());
-        None
-    }
-}
-
 /// A rough rank-1 material for a real matrix (stand-in for `fluorite fit`, which these
 /// tests must not depend on): e from the Stokes column sums, a by least squares given e,
 /// c in the middle of its feasible interval, r = d / (1 − c·a).
@@ -676,7 +664,7 @@ pub fn crude_rank1_material(m: &Measurement, guard_nm: f64) -> Material {
 
 #[test]
 fn real_matrix_renders_with_noise_negatives_and_crosstalk() {
-    let Some(path) = shared_measured("HERPICER.BFC") else {
+    let Some(path) = common::measured("HERPICER.BFC") else {
         return;
     };
     let measured = fluorite::formats::read(&path, &Default::default()).unwrap();
@@ -744,6 +732,8 @@ use fluorite::parametric::{
     BandDomain, FluorophoreForms, GaussianBand, GaussianBands, MaterialForms, SpectralForm,
 };
 use fluorite::synth::{Band, SynthSpec};
+
+mod common;
 
 /// The `two-dyes` preset's truth: a UV brightener (a at 365 nm, e at 440 nm) and an
 /// orange-red dye (a at 545 nm, e at 610 nm), on the BFC-450 grids.

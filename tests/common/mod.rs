@@ -1,0 +1,49 @@
+//! Fixtures shared by the integration tests: where `../shared/data` is, and its files.
+//! Tests that need it skip with a printed reason when it is absent (CI always has it).
+#![allow(dead_code)] // each test crate uses its own subset
+
+use std::path::{Path, PathBuf};
+
+/// `../shared/data/<sub>` (a folder or a file), or None with a printed reason.
+pub fn shared(sub: &str) -> Option<PathBuf> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(sub);
+    if path.exists() {
+        Some(path)
+    } else {
+        eprintln!(
+            "skipped: {} is absent (CI always has ../shared)",
+            path.display()
+        );
+        None
+    }
+}
+
+/// One file of `../shared/data/measured`.
+pub fn measured(name: &str) -> Option<PathBuf> {
+    shared(&format!("measured/{name}"))
+}
+
+/// The files of `dir` with one of `extensions` (lower case), sorted; metadata files
+/// (`*_meta*`) left out.
+pub fn files_in(dir: &Path, extensions: &[&str]) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            let ext = p
+                .extension()
+                .map(|e| e.to_string_lossy().to_lowercase())
+                .unwrap_or_default();
+            extensions.contains(&ext.as_str()) && !p.to_string_lossy().contains("_meta")
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+/// Every measured matrix of `../shared/data/measured` (the BFC-450 files and the CSVs).
+pub fn measured_files() -> Option<Vec<PathBuf>> {
+    shared("measured").map(|dir| files_in(&dir, &["bfc", "csv"]))
+}
