@@ -17,11 +17,16 @@ use serde::Serialize;
 use serde_json::Value;
 
 use crate::error::{Error, Result};
-use crate::material::{
-    BOUND_TOLERANCE, FORM_TOLERANCE, Material, NORMALISATION_TOLERANCE, SCHEMA, YieldForm,
-};
+use crate::material::{Material, SCHEMA, YieldForm};
 use crate::parametric::MaterialForms;
 use crate::spectrum::{Spectrum, bin_widths};
+
+/// Tolerance for the normalisations max a = 1 and ∫e = 1.
+pub const NORMALISATION_TOLERANCE: f64 = 1e-6;
+/// Largest difference between a form and its samples, relative to the samples' peak.
+pub const FORM_TOLERANCE: f64 = 1e-6;
+/// Tolerance for range and conservation checks (values may exceed a bound by this much).
+pub const BOUND_TOLERANCE: f64 = 1e-9;
 
 /// The laws a material must satisfy.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -690,13 +695,14 @@ impl Tracker {
         }
     }
 
-    /// Records a value with its margin; `message` is called when it breaks the law
-    /// (margin below −tolerance, or not a number).
+    /// Records a value with its margin; `at` is formatted only when the value is the worst
+    /// so far, and `message` is called when it breaks the law (margin below −tolerance,
+    /// or not a number).
     fn observe(
         &mut self,
         margin: f64,
         value: f64,
-        at: &str,
+        at: impl std::fmt::Display,
         nm: Option<f64>,
         message: impl FnOnce() -> String,
     ) {
@@ -710,7 +716,7 @@ impl Tracker {
         broken: bool,
         margin: f64,
         value: f64,
-        at: &str,
+        at: impl std::fmt::Display,
         nm: Option<f64>,
         message: impl FnOnce() -> String,
     ) {
@@ -814,7 +820,7 @@ pub fn check(m: &RawMaterial) -> CheckReport {
         for (i, &l) in s.wavelength_nm.iter().enumerate() {
             let margin = if l.is_finite() { l } else { f64::NAN };
             if !(l.is_finite() && l > 0.0) {
-                finite.observe_if(true, margin, l, &format!("{what}.wavelength_nm[{i}]"), None, || {
+                finite.observe_if(true, margin, l, format_args!("{what}.wavelength_nm[{i}]"), None, || {
                     format!("{what}.wavelength_nm[{i}] is {l}; wavelengths are positive finite numbers in nm")
                 });
             }
@@ -823,7 +829,7 @@ pub fn check(m: &RawMaterial) -> CheckReport {
                 let step = l - prev;
                 // NaN steps (non-numbers) count as unsorted.
                 let broken = step <= 0.0 || step.is_nan();
-                sorted.observe_if(broken, step, step, &format!("{what}.wavelength_nm[{i}]"), Some(l), || {
+                sorted.observe_if(broken, step, step, format_args!("{what}.wavelength_nm[{i}]"), Some(l), || {
                     format!("{what}.wavelength_nm[{i}] = {l} nm does not exceed the previous {prev} nm; sort the samples and remove repeats")
                 });
             }
@@ -831,7 +837,7 @@ pub fn check(m: &RawMaterial) -> CheckReport {
         for (i, &v) in s.value.iter().enumerate() {
             let nm = s.wavelength_nm.get(i).copied();
             let margin = if v.is_finite() { v } else { f64::NAN };
-            finite.observe(margin, v, &format!("{what}.value[{i}]"), nm, || {
+            finite.observe(margin, v, format_args!("{what}.value[{i}]"), nm, || {
                 format!(
                     "{what}.value[{i}] is {}{}; samples must be finite and ≥ 0",
                     if v.is_nan() {
@@ -857,7 +863,7 @@ pub fn check(m: &RawMaterial) -> CheckReport {
                     continue;
                 }
                 let nm = s.wavelength_nm.get(i).copied();
-                t.observe(1.0 - v, v, &format!("{what}.value[{i}]"), nm, || {
+                t.observe(1.0 - v, v, format_args!("{what}.value[{i}]"), nm, || {
                     format!(
                         "{what}.value[{i}] is {v}{}; it must be ≤ 1",
                         nm.map(|l| format!(" at {l} nm")).unwrap_or_default()
@@ -1240,4 +1246,67 @@ fn energy_extrema(material: &Material, grid: &[f64]) -> Vec<(f64, f64)> {
         }
     }
     out
+}
+
+/// The material's own checks, made by the law engine above: one place defines each law.
+impl Material {
+    /// Checks every law of the model (every [`Law`]: well-formed spectra, a, r, c and the
+    /// yield in [0, 1], max a = 1, ∫e = 1, the forms, Σc·a ≤ 1, energy and photons) and
+    /// returns the first broken one, in [`Law::ALL`] order, as an error naming where it
+    /// breaks and by how much.
+    pub fn validate(&self) -> Result<()> {
+        let report = check_material(self);
+        match report.laws.iter().find(|l| l.status == Status::Fail) {
+            None => Ok(()),
+            Some(law) => Err(Error::invalid(
+                law.worst_at.clone().unwrap_or_else(|| law.law.to_string()),
+                format!(
+                    "breaks the {} law ({}): {}",
+                    law.law,
+                    law.statement,
+                    law.violations.first().cloned().unwrap_or_else(|| format!(
+                        "worst value {}, margin {}",
+                        law.worst_value, law.margin
+                    ))
+                ),
+            )),
+        }
+    }
+
+    /// Lowers the reflectance samples around any wavelength where the energy albedo ρ
+    /// exceeds 1 (within [`BOUND_TOLERANCE`]), found exactly as the energy law finds it
+    /// (every sample and every interval's vertex): a fit bounds ρ at its grid samples,
+    /// but in the photon form the emitted term c·Φ·a(λ)·λ/λ̄e is quadratic between
+    /// samples and can rise above the chord. Returns the largest reduction of r (0 when
+    /// none).
+    pub fn lower_reflectance_to_energy_bound(&mut self) -> f64 {
+        let mut largest: f64 = 0.0;
+        for _ in 0..20 {
+            let grid = self.sample_wavelengths();
+            let mut changed = false;
+            for (l, rho) in energy_extrema(self, &grid) {
+                let excess = rho - 1.0;
+                if excess <= 0.5 * BOUND_TOLERANCE {
+                    continue;
+                }
+                let transmitted = (1.0 - self.absorbed(l)).max(1e-12);
+                // Lower both samples bracketing λ (the reflectance holds its ends outside).
+                let samples = &self.reflectance.wavelength_nm;
+                let upper = samples.partition_point(|&g| g < l).min(samples.len() - 1);
+                let lower = upper.saturating_sub(1);
+                let cut = excess / transmitted + BOUND_TOLERANCE;
+                for i in [lower, upper] {
+                    let v = &mut self.reflectance.value[i];
+                    let new = (*v - cut).max(0.0);
+                    largest = largest.max(*v - new);
+                    *v = new;
+                }
+                changed = true;
+            }
+            if !changed {
+                break;
+            }
+        }
+        largest
+    }
 }

@@ -13,13 +13,6 @@ use crate::spectrum::Spectrum;
 /// Schema tag written into every material file.
 pub const SCHEMA: &str = "fluorite-material/1";
 
-/// Tolerance for the normalisations max a = 1 and ∫e = 1.
-pub const NORMALISATION_TOLERANCE: f64 = 1e-6;
-/// Largest difference between a form and its samples, relative to the samples' peak.
-pub const FORM_TOLERANCE: f64 = 1e-6;
-/// Tolerance for range and conservation checks (values may exceed a bound by this much).
-pub const BOUND_TOLERANCE: f64 = 1e-9;
-
 /// A diffuse fluorescent material (Jung et al. 2018), possibly with several fluorophores.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Material {
@@ -471,79 +464,6 @@ impl Material {
         all
     }
 
-    /// Checks the `forms` block: one entry per fluorophore, finite parameters, and
-    /// samples that are the forms evaluated (within [`FORM_TOLERANCE`] of the peak).
-    fn validate_forms(&self, forms: &MaterialForms) -> Result<()> {
-        if forms.fluorophores.len() != self.fluorophores.len() {
-            return Err(Error::invalid(
-                "forms.fluorophores",
-                format!(
-                    "has {} entries for {} fluorophores; give one per fluorophore or drop the forms block",
-                    forms.fluorophores.len(),
-                    self.fluorophores.len()
-                ),
-            ));
-        }
-        let fluorophores = self
-            .fluorophores
-            .iter()
-            .map(|f| (&f.absorption, &f.emission));
-        for (form, samples, what) in forms.pairs(&self.reflectance, fluorophores) {
-            let place = format!("forms.{what}");
-            form.validate(&place)?;
-            if let Some(a) = form.agreement(&samples.wavelength_nm, &samples.value, FORM_TOLERANCE)
-                && a.worst > FORM_TOLERANCE
-            {
-                return Err(Error::invalid(
-                    place,
-                    format!(
-                        "gives {} at {} nm where {what} has the sample {}; the samples must be the form evaluated (re-tabulate or drop the forms block)",
-                        a.form_value, a.at_nm, a.sample
-                    ),
-                ));
-            }
-        }
-        Ok(())
-    }
-
-    /// Lowers the reflectance samples around any wavelength where the energy albedo ρ
-    /// exceeds 1 (within [`BOUND_TOLERANCE`]): a fit bounds ρ at its grid samples, but in
-    /// the photon form the emitted term c·Φ·a(λ)·λ/λ̄e is quadratic between samples and
-    /// can rise above the chord. Returns the largest reduction of r (0 when none).
-    pub fn lower_reflectance_to_energy_bound(&mut self) -> f64 {
-        let mut largest: f64 = 0.0;
-        for _ in 0..20 {
-            let samples = self.sample_wavelengths();
-            let mut points = samples.clone();
-            points.extend(samples.windows(2).map(|w| 0.5 * (w[0] + w[1])));
-            let moments = self.emission_moments();
-            let mut changed = false;
-            for &l in &points {
-                let excess = self.energy_albedo_with(l, &moments) - 1.0;
-                if excess <= 0.5 * BOUND_TOLERANCE {
-                    continue;
-                }
-                let transmitted = (1.0 - self.absorbed(l)).max(1e-12);
-                // Lower both samples bracketing λ (the reflectance holds its ends outside).
-                let grid = &self.reflectance.wavelength_nm;
-                let upper = grid.partition_point(|&g| g < l).min(grid.len() - 1);
-                let lower = upper.saturating_sub(1);
-                let cut = excess / transmitted + BOUND_TOLERANCE;
-                for i in [lower, upper] {
-                    let v = &mut self.reflectance.value[i];
-                    let new = (*v - cut).max(0.0);
-                    largest = largest.max(*v - new);
-                    *v = new;
-                }
-                changed = true;
-            }
-            if !changed {
-                break;
-            }
-        }
-        largest
-    }
-
     /// Computes the conservation margins. The albedo is piecewise linear-times-linear
     /// between samples, so it is evaluated at every sample and at midpoints.
     pub fn conservation_margins(&self) -> Conservation {
@@ -564,110 +484,6 @@ impl Material {
             max_energy_albedo,
             max_photon_ratio,
         }
-    }
-
-    /// Checks every constraint of the model: spectra well formed, a, r, c, Q in [0, 1],
-    /// max a = 1, ∫e = 1, energy and photon conservation. The error names the first
-    /// violated one and the value that breaks it.
-    pub fn validate(&self) -> Result<()> {
-        if self.schema != SCHEMA {
-            return Err(Error::invalid(
-                "schema",
-                format!("is \"{}\"; fluorite reads \"{SCHEMA}\"", self.schema),
-            ));
-        }
-        self.reflectance.validate("reflectance")?;
-        check_unit_range(&self.reflectance, "reflectance")?;
-        for (n, f) in self.fluorophores.iter().enumerate() {
-            let p = format!("fluorophores[{n}]");
-            for (value, what) in [
-                (f.concentration, "concentration"),
-                (f.quantum_yield, "quantum_yield"),
-            ] {
-                if !(0.0..=1.0).contains(&value) {
-                    return Err(Error::invalid(
-                        format!("{p}.{what}"),
-                        format!("is {value}; it must lie in [0, 1]"),
-                    ));
-                }
-            }
-            f.absorption.validate(&format!("{p}.absorption"))?;
-            f.emission.validate(&format!("{p}.emission"))?;
-            check_unit_range(&f.absorption, &format!("{p}.absorption"))?;
-            let peak = f.absorption.max();
-            if (peak - 1.0).abs() > NORMALISATION_TOLERANCE {
-                return Err(Error::invalid(
-                    format!("{p}.absorption"),
-                    format!(
-                        "peaks at {peak}; absorption is normalised to max a = 1 (fold the scale into concentration)"
-                    ),
-                ));
-            }
-            if let Some(i) = f.emission.value.iter().position(|&v| v < 0.0) {
-                return Err(Error::invalid(
-                    format!("{p}.emission.value[{i}]"),
-                    format!(
-                        "is {} at {} nm; emission must be non-negative",
-                        f.emission.value[i], f.emission.wavelength_nm[i]
-                    ),
-                ));
-            }
-            let area = f.emission.integral();
-            if (area - 1.0).abs() > NORMALISATION_TOLERANCE {
-                return Err(Error::invalid(
-                    format!("{p}.emission"),
-                    format!(
-                        "integrates to {area} (trapezoid rule); emission is a density with ∫e dλ = 1 in 1/nm"
-                    ),
-                ));
-            }
-            if let Some([lo, hi]) = f.concentration_range
-                && !(lo <= hi + BOUND_TOLERANCE
-                    && lo >= -BOUND_TOLERANCE
-                    && hi <= 1.0 + BOUND_TOLERANCE)
-            {
-                return Err(Error::invalid(
-                    format!("{p}.concentration_range"),
-                    format!("is [{lo}, {hi}]; it must be an interval within [0, 1]"),
-                ));
-            }
-        }
-        if let Some(forms) = &self.forms {
-            self.validate_forms(forms)?;
-        }
-        let total_peak = self
-            .sample_wavelengths()
-            .iter()
-            .map(|&l| self.absorbed(l))
-            .fold(0.0, f64::max);
-        if total_peak > 1.0 + BOUND_TOLERANCE {
-            return Err(Error::invalid(
-                "fluorophores",
-                format!(
-                    "absorb Σc·a = {total_peak} > 1 at some wavelength; the components cannot absorb more than all the light"
-                ),
-            ));
-        }
-        let margins = self.conservation_margins();
-        if margins.max_energy_albedo > 1.0 + BOUND_TOLERANCE {
-            return Err(Error::invalid(
-                "energy",
-                format!(
-                    "albedo ρ(λ) reaches {}; a material may not reflect and emit more energy than it receives",
-                    margins.max_energy_albedo
-                ),
-            ));
-        }
-        if margins.max_photon_ratio > 1.0 + BOUND_TOLERANCE {
-            return Err(Error::invalid(
-                "photons",
-                format!(
-                    "the photon yield (Q·λ̄e/λ, or Φ in the photon form) reaches {}; a fluorophore may not emit more photons than it absorbs (lower the quantum yield)",
-                    margins.max_photon_ratio
-                ),
-            ));
-        }
-        Ok(())
     }
 
     /// Reads and validates a material file.
@@ -703,19 +519,6 @@ impl Material {
     pub fn save(&self, path: &Path) -> Result<()> {
         crate::files::write_atomic(path, self.to_json().as_bytes())
     }
-}
-
-fn check_unit_range(s: &Spectrum, what: &str) -> Result<()> {
-    if let Some(i) = s.value.iter().position(|v| !(0.0..=1.0).contains(v)) {
-        return Err(Error::invalid(
-            format!("{what}.value[{i}]"),
-            format!(
-                "is {} at {} nm; it must lie in [0, 1]",
-                s.value[i], s.wavelength_nm[i]
-            ),
-        ));
-    }
-    Ok(())
 }
 
 /// Schema tag of a shapes-only fit (solution EEMs: no diagonal, often arbitrary scale).

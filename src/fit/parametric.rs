@@ -1086,9 +1086,9 @@ impl Problem<'_> {
                         .agreement(
                             &samples.wavelength_nm,
                             &samples.value,
-                            0.5 * crate::material::FORM_TOLERANCE,
+                            0.5 * crate::check::FORM_TOLERANCE,
                         )
-                        .is_none_or(|a| a.worst <= 0.5 * crate::material::FORM_TOLERANCE);
+                        .is_none_or(|a| a.worst <= 0.5 * crate::check::FORM_TOLERANCE);
                     let form = agrees.then_some(form);
                     (samples, form)
                 } else {
