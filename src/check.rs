@@ -890,9 +890,13 @@ pub fn check(m: &RawMaterial) -> CheckReport {
         for (n, f) in m.fluorophores.iter().enumerate() {
             let v = get(f);
             let margin = if v.is_nan() { f64::NAN } else { v.min(1.0 - v) };
-            t.observe(margin, v, &format!("fluorophores[{n}].{key}"), None, || {
-                format!("fluorophores[{n}].{key} is {v}; it must lie in [0, 1]")
-            });
+            t.observe(
+                margin,
+                v,
+                format_args!("fluorophores[{n}].{key}"),
+                None,
+                || format!("fluorophores[{n}].{key} is {v}; it must lie in [0, 1]"),
+            );
         }
         t
     };
@@ -936,7 +940,7 @@ pub fn check(m: &RawMaterial) -> CheckReport {
             peak.observe(
                 -(max - 1.0).abs(),
                 max,
-                &format!("{p}.absorption"),
+                format_args!("{p}.absorption"),
                 Some(f.absorption.wavelength_nm[i]),
                 || format!("{p}.absorption peaks at {max} (at {} nm); normalise it to max a = 1 and fold the scale into the concentration", f.absorption.wavelength_nm[i]),
             );
@@ -952,7 +956,7 @@ pub fn check(m: &RawMaterial) -> CheckReport {
             integral.observe(
                 -(area - 1.0).abs(),
                 area,
-                &format!("{p}.emission"),
+                format_args!("{p}.emission"),
                 None,
                 || format!("{p}.emission integrates to {area} (trapezoid rule); emission is a density in 1/nm with ∫e dλ = 1: divide it by {area}"),
             );
@@ -1059,7 +1063,7 @@ pub fn check(m: &RawMaterial) -> CheckReport {
                 photons.observe(
                     1.0 - ratio,
                     ratio,
-                    &format!("fluorophores[{n}]"),
+                    format_args!("fluorophores[{n}]"),
                     nm,
                     || message,
                 );
