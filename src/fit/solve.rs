@@ -132,6 +132,29 @@ fn finish<I: State<Float = f64, Param = DVector<f64>>>(
     }
 }
 
+/// Runs `solver` on `problem`, the one place fluorite builds an argmin executor: the
+/// state is set up by `configure` (start, iteration limit), the cost recorded after every
+/// iteration, and the result read back as a [`Refined`] (`theta0` if no best point).
+fn run<O, S, I>(
+    problem: O,
+    solver: S,
+    configure: impl FnOnce(I) -> I,
+    theta0: &[f64],
+    name: &str,
+) -> Result<Refined, String>
+where
+    S: argmin::core::Solver<O, I>,
+    I: State<Float = f64, Param = DVector<f64>>,
+{
+    let recorder = CostRecorder::default();
+    let result = Executor::new(problem, solver)
+        .configure(configure)
+        .add_observer(recorder.clone(), ObserverMode::Always)
+        .run()
+        .map_err(|e| format!("{name}: {e}"))?;
+    Ok(finish(&result.state, recorder, theta0))
+}
+
 /// Correction pairs L-BFGS keeps.
 const LBFGS_MEMORY: usize = 10;
 
@@ -189,17 +212,17 @@ pub fn gauss_newton(
     let solver = GaussNewtonLS::new(linesearch)
         .with_tolerance(stopping.cost_tolerance)
         .map_err(|e| e.to_string())?;
-    let recorder = CostRecorder::default();
-    let result = Executor::new(problem, solver)
-        .configure(|state| {
+    let mut refined = run(
+        problem,
+        solver,
+        |state| {
             state
                 .param(DVector::from_column_slice(theta0))
                 .max_iters(stopping.max_iterations)
-        })
-        .add_observer(recorder.clone(), ObserverMode::Always)
-        .run()
-        .map_err(|e| format!("Gauss-Newton: {e}"))?;
-    let mut refined = finish(&result.state, recorder, theta0);
+        },
+        theta0,
+        "Gauss-Newton",
+    )?;
     // GN reports ‖r‖ as its cost; keep the history in the same units as L-BFGS (½‖r‖²).
     refined
         .cost_history
@@ -236,13 +259,13 @@ pub fn nelder_mead(
     let solver = NelderMead::new(simplex)
         .with_sd_tolerance(stopping.cost_tolerance)
         .map_err(|e| e.to_string())?;
-    let recorder = CostRecorder::default();
-    let result = Executor::new(problem, solver)
-        .configure(|state| state.max_iters(stopping.max_iterations))
-        .add_observer(recorder.clone(), ObserverMode::Always)
-        .run()
-        .map_err(|e| format!("Nelder-Mead: {e}"))?;
-    Ok(finish(&result.state, recorder, theta0))
+    run(
+        problem,
+        solver,
+        |state| state.max_iters(stopping.max_iterations),
+        theta0,
+        "Nelder-Mead",
+    )
 }
 
 /// A cost with its gradient, as a function of the parameters.
@@ -300,15 +323,15 @@ pub fn lbfgs_function(
         .with_tolerance_grad(stopping.gradient_tolerance)
         .and_then(|s| s.with_tolerance_cost(stopping.cost_tolerance))
         .map_err(|e| e.to_string())?;
-    let recorder = CostRecorder::default();
-    let result = Executor::new(problem, solver)
-        .configure(|state| {
+    run(
+        problem,
+        solver,
+        |state| {
             state
                 .param(DVector::from_column_slice(theta0))
                 .max_iters(stopping.max_iterations)
-        })
-        .add_observer(recorder.clone(), ObserverMode::Always)
-        .run()
-        .map_err(|e| format!("L-BFGS: {e}"))?;
-    Ok(finish(&result.state, recorder, theta0))
+        },
+        theta0,
+        "L-BFGS",
+    )
 }
