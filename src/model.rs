@@ -48,3 +48,16 @@ pub fn predict(
     }
     m
 }
+
+/// The matrix `material` predicts on `m`'s grids, in `m`'s units, with a diagonal where
+/// `m` has one: the model side of every comparison with a measurement.
+pub fn predict_like(material: &Material, m: &Measurement) -> Measurement {
+    predict(
+        material,
+        &m.name,
+        &m.excitation_nm,
+        &m.emission_nm,
+        m.units,
+        m.has_diagonal,
+    )
+}

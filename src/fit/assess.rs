@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use crate::colour::{Light, PatchColorimeter, delta_e2000, xyz_to_lab};
 use crate::material::Material;
 use crate::measurement::Measurement;
-use crate::model::predict;
+use crate::model::predict_like;
 
 use super::data::{Cell, FitData};
 
@@ -31,14 +31,7 @@ pub fn accuracy(
     data: &FitData,
     lights: &[Light],
 ) -> Accuracy {
-    let fitted = predict(
-        material,
-        &m.name,
-        &m.excitation_nm,
-        &m.emission_nm,
-        m.units,
-        m.has_diagonal,
-    );
+    let fitted = predict_like(material, m);
     let rel = |cells: &[Cell]| {
         let (mut num, mut den) = (0.0, 0.0);
         for c in cells {
@@ -136,6 +129,12 @@ pub fn filled_reference(
         })
         .fold(0.0, f64::max);
     FilledReference { cells, light_share }
+}
+
+/// Bayesian information criterion on the matrix residual, BIC = RSS/σ² + p·ln n (σ the
+/// anti-Stokes noise level; lower is better among fits of the same data).
+pub fn bic(rss: f64, sigma: f64, parameters: usize, residuals: usize) -> f64 {
+    rss / (sigma * sigma) + parameters as f64 * (residuals.max(1) as f64).ln()
 }
 
 /// Wavelength ranges (`"300–350 nm"`) of the flagged samples of `grid`.

@@ -1,7 +1,8 @@
 //! The cells a fit uses, gathered once from a measurement.
 
+use crate::error::{Error, Result};
 use crate::measurement::{CellKind, Measurement, Units};
-use crate::spectrum::bin_widths;
+use crate::spectrum::{Spectrum, bin_widths};
 
 /// One matrix cell used by the fit.
 #[derive(Debug, Clone, Copy)]
@@ -128,4 +129,33 @@ pub fn robust_sigma(values: impl Iterator<Item = f64>) -> f64 {
     let m = median(&mut v);
     let mut dev: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
     1.4826 * median(&mut dev)
+}
+
+/// Fills unmeasured diagonal samples (not finite) by linear interpolation between the
+/// measured ones (ends held), within their cap; an error naming `name` when none is
+/// measured.
+pub fn fill_missing(
+    diagonal: &mut [f64],
+    wavelengths: &[f64],
+    cap: &[f64],
+    name: &str,
+) -> Result<()> {
+    let known: Vec<usize> = (0..diagonal.len())
+        .filter(|&p| diagonal[p].is_finite())
+        .collect();
+    if known.is_empty() {
+        return Err(Error::Fit(format!(
+            "{name}: the diagonal (reflectance) is not measured at any wavelength; supply the diagonal or fit as an EEM"
+        )));
+    }
+    let s = Spectrum {
+        wavelength_nm: known.iter().map(|&p| wavelengths[p]).collect(),
+        value: known.iter().map(|&p| diagonal[p]).collect(),
+    };
+    for p in 0..diagonal.len() {
+        if !diagonal[p].is_finite() {
+            diagonal[p] = s.eval_clamped(wavelengths[p]).clamp(0.0, cap[p].max(0.0));
+        }
+    }
+    Ok(())
 }

@@ -32,7 +32,7 @@ use crate::measurement::Measurement;
 use crate::measurement::Units;
 use crate::spectrum::Spectrum;
 
-use data::FitData;
+use data::{FitData, fill_missing};
 use objective::{DiagonalRegime, Objective};
 use representation::{GridSpectra, Representation, Tabulated};
 pub use search::{ModelChoice, ModelRequest};
@@ -201,7 +201,8 @@ const MAX_SWEEPS: usize = 200;
 /// start is blamed (absorbs round-off of costs that agree).
 const POOR_START_MARGIN: f64 = 1e-6;
 
-/// The largest κ a start may have (see [`start_spectra`]).
+/// The largest κ a start may have, grid or parametric: with κ = sin²t the bound κ = 1 is
+/// a stationary point, where a start exactly on it would stay.
 const START_KAPPA_CAP: f64 = 0.98;
 
 /// A refined κ at least this high counts as the photon law binding (`--yield auto`): the
@@ -607,9 +608,12 @@ fn fit_checked(m: &Measurement, options: &FitOptions, bootstrap: bool) -> Result
     fit.reference_filled_share = accuracy.filled.light_share;
     let rss = accuracy.rms_off_diagonal.powi(2) * data.off_diagonal.len() as f64
         + accuracy.rmse_diagonal.powi(2) * data.diagonal.len() as f64;
-    let residuals = (data.off_diagonal.len() + data.diagonal.len()).max(1) as f64;
-    fit.bic =
-        Some(rss / noise_sigma.max(1e-12).powi(2) + fit.parameter_count as f64 * residuals.ln());
+    fit.bic = Some(assess::bic(
+        rss,
+        noise_sigma.max(1e-12),
+        fit.parameter_count,
+        data.off_diagonal.len() + data.diagonal.len(),
+    ));
     fit.warnings = warnings;
     fit.seconds = started.elapsed().as_secs_f64();
     let lowered = material.lower_reflectance_to_energy_bound();
@@ -685,14 +689,7 @@ fn noise_colour_check(
     if peak > BOOTSTRAP_SIGNAL_RATIO * noise_sigma {
         return;
     }
-    let clean = crate::model::predict(
-        material,
-        &m.name,
-        &m.excitation_nm,
-        &m.emission_nm,
-        m.units,
-        m.has_diagonal,
-    );
+    let clean = crate::model::predict_like(material, m);
     // The closed-form estimate in the material's own form: the colour term and the
     // choice of form belong to the refinement, which the draws skip.
     let refit_options = FitOptions {
@@ -1135,28 +1132,6 @@ fn normalised(
             },
         peak,
     }
-}
-
-/// Fills unmeasured diagonal samples by linear interpolation (ends held), within their cap.
-fn fill_missing(diagonal: &mut [f64], wavelengths: &[f64], cap: &[f64], name: &str) -> Result<()> {
-    let known: Vec<usize> = (0..diagonal.len())
-        .filter(|&p| diagonal[p].is_finite())
-        .collect();
-    if known.is_empty() {
-        return Err(Error::Fit(format!(
-            "{name}: the diagonal (reflectance) is not measured at any wavelength; supply the diagonal or fit as an EEM"
-        )));
-    }
-    let s = Spectrum {
-        wavelength_nm: known.iter().map(|&p| wavelengths[p]).collect(),
-        value: known.iter().map(|&p| diagonal[p]).collect(),
-    };
-    for p in 0..diagonal.len() {
-        if diagonal[p].is_nan() {
-            diagonal[p] = s.eval_clamped(wavelengths[p]).clamp(0.0, cap[p].max(0.0));
-        }
-    }
-    Ok(())
 }
 
 fn flag_clamped(regimes: &[DiagonalRegime], wavelengths: &[f64], warnings: &mut Vec<String>) {

@@ -12,7 +12,7 @@
 //! material is scaled onto the bound exactly when it is built.
 
 use crate::colour::{Light, PatchColorimeter, Xyz, lab_jacobian};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::material::{Fluorophore, Material, YieldForm};
 use crate::parametric::{
     BandDomain, FluorophoreForms, GaussianBands, MaterialForms, PARAMS_PER_BAND, SigmoidPolynomial,
@@ -1099,23 +1099,8 @@ impl Problem<'_> {
                 let mut values: Vec<f64> = (0..self.diagonal.len())
                     .map(|p| self.diagonal_value(&gm, p).0)
                     .collect();
-                let known: Vec<usize> = (0..values.len())
-                    .filter(|&p| values[p].is_finite())
-                    .collect();
-                if known.is_empty() {
-                    return Err(Error::Fit(format!(
-                        "{name}: the diagonal (reflectance) is not measured at any wavelength; supply the diagonal or fit as an EEM"
-                    )));
-                }
-                let measured = Spectrum {
-                    wavelength_nm: known.iter().map(|&p| diagonal_nm[p]).collect(),
-                    value: known.iter().map(|&p| values[p]).collect(),
-                };
-                for (p, v) in values.iter_mut().enumerate() {
-                    if !v.is_finite() {
-                        *v = measured.eval_clamped(diagonal_nm[p]);
-                    }
-                }
+                let unbounded = vec![f64::INFINITY; values.len()];
+                super::data::fill_missing(&mut values, &diagonal_nm, &unbounded, name)?;
                 let r = values
                     .iter()
                     .zip(&diagonal_nm)

@@ -18,6 +18,8 @@ use crate::measurement::Measurement;
 use crate::parametric::fit::{fit_bands, fit_sigmoid_polynomial};
 use crate::parametric::{BandDomain, PARAMS_PER_BAND, logit};
 
+use super::START_KAPPA_CAP;
+use super::assess::bic;
 use super::data::FitData;
 use super::init::{Factors, masked_nmf};
 use super::parametric::{ModelSpec, PHOTON_SUFFIX, Problem, ReflectanceForm};
@@ -59,9 +61,6 @@ const SEARCH_TOLERANCE: f64 = 1e-5;
 /// The search skips one-component models when the grid model (K = 1, every sample free)
 /// misses the bound by more than this factor under some light.
 const GRID_MISS: f64 = 2.0;
-
-/// Largest κ a start may have (κ = sin²t is stationary at 1).
-const START_KAPPA_CAP: f64 = 0.98;
 
 /// The energy form's photon law binds when it sets the smallest feasible c and c's
 /// feasible interval is at most this wide (c cannot grow to give more fluorescence).
@@ -992,15 +991,7 @@ fn measured_xyz(
     base: &Material,
     lights: &[crate::colour::Light],
 ) -> Vec<crate::colour::Xyz> {
-    let fitted = crate::model::predict(
-        base,
-        &m.name,
-        &m.excitation_nm,
-        &m.emission_nm,
-        m.units,
-        m.has_diagonal,
-    )
-    .to_per_bin();
+    let fitted = crate::model::predict_like(base, m).to_per_bin();
     let measured = assess::measured_patch(m, &fitted);
     lights
         .iter()
@@ -1014,11 +1005,6 @@ fn measured_xyz(
 /// The largest ΔE2000 over the lights.
 fn worst(delta_e: &std::collections::BTreeMap<String, f64>) -> f64 {
     delta_e.values().cloned().fold(0.0, f64::max)
-}
-
-/// BIC = RSS/σ² + p·ln n.
-fn bic(rss: f64, sigma: f64, parameters: usize, residuals: usize) -> f64 {
-    rss / (sigma * sigma) + parameters as f64 * (residuals.max(1) as f64).ln()
 }
 
 /// The reflectance form for the search: the lowest sigmoid-polynomial degree whose
