@@ -123,7 +123,8 @@ pub struct ScatterOptions {
 }
 
 /// Measures a line's half-maximum distances below and above it (nm), as medians over
-/// the rows where it stands out; `None` with fewer than [`MIN_ROWS_MEASURED`] rows.
+/// the rows where it stands out; `None` with fewer than [`MIN_ROWS_MEASURED`] rows. The
+/// second value is the number of rows that measured it.
 pub fn measure_width(
     m: &Measurement,
     line: ScatterLine,
@@ -214,6 +215,10 @@ pub fn plan(m: &Measurement, options: &ScatterOptions) -> Vec<MaskedBand> {
         let (mut below, mut above, source) = if let Some(w) = options.half_width_nm[k] {
             (w, w, WidthSource::Option)
         } else if let Some((lo, hi)) = measured {
+            // A line whose peak sits off its predicted position measures one side near
+            // zero; scatter profiles are near symmetric, so neither side is taken below
+            // half the other.
+            let (lo, hi) = (lo.max(0.5 * hi), hi.max(0.5 * lo));
             (
                 HALF_MAX_TO_EDGE * lo,
                 HALF_MAX_TO_EDGE * hi,
