@@ -8,6 +8,7 @@
 
 pub mod check;
 pub mod colour;
+pub mod eem;
 pub mod error;
 pub mod evaluate;
 pub mod export;

@@ -306,6 +306,10 @@ pub struct FitReport {
     /// The candidates tried when the model was chosen automatically.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_search: Option<ModelSearch>,
+    /// What was done to an uncalibrated EEM before the fit (units, blank, inner filter,
+    /// scatter masked); absent for radiance-factor matrices.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preprocessing: Option<crate::eem::Preprocessing>,
 }
 
 fn is_zero(n: &usize) -> bool {

@@ -8,7 +8,7 @@ use fluorite::YieldForm;
 use fluorite::colour::Light;
 use fluorite::export::write_atomic;
 use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, Solver, Start, fit};
-use fluorite::formats::{Format, ReadOptions, RowsAre, read};
+use fluorite::formats::{Format, ReadOptions, RowsAre};
 use fluorite::measurement::Measurement;
 use rayon::prelude::*;
 
@@ -99,6 +99,9 @@ pub struct FitArgs {
     /// Print nothing but errors.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Raw instrument EEMs: units, blank, inner filter, scatter.
+    #[command(flatten)]
+    pub eem: crate::cli::eem::EemArgs,
 }
 
 fn parse_model(text: &str) -> Result<ModelChoice, String> {
@@ -191,9 +194,12 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         .inputs
         .par_iter()
         .zip(&outputs)
-        .map(|(input, out)| {
-            let m = read(input, &read_options)?;
+        .enumerate()
+        .map(|(index, (input, out))| {
+            let eem = args.eem.options(index, args.inputs.len(), &read_options)?;
+            let (m, preprocessing) = crate::cli::eem::read_prepared(input, &eem, &read_options)?;
             let mut outcome = fit(&m, &options)?;
+            crate::cli::eem::attach(&mut outcome, preprocessing);
             if args.timing_runs > 1 {
                 let mut times = vec![outcome.report().seconds];
                 for _ in 1..args.timing_runs {

@@ -4,6 +4,7 @@
 mod bands;
 mod bench;
 mod check;
+mod eem;
 mod export;
 mod fit;
 mod import_spectra;

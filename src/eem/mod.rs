@@ -1,0 +1,234 @@
+//! Raw instrument EEMs (excitation-emission matrices of solutions): telling them from
+//! radiance-factor matrices, and cleaning them before a shapes fit.
+//!
+//! [`prepare`] runs the steps spectroscopists run in staRdom or drEEM, in their order:
+//! 1. units ([`units`]): a matrix whose values cannot be radiance factors is an
+//!    uncalibrated EEM; its λo = λi line is Rayleigh scatter, not a diagonal, and the fit
+//!    gives absorption and emission shapes and a scale only;
+//! 2. zeros read as missing (instruments write 0 where nothing was recorded);
+//! 3. blank subtraction ([`correct::subtract_blank`]);
+//! 4. inner-filter correction from an absorbance spectrum ([`correct::inner_filter`]);
+//! 5. masking first- and second-order Rayleigh and water-Raman scatter ([`scatter`]).
+//!
+//! A radiance-factor matrix passes through untouched, so surface fits are unchanged.
+//! Every step is recorded in a [`Preprocessing`] report (the fit report's
+//! `preprocessing` block) and as notes on the measurement.
+
+pub mod correct;
+pub mod scatter;
+pub mod units;
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::measurement::Measurement;
+use correct::{Absorbance, BlankReport, InnerFilterReport};
+use scatter::{MaskedBand, ScatterOptions};
+pub use units::UnitsChoice;
+
+/// How to prepare a matrix; the default infers everything and masks scatter.
+#[derive(Debug, Clone, Default)]
+pub struct EemOptions {
+    /// Units, or `Auto` to infer them.
+    pub units: UnitsChoice,
+    /// Treat zeros as missing in an EEM (default: yes); `Some(false)` keeps them.
+    pub zero_is_missing: Option<bool>,
+    /// A blank (e.g. Milli-Q water) measured with the same settings, and its file.
+    pub blank: Option<(Measurement, PathBuf)>,
+    /// An absorbance spectrum of the sample (per cm), and its file.
+    pub absorbance: Option<(Absorbance, PathBuf)>,
+    /// Do not mask scatter.
+    pub keep_scatter: bool,
+    /// Scatter band widths, instrument bandwidth and Raman shift.
+    pub scatter: ScatterOptions,
+}
+
+/// What [`prepare`] did to a matrix (written into the fit report).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct Preprocessing {
+    /// `radiance-factor` or `arbitrary`.
+    pub units: String,
+    /// Whether the units were inferred (false: set with `--units`).
+    pub units_inferred: bool,
+    /// Why, in words.
+    pub units_reason: String,
+    /// Cells holding 0 read as missing.
+    #[serde(default)]
+    pub zeros_missing: usize,
+    /// Blank subtraction, if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub blank: Option<BlankReport>,
+    /// Inner-filter correction, if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inner_filter: Option<InnerFilterReport>,
+    /// Masked scatter bands (empty when scatter was kept).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub scatter: Vec<MaskedBand>,
+}
+
+impl Preprocessing {
+    /// One line per step, for the command line.
+    pub fn lines(&self) -> Vec<String> {
+        let mut out = vec![format!(
+            "units: {} ({}): {}",
+            self.units,
+            if self.units_inferred {
+                "inferred; --units radiance-factor|arbitrary overrides"
+            } else {
+                "set with --units"
+            },
+            self.units_reason
+        )];
+        if self.zeros_missing > 0 {
+            out.push(format!(
+                "{} cells holding 0 read as not recorded (missing); --zero-is-missing false keeps them",
+                self.zeros_missing
+            ));
+        }
+        if let Some(b) = &self.blank {
+            out.push(format!(
+                "blank {} subtracted from {} cells (it held {:.1} % of their signal)",
+                b.source,
+                b.cells,
+                100.0 * b.signal_share
+            ));
+        }
+        if let Some(f) = &self.inner_filter {
+            out.push(format!(
+                "inner-filter correction from {} (1 cm, F·10^((A_ex+A_em)/2)): factors up to {:.3} (A_ex + A_em up to {:.3})",
+                f.source, f.max_factor, f.max_total_absorbance
+            ));
+        }
+        if !self.scatter.is_empty() {
+            let bands: Vec<String> = self
+                .scatter
+                .iter()
+                .map(|b| {
+                    format!(
+                        "{} −{:.1}/+{:.1} nm ({}{}; {} cells, {:.1} % of the signal)",
+                        b.line.name(),
+                        b.below_nm,
+                        b.above_nm,
+                        match b.source {
+                            scatter::WidthSource::Option => "set".to_string(),
+                            scatter::WidthSource::Measured =>
+                                format!("measured in {} rows", b.rows_measured),
+                            scatter::WidthSource::Bandwidth => "from --bandwidth".to_string(),
+                            scatter::WidthSource::Default => "default".to_string(),
+                        },
+                        "",
+                        b.cells,
+                        100.0 * b.signal_share
+                    )
+                })
+                .collect();
+            out.push(format!(
+                "scatter masked: {} (--scatter-width LINE=NM or --bandwidth NM set the bands, --keep-scatter keeps them)",
+                bands.join("; ")
+            ));
+        }
+        out
+    }
+}
+
+/// Decides the units of `m` and, for an uncalibrated EEM, cleans it (see the module
+/// doc). Returns the matrix to fit and, unless it is a radiance-factor matrix left
+/// untouched, what was done (also appended to the matrix's notes).
+pub fn prepare(
+    mut m: Measurement,
+    options: &EemOptions,
+) -> Result<(Measurement, Option<Preprocessing>)> {
+    let verdict = units::classify(&m);
+    let arbitrary = match options.units {
+        UnitsChoice::Auto => !verdict.radiance_factor || m.arbitrary_scale,
+        UnitsChoice::RadianceFactor => false,
+        UnitsChoice::Arbitrary => true,
+    };
+    let wants_eem_steps = options.blank.is_some() || options.absorbance.is_some();
+    if !arbitrary {
+        if options.units == UnitsChoice::RadianceFactor && !verdict.radiance_factor {
+            m.notes.push(format!(
+                "--units radiance-factor given although the {}; the material fitted from it will not be physical",
+                verdict.reason.trim_start_matches("values ")
+            ));
+        }
+        if wants_eem_steps {
+            return Err(Error::invalid(
+                if options.blank.is_some() {
+                    "--blank"
+                } else {
+                    "--absorbance"
+                },
+                format!(
+                    "{}: blank subtraction and inner-filter correction are for uncalibrated EEMs of solutions, but this matrix is a radiance-factor matrix ({}); drop the option, or pass --units arbitrary if it is an EEM",
+                    m.name, verdict.reason
+                ),
+            ));
+        }
+        return Ok((m, None));
+    }
+    let mut report = Preprocessing {
+        units: "arbitrary".into(),
+        units_inferred: options.units == UnitsChoice::Auto,
+        units_reason: match options.units {
+            UnitsChoice::Auto if m.arbitrary_scale && verdict.radiance_factor => {
+                "the file's format holds counts (arbitrary scale)".into()
+            }
+            UnitsChoice::Auto => verdict.reason.clone(),
+            _ => "treated as an uncalibrated EEM: the λo = λi line is scatter, not a reflectance"
+                .into(),
+        },
+        ..Preprocessing::default()
+    };
+    m.has_diagonal = false;
+    m.arbitrary_scale = true;
+    if options.zero_is_missing != Some(false) {
+        for v in m.values.iter_mut().filter(|v| **v == 0.0) {
+            *v = f64::NAN;
+            report.zeros_missing += 1;
+        }
+    }
+    // Scatter widths are measured on the sample as recorded: a blank holds the same
+    // scatter, so after subtracting it there would be little left to measure.
+    let mut bands = (!options.keep_scatter).then(|| scatter::plan(&m, &options.scatter));
+    if let Some((blank, path)) = &options.blank {
+        let mut blank = blank.clone();
+        if options.zero_is_missing != Some(false) {
+            for v in blank.values.iter_mut().filter(|v| **v == 0.0) {
+                *v = f64::NAN;
+            }
+        }
+        report.blank = Some(correct::subtract_blank(&mut m, &blank, path)?);
+    }
+    if let Some((a, path)) = &options.absorbance {
+        report.inner_filter = Some(correct::inner_filter(&mut m, a, path)?);
+    }
+    if let Some(bands) = bands.as_mut() {
+        scatter::apply(&mut m, bands, options.scatter.raman_shift_cm);
+        report.scatter = std::mem::take(bands);
+    }
+    if m.values.iter().all(|v| v.is_nan()) {
+        return Err(Error::invalid(
+            "--scatter-width",
+            format!(
+                "{}: masking scatter left no measured cell; narrow the bands (--scatter-width LINE=NM) or pass --keep-scatter",
+                m.name
+            ),
+        ));
+    }
+    if let Some(f) = report
+        .inner_filter
+        .as_ref()
+        .filter(|f| f.max_total_absorbance > correct::MAX_RELIABLE_ABSORBANCE)
+    {
+        m.notes.push(format!(
+            "A_ex + A_em reaches {:.2} (> {}): the inner-filter correction is unreliable there; dilute the sample",
+            f.max_total_absorbance,
+            correct::MAX_RELIABLE_ABSORBANCE
+        ));
+    }
+    m.notes.extend(report.lines());
+    Ok((m, Some(report)))
+}
