@@ -1,0 +1,654 @@
+//! The parametric objective: the model on the grids for a parameter vector, the cost
+//! (matrix cells, colour term, penalties) and its analytic gradient.
+
+use super::*;
+
+impl<'a> Problem<'a> {
+    /// Prepares the fit of `spec` to `data`. `lights` weight the rows by how much light
+    /// reaches them and, with `reference` (the measured patch's XYZ under each light),
+    /// give the colour term: ½·`colour_weight`·Σ ΔE76², linearised at the reference.
+    pub fn new(
+        data: &'a FitData,
+        spec: ModelSpec,
+        lights: &[Light],
+        reference: &[Xyz],
+        colour_weight: f64,
+    ) -> Self {
+        let domain = spec.domain;
+        let widths = &data.emission_bin_widths;
+        let column_factor: Vec<f64> = widths
+            .iter()
+            .zip(&data.emission_weight)
+            .map(|(w, ew)| w / ew)
+            .collect();
+        let density_factor: Vec<f64> = column_factor.iter().map(|u| 1.0 / u).collect();
+        let diagonal_nm: Vec<f64> = data
+            .diagonal_positions
+            .iter()
+            .map(|&(_, j)| data.emission_nm[j])
+            .collect();
+        let reflectance_support = [
+            diagonal_nm.first().copied().unwrap_or(380.0),
+            diagonal_nm.last().copied().unwrap_or(780.0),
+        ];
+        let mut diagonal: Vec<DiagonalSample> = data
+            .diagonal_positions
+            .iter()
+            .map(|&(row, column)| DiagonalSample {
+                row,
+                column,
+                value: None,
+                x: position(reflectance_support, data.emission_nm[column]),
+            })
+            .collect();
+        for c in &data.diagonal {
+            if let Some(d) = diagonal
+                .iter_mut()
+                .find(|d| d.row == c.row && d.column == c.column)
+            {
+                d.value = Some(c.value);
+            }
+        }
+        let mut diagonal_of_column = vec![None; data.n_emission()];
+        for (p, d) in diagonal.iter().enumerate() {
+            diagonal_of_column[d.column] = Some(p);
+        }
+        let mut row_weight = vec![0.0f64; data.n_excitation()];
+        let patches: Vec<PatchLight> = lights
+            .iter()
+            .zip(reference)
+            .map(|(light, xyz)| {
+                let pc = PatchColorimeter::cached(light, &data.excitation_nm, &data.emission_nm);
+                let (light_weights, reflected, emitted, _, scale) = pc.weights();
+                let peak = light_weights.iter().cloned().fold(0.0, f64::max);
+                if peak > 0.0 {
+                    for (w, lw) in row_weight.iter_mut().zip(light_weights) {
+                        *w = w.max(lw / peak);
+                    }
+                }
+                let jacobian = lab_jacobian(*xyz, pc.white);
+                let project = |weights: &[Xyz], channel: usize| -> Vec<f64> {
+                    weights
+                        .iter()
+                        .map(|w| scale * (0..3).map(|x| jacobian[channel][x] * w[x]).sum::<f64>())
+                        .collect()
+                };
+                PatchLight {
+                    light_weights: light_weights.to_vec(),
+                    emitted: [0, 1, 2].map(|c| project(emitted, c)),
+                    reflected: [0, 1, 2].map(|c| project(reflected, c)),
+                }
+            })
+            .collect();
+        if lights.is_empty() {
+            row_weight.iter_mut().for_each(|w| *w = 1.0);
+        }
+        let row_weight = row_weight.iter().map(|w| w.max(ROW_WEIGHT_FLOOR)).collect();
+        let n_em = data.n_emission();
+        let mut cell_mask = vec![0.0; data.n_excitation() * n_em];
+        let mut cell_value = vec![0.0; data.n_excitation() * n_em];
+        for c in &data.off_diagonal {
+            cell_mask[c.row * n_em + c.column] = 1.0;
+            cell_value[c.row * n_em + c.column] = c.value;
+        }
+        Problem {
+            data,
+            layout: Layout::new(spec),
+            excitation_u: data
+                .excitation_nm
+                .iter()
+                .map(|&l| domain.coordinate(l))
+                .collect(),
+            emission_u: data
+                .emission_nm
+                .iter()
+                .map(|&l| domain.coordinate(l))
+                .collect(),
+            column_factor,
+            density_factor,
+            diagonal,
+            diagonal_of_column,
+            row_weight,
+            cell_mask,
+            cell_value,
+            patches,
+            colour_weight,
+            reflectance_support,
+        }
+    }
+
+    /// The model's grid quantities at `theta`.
+    pub fn grid_model(&self, theta: &[f64]) -> GridModel {
+        let layout = &self.layout;
+        let data = self.data;
+        let k_count = layout.spec.components;
+        let mut m = GridModel {
+            kappa: layout.kappas(theta),
+            absorption: Vec::with_capacity(k_count),
+            absorption_peak: Vec::with_capacity(k_count),
+            peak_index: Vec::with_capacity(k_count),
+            emission: Vec::with_capacity(k_count),
+            normaliser: Vec::with_capacity(k_count),
+            emission_mean_nm: Vec::with_capacity(k_count),
+            shortest_absorbed_nm: Vec::with_capacity(k_count),
+            photon_factor: Vec::with_capacity(k_count),
+            scale: Vec::with_capacity(k_count),
+            excitation_factor: Vec::with_capacity(k_count),
+            cap_factor: Vec::with_capacity(k_count),
+            reflectance: Vec::new(),
+            absorption_jacobian: Vec::with_capacity(k_count),
+            emission_jacobian: Vec::with_capacity(k_count),
+        };
+        for k in 0..k_count {
+            let ap = &theta[layout.absorption(k)];
+            let ep = &theta[layout.emission(k)];
+            let mut absorption_jacobian = vec![0.0; self.excitation_u.len() * ap.len()];
+            let raw: Vec<f64> = self
+                .excitation_u
+                .iter()
+                .zip(absorption_jacobian.chunks_exact_mut(ap.len().max(1)))
+                .map(|(&u, g)| bands_value_gradient(ap, u, g))
+                .collect();
+            let (peak_index, peak) =
+                raw.iter().enumerate().fold(
+                    (0, f64::MIN),
+                    |best, (i, &v)| if v > best.1 { (i, v) } else { best },
+                );
+            let peak = peak.max(1e-300);
+            let absorption: Vec<f64> = raw.iter().map(|v| v / peak).collect();
+            let mut emission_jacobian = vec![0.0; self.emission_u.len() * ep.len()];
+            let emission: Vec<f64> = self
+                .emission_u
+                .iter()
+                .zip(emission_jacobian.chunks_exact_mut(ep.len().max(1)))
+                .map(|(&u, g)| bands_value_gradient(ep, u, g))
+                .collect();
+            m.absorption_jacobian.push(absorption_jacobian);
+            m.emission_jacobian.push(emission_jacobian);
+            let (mut normaliser, mut moment) = (0.0, 0.0);
+            for ((e, w), l) in emission
+                .iter()
+                .zip(&data.emission_bin_widths)
+                .zip(&data.emission_nm)
+            {
+                normaliser += e * w;
+                moment += e * w * l;
+            }
+            let normaliser = normaliser.max(1e-300);
+            let mean = moment / normaliser;
+            let shortest = absorption
+                .iter()
+                .position(|&a| a >= ABSORPTION_FLOOR)
+                .map(|i| data.excitation_nm[i.saturating_sub(1)])
+                .unwrap_or(data.excitation_nm[0]);
+            let photon = layout.spec.photon();
+            let photon_factor = if photon {
+                1.0
+            } else {
+                (mean / shortest).max(1.0)
+            };
+            m.scale.push(m.kappa[k] / (photon_factor * normaliser));
+            let excitation_factor: Vec<f64> = if photon {
+                data.excitation_nm.iter().map(|l| l / mean).collect()
+            } else {
+                vec![1.0; data.excitation_nm.len()]
+            };
+            m.cap_factor
+                .push(excitation_factor.iter().map(|x| x.max(1.0)).collect());
+            m.excitation_factor.push(excitation_factor);
+            m.absorption.push(absorption);
+            m.absorption_peak.push(peak);
+            m.peak_index.push(peak_index);
+            m.emission.push(emission);
+            m.normaliser.push(normaliser);
+            m.emission_mean_nm.push(mean);
+            m.shortest_absorbed_nm.push(shortest);
+            m.photon_factor.push(photon_factor);
+        }
+        if let ReflectanceForm::Polynomial(_) = layout.spec.reflectance {
+            let coefficients = &theta[layout.reflectance()];
+            m.reflectance = self
+                .diagonal
+                .iter()
+                .map(|d| {
+                    let mut p = 0.0;
+                    legendre(d.x, coefficients.len(), |n, pn| p += coefficients[n] * pn);
+                    sigmoid(p)
+                })
+                .collect();
+        }
+        m
+    }
+
+    /// Σk κ_k·a_k·m_k at diagonal sample `d`: one minus the diagonal's cap (Σk κ_k·a_k
+    /// in the energy form).
+    pub(super) fn absorbed(&self, m: &GridModel, d: &DiagonalSample) -> f64 {
+        (0..m.kappa.len())
+            .map(|k| m.kappa[k] * m.absorption[k][d.row] * m.cap_factor[k][d.row])
+            .sum()
+    }
+
+    /// The fluorescent model value of cell (i, j).
+    pub(super) fn fluorescence(&self, m: &GridModel, i: usize, j: usize) -> f64 {
+        let u = self.column_factor[j];
+        (0..m.kappa.len())
+            .map(|k| {
+                m.scale[k] * m.absorption[k][i] * m.excitation_factor[k][i] * m.emission[k][j] * u
+            })
+            .sum()
+    }
+
+    /// The diagonal d_j at sample `p` and, for a tabulated reflectance, how it was
+    /// projected (`None` for a polynomial reflectance).
+    pub fn diagonal_value(&self, m: &GridModel, p: usize) -> (f64, Option<Projection>) {
+        let d = &self.diagonal[p];
+        let cap = 1.0 - self.absorbed(m, d);
+        match self.layout.spec.reflectance {
+            ReflectanceForm::Polynomial(_) => (cap * m.reflectance[p], None),
+            ReflectanceForm::Tabulated => {
+                let Some(value) = d.value else {
+                    return (f64::NAN, Some(Projection::Unmeasured));
+                };
+                let raw = value - self.fluorescence(m, d.row, d.column);
+                if raw < 0.0 {
+                    (0.0, Some(Projection::AtZero))
+                } else if raw > cap {
+                    (cap, Some(Projection::AtCap))
+                } else {
+                    (raw, Some(Projection::Free))
+                }
+            }
+        }
+    }
+
+    /// The objective and its gradient.
+    // The adjoint loops index several parallel per-component arrays by the same sample.
+    #[allow(clippy::needless_range_loop)]
+    pub fn cost_gradient(&self, theta: &[f64]) -> (f64, Vec<f64>) {
+        let data = self.data;
+        let layout = &self.layout;
+        let m = self.grid_model(theta);
+        let k_count = m.kappa.len();
+        let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
+        let n_lights = self.patches.len();
+        // The model matrix, dense: F_ij = Σk s_k·a_ik·(e_jk·u_j).
+        let weighted_emission: Vec<Vec<f64>> = m
+            .emission
+            .iter()
+            .map(|e| {
+                e.iter()
+                    .zip(&self.column_factor)
+                    .map(|(e, u)| e * u)
+                    .collect()
+            })
+            .collect();
+        let mut model = vec![0.0; n_ex * n_em];
+        for k in 0..k_count {
+            for (i, row) in model.chunks_exact_mut(n_em).enumerate() {
+                let sa = m.scale[k] * m.absorption[k][i] * m.excitation_factor[k][i];
+                for (f, ue) in row.iter_mut().zip(&weighted_emission[k]) {
+                    *f += sa * ue;
+                }
+            }
+        }
+        // Residuals (0 outside the cells), and the patch rows they add up to.
+        let residual: Vec<f64> = self
+            .cell_value
+            .iter()
+            .zip(&self.cell_mask)
+            .zip(&model)
+            .map(|((v, mask), f)| mask * (v - f))
+            .collect();
+        let diag: Vec<(f64, Option<Projection>)> = (0..self.diagonal.len())
+            .map(|p| {
+                let (d, projection) = self.diagonal_value(&m, p);
+                let s = &self.diagonal[p];
+                let residual = match (s.value, projection) {
+                    (None, _) | (_, Some(Projection::Free)) => 0.0,
+                    (Some(v), _) => v - model[s.row * n_em + s.column] - d,
+                };
+                (residual, projection)
+            })
+            .collect();
+        // Column sums Σ_i L_i·r_ij per light, then ΔLab per light.
+        let mut column_sum = vec![0.0; n_lights * n_em];
+        for (i, row) in residual.chunks_exact(n_em).enumerate() {
+            for (light, sums) in self.patches.iter().zip(column_sum.chunks_exact_mut(n_em)) {
+                let w = light.light_weights[i];
+                for (s, r) in sums.iter_mut().zip(row) {
+                    *s += w * r;
+                }
+            }
+        }
+        let mut patch = vec![0.0; n_lights * 3];
+        for (l, light) in self.patches.iter().enumerate() {
+            for channel in 0..3 {
+                let mut v = 0.0;
+                for j in 0..n_em {
+                    v += light.emitted[channel][j]
+                        * self.density_factor[j]
+                        * column_sum[l * n_em + j];
+                    if let Some(p) = self.diagonal_of_column[j] {
+                        v += light.reflected[channel][j] * diag[p].0;
+                    }
+                }
+                patch[l * 3 + channel] = v;
+            }
+        }
+        let mut cost = 0.0;
+        for (row, w) in residual.chunks_exact(n_em).zip(&self.row_weight) {
+            cost += 0.5 * w * row.iter().map(|r| r * r).sum::<f64>();
+        }
+        for (s, (r, _)) in self.diagonal.iter().zip(&diag) {
+            cost += 0.5 * self.row_weight[s.row] * r * r;
+        }
+        cost += 0.5 * self.colour_weight * patch.iter().map(|p| p * p).sum::<f64>();
+        // The colour term's pull on residuals of column j: q (reradiated) and h (diagonal).
+        let mut q = vec![0.0; n_lights * n_em];
+        let mut h = vec![0.0; n_lights * n_em];
+        for (l, light) in self.patches.iter().enumerate() {
+            for j in 0..n_em {
+                let (mut qe, mut hr) = (0.0, 0.0);
+                for channel in 0..3 {
+                    let p = self.colour_weight * patch[l * 3 + channel];
+                    qe += p * light.emitted[channel][j];
+                    hr += p * light.reflected[channel][j];
+                }
+                q[l * n_em + j] = qe * self.density_factor[j];
+                h[l * n_em + j] = hr;
+            }
+        }
+
+        // Adjoints: ∂cost/∂F for every cell (F̄ = −δ), gathered densely, then through
+        // the factors (two matrix-vector products per component).
+        let mut scale_bar = vec![0.0; k_count];
+        let mut a_bar = vec![vec![0.0; n_ex]; k_count];
+        let mut e_bar = vec![vec![0.0; n_em]; k_count];
+        let mut kappa_bar = vec![0.0; k_count];
+        // ∂cost/∂λ̄e_k through the photon form's row and cap factors.
+        let mut mean_bar = vec![0.0; k_count];
+        let mut r_bar = vec![0.0; self.diagonal.len()];
+        let mut f_bar = vec![0.0; n_ex * n_em];
+        let mut pull = vec![0.0; n_em];
+        for (i, ((f_row, r_row), mask_row)) in f_bar
+            .chunks_exact_mut(n_em)
+            .zip(residual.chunks_exact(n_em))
+            .zip(self.cell_mask.chunks_exact(n_em))
+            .enumerate()
+        {
+            // δ_ij = w_i·r_ij + Σ_l L_li·q_lj on the cells.
+            pull.iter_mut().for_each(|p| *p = 0.0);
+            for (light, q_row) in self.patches.iter().zip(q.chunks_exact(n_em)) {
+                let w = light.light_weights[i];
+                for (p, qv) in pull.iter_mut().zip(q_row) {
+                    *p += w * qv;
+                }
+            }
+            let w = self.row_weight[i];
+            for (((fb, r), mask), p) in f_row.iter_mut().zip(r_row).zip(mask_row).zip(&pull) {
+                *fb -= mask * (w * r + p);
+            }
+        }
+        for (p, (s, (r, projection))) in self.diagonal.iter().zip(&diag).enumerate() {
+            if s.value.is_none() || *projection == Some(Projection::Free) {
+                continue;
+            }
+            let mut delta = self.row_weight[s.row] * r;
+            for l in 0..n_lights {
+                delta += h[l * n_em + s.column];
+            }
+            // r = M − F − d: F̄ = −δ; d̄ = −δ.
+            f_bar[s.row * n_em + s.column] -= delta;
+            let d_bar = -delta;
+            let absorbed_bar = match projection {
+                None => {
+                    let cap = 1.0 - self.absorbed(&m, s);
+                    r_bar[p] += d_bar * cap;
+                    -d_bar * m.reflectance[p]
+                }
+                Some(Projection::AtCap) => -d_bar,
+                _ => 0.0,
+            };
+            for k in 0..k_count {
+                let (a, cf) = (m.absorption[k][s.row], m.cap_factor[k][s.row]);
+                kappa_bar[k] += absorbed_bar * a * cf;
+                a_bar[k][s.row] += absorbed_bar * m.kappa[k] * cf;
+                if m.excitation_factor[k][s.row] > 1.0 {
+                    // m = λ/λ̄e: ∂m/∂λ̄e = −m/λ̄e.
+                    mean_bar[k] -= absorbed_bar * m.kappa[k] * a * cf / m.emission_mean_nm[k];
+                }
+            }
+        }
+
+        let mut column_adjoint = vec![0.0; n_em];
+        for k in 0..k_count {
+            column_adjoint.iter_mut().for_each(|v| *v = 0.0);
+            for (i, row) in f_bar.chunks_exact(n_em).enumerate() {
+                let x = m.excitation_factor[k][i];
+                let a = m.absorption[k][i] * x;
+                let mut t = 0.0;
+                for ((fb, ue), v) in row
+                    .iter()
+                    .zip(&weighted_emission[k])
+                    .zip(column_adjoint.iter_mut())
+                {
+                    t += fb * ue;
+                    *v += fb * a;
+                }
+                a_bar[k][i] += m.scale[k] * x * t;
+                scale_bar[k] += a * t;
+                if self.layout.spec.photon() {
+                    // x = λi/λ̄e: ∂x/∂λ̄e = −x/λ̄e.
+                    mean_bar[k] -= m.scale[k] * a * t / m.emission_mean_nm[k];
+                }
+            }
+            for ((eb, v), u) in e_bar[k]
+                .iter_mut()
+                .zip(&column_adjoint)
+                .zip(&self.column_factor)
+            {
+                *eb += m.scale[k] * u * v;
+            }
+        }
+
+        // Σk κ_k·a_ik·m_ik ≤ 1 on the excitation grid (several components, or the photon
+        // form, whose m exceeds 1 where a component absorbs above its mean emission).
+        if k_count > 1 || self.layout.spec.photon() {
+            for i in 0..n_ex {
+                let excess: f64 = (0..k_count)
+                    .map(|k| m.kappa[k] * m.absorption[k][i] * m.cap_factor[k][i])
+                    .sum::<f64>()
+                    - 1.0;
+                if excess > 0.0 {
+                    cost += 0.5 * ABSORPTION_PENALTY * excess * excess;
+                    for k in 0..k_count {
+                        let (a, cf) = (m.absorption[k][i], m.cap_factor[k][i]);
+                        let p = ABSORPTION_PENALTY * excess;
+                        kappa_bar[k] += p * a * cf;
+                        a_bar[k][i] += p * m.kappa[k] * cf;
+                        if m.excitation_factor[k][i] > 1.0 {
+                            mean_bar[k] -= p * m.kappa[k] * a * cf / m.emission_mean_nm[k];
+                        }
+                    }
+                }
+            }
+        }
+        let mut gradient = vec![0.0; layout.len];
+        for k in 0..k_count {
+            // s = κ/(γ·S): through κ, S and γ (γ = λ̄e/λmin when photon-limited).
+            kappa_bar[k] += scale_bar[k] / (m.photon_factor[k] * m.normaliser[k]);
+            let s = m.scale[k];
+            let photon_limited = !self.layout.spec.photon()
+                && m.emission_mean_nm[k] / m.shortest_absorbed_nm[k] > 1.0;
+            let gauge_s = m.normaliser[k] - 1.0;
+            for j in 0..n_em {
+                let w = data.emission_bin_widths[j];
+                let mut d_scale = -s * w / m.normaliser[k];
+                // ∂λ̄e/∂e_j = w_j·(λ_j − λ̄e)/S.
+                let d_mean = w * (data.emission_nm[j] - m.emission_mean_nm[k]) / m.normaliser[k];
+                if photon_limited {
+                    let d_gamma = d_mean / m.shortest_absorbed_nm[k];
+                    d_scale -= s * d_gamma / m.photon_factor[k];
+                }
+                e_bar[k][j] += scale_bar[k] * d_scale
+                    + mean_bar[k] * d_mean
+                    + HEIGHT_GAUGE_WEIGHT * gauge_s * w;
+            }
+            // a = g/G with G the grid peak.
+            let peak = m.absorption_peak[k];
+            let mut g_bar: Vec<f64> = a_bar[k].iter().map(|ab| ab / peak).collect();
+            let through_peak: f64 = a_bar[k]
+                .iter()
+                .zip(&m.absorption[k])
+                .map(|(ab, a)| ab * a)
+                .sum::<f64>()
+                / peak;
+            g_bar[m.peak_index[k]] += -through_peak + HEIGHT_GAUGE_WEIGHT * (peak - 1.0);
+            let ar = layout.absorption(k);
+            for (gb, g) in g_bar
+                .iter()
+                .zip(m.absorption_jacobian[k].chunks_exact(ar.len().max(1)))
+            {
+                for (t, gp) in gradient[ar.clone()].iter_mut().zip(g) {
+                    *t += gb * gp;
+                }
+            }
+            let er = layout.emission(k);
+            for (eb, g) in e_bar[k]
+                .iter()
+                .zip(m.emission_jacobian[k].chunks_exact(er.len().max(1)))
+            {
+                for (t, gp) in gradient[er.clone()].iter_mut().zip(g) {
+                    *t += eb * gp;
+                }
+            }
+            cost += 0.5 * HEIGHT_GAUGE_WEIGHT * (gauge_s * gauge_s + (peak - 1.0).powi(2));
+        }
+        // κ_k = sin²t_k.
+        for k in 0..k_count {
+            gradient[k] = kappa_bar[k] * (2.0 * theta[k]).sin();
+        }
+        cost += self.band_penalty(theta, &mut gradient);
+        if let ReflectanceForm::Polynomial(_) = layout.spec.reflectance {
+            let range = layout.reflectance();
+            let count = range.len();
+            for (p, s) in self.diagonal.iter().enumerate() {
+                if r_bar[p] == 0.0 {
+                    continue;
+                }
+                let r = m.reflectance[p];
+                let dp = r_bar[p] * r * (1.0 - r);
+                legendre(s.x, count, |n, pn| gradient[range.start + n] += dp * pn);
+            }
+        }
+        (cost, gradient)
+    }
+
+    /// Moves band parameters into the box the objective penalises leaving (for starts).
+    pub fn clamp_to_box(&self, theta: &mut [f64]) {
+        for (n, (low, high)) in self.band_box() {
+            let p = &mut theta[n];
+            *p = if p.is_finite() {
+                p.clamp(low, high)
+            } else {
+                0.5 * (low + high)
+            };
+        }
+    }
+
+    /// (parameter index, lower, upper) for every band parameter: centres within half the
+    /// measured span beyond its ends, widths between 1/200 and twice the span, heights
+    /// below e⁶.
+    pub(super) fn band_box(&self) -> Vec<(usize, (f64, f64))> {
+        let mut boxes = Vec::new();
+        for k in 0..self.layout.spec.components {
+            for (range, grid) in [
+                (self.layout.absorption(k), &self.excitation_u),
+                (self.layout.emission(k), &self.emission_u),
+            ] {
+                let lo = grid.iter().cloned().fold(f64::INFINITY, f64::min);
+                let hi = grid.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+                let span = (hi - lo).max(1e-6);
+                // A band narrower than half the grid step falls between samples: the data
+                // see it as a spike on one row or column (an instrument artefact fits it
+                // as well as a fluorophore), so widths stay above that.
+                let narrowest = (0.5 * median_step(grid)).max(span / 200.0);
+                let bounds = [
+                    (-30.0, 6.0),
+                    (lo - 0.5 * span, hi + 0.5 * span),
+                    (narrowest.ln(), (2.0 * span).ln()),
+                ];
+                for band in range.step_by(PARAMS_PER_BAND) {
+                    for (n, b) in bounds.iter().enumerate() {
+                        boxes.push((band + n, *b));
+                    }
+                }
+            }
+        }
+        boxes
+    }
+
+    /// The soft box on band parameters: centres within half the measured span beyond
+    /// its ends, widths between half the median grid step (at least 1/200 of the span)
+    /// and twice the span, heights below e⁶. Adds its
+    /// gradient to `gradient` and returns its cost.
+    pub(super) fn band_penalty(&self, theta: &[f64], gradient: &mut [f64]) -> f64 {
+        let mut cost = 0.0;
+        for (n, (low, high)) in self.band_box() {
+            let p = theta[n];
+            let outside = if p < low {
+                p - low
+            } else if p > high {
+                p - high
+            } else {
+                continue;
+            };
+            cost += 0.5 * BAND_BOX_PENALTY * outside * outside;
+            gradient[n] += BAND_BOX_PENALTY * outside;
+        }
+        cost
+    }
+
+    /// The matrix-residual part of the cost alone (unweighted ½Σr² over the data cells),
+    /// for the information criterion.
+    pub fn residual_sum_of_squares(&self, theta: &[f64]) -> f64 {
+        let m = self.grid_model(theta);
+        let mut rss = 0.0;
+        for c in &self.data.off_diagonal {
+            rss += (c.value - self.fluorescence(&m, c.row, c.column)).powi(2);
+        }
+        for p in 0..self.diagonal.len() {
+            let s = &self.diagonal[p];
+            if let Some(v) = s.value {
+                let (d, _) = self.diagonal_value(&m, p);
+                if d.is_finite() {
+                    rss += (v - self.fluorescence(&m, s.row, s.column) - d).powi(2);
+                }
+            }
+        }
+        rss
+    }
+
+    /// Number of residuals the information criterion counts.
+    pub fn residual_count(&self) -> usize {
+        self.data.off_diagonal.len() + self.data.diagonal.len()
+    }
+
+    /// The central-difference gradient of the cost (to test [`Problem::cost_gradient`]).
+    pub fn numerical_gradient(&self, theta: &[f64], step: f64) -> Vec<f64> {
+        (0..theta.len())
+            .map(|n| {
+                let mut plus = theta.to_vec();
+                let mut minus = theta.to_vec();
+                plus[n] += step;
+                minus[n] -= step;
+                (self.cost_gradient(&plus).0 - self.cost_gradient(&minus).0) / (2.0 * step)
+            })
+            .collect()
+    }
+
+    /// The diagonal sample positions (row, column) in order.
+    pub fn diagonal_positions(&self) -> Vec<(usize, usize)> {
+        self.diagonal.iter().map(|d| (d.row, d.column)).collect()
+    }
+}

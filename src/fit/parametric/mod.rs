@@ -1,0 +1,403 @@
+//! Parametric models: K fluorescent components whose absorption and emission are sums
+//! of Gaussian bands, and a reflectance that is a sigmoid of a Legendre polynomial (or
+//! tabulated), fitted to the matrix cells and to the colour (CIELAB) of the flat patch
+//! under the scene's lights (model.md §7).
+//!
+//! The model on the grid is F_ij = Σk s_k·a_ik·e_jk·u_j off the diagonal, with
+//! s_k = κ_k/(γ_k·S_k) as in the tabulated objective (S_k normalises e, γ_k is the photon
+//! factor, κ_k the smallest feasible concentration), and d_j = (1 − Σk κ_k·a_jk)·r_j on
+//! it. κ_k = sin²t_k keeps each κ in [0, 1] and r = sigmoid(p) keeps r in (0, 1); with
+//! several components a stiff penalty keeps Σk κ_k·a_k ≤ 1 on the grid (components
+//! absorbing in different bands may each absorb nearly all light there), and the
+//! material is scaled onto the bound exactly when it is built.
+
+use crate::colour::{Light, PatchColorimeter, Xyz, lab_jacobian};
+use crate::error::Result;
+use crate::material::{Fluorophore, Material, YieldForm};
+use crate::parametric::{
+    BandDomain, FluorophoreForms, GaussianBands, MaterialForms, PARAMS_PER_BAND, SigmoidPolynomial,
+    SpectralForm, bands_value_gradient, legendre, position, sigmoid,
+};
+use crate::spectrum::Spectrum;
+
+use super::data::FitData;
+
+mod build;
+mod cost;
+
+pub use build::{TABULATION_STEP_NM, fine_grid};
+
+/// Absorption below this fraction of its peak counts as none for the photon law: a
+/// Gaussian tail never reaches zero, and without a floor every band would be "absorbing"
+/// down to the shortest measured wavelength.
+pub const ABSORPTION_FLOOR: f64 = 1e-4;
+
+/// Weight of the terms fixing the free heights (max a = 1, ∫e = 1 on the grid); they
+/// change no fitted material.
+const HEIGHT_GAUGE_WEIGHT: f64 = 1e-4;
+
+/// Weight of the penalty on Σk κ_k·a_k > 1 (several components): stiff against the
+/// residuals (cells ≤ 1), so the optimum overshoots by at most about 1e-4.
+const ABSORPTION_PENALTY: f64 = 1e4;
+
+/// Weight of the soft box keeping band centres near the measured range and widths
+/// sensible: it acts only outside the box, where the data no longer pull on a band.
+const BAND_BOX_PENALTY: f64 = 1.0;
+
+/// Smallest weight of an excitation row that no chosen light reaches.
+const ROW_WEIGHT_FLOOR: f64 = 0.02;
+
+/// How the reflectance is represented.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReflectanceForm {
+    /// One free sample per diagonal cell (projected onto its feasible interval).
+    Tabulated,
+    /// A sigmoid of a Legendre polynomial of this degree.
+    Polynomial(usize),
+}
+
+/// The structure of a parametric model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ModelSpec {
+    /// Number of fluorescent components K.
+    pub components: usize,
+    /// Gaussian bands of each absorption spectrum.
+    pub absorption_bands: usize,
+    /// Gaussian bands of each emission spectrum.
+    pub emission_bands: usize,
+    /// The reflectance representation.
+    pub reflectance: ReflectanceForm,
+    /// The axis the bands are Gaussian in.
+    pub domain: BandDomain,
+    /// The yield form of every component: a constant energy yield Q (the paper's form) or
+    /// a constant photon yield Φ (row factor a(λi)·λi/λ̄e, model.md §3).
+    pub yield_form: YieldForm,
+}
+
+/// The suffix naming the photon-yield form in model names (`gaussian:1x1+r6/photon`).
+pub const PHOTON_SUFFIX: &str = "/photon";
+
+impl ModelSpec {
+    /// The model's name: `gaussian:KxB` (A = E = B bands) or `gaussian:KxA/E`, then
+    /// `+rD` (sigmoid-polynomial reflectance of degree D) or `+rt` (tabulated), then
+    /// `@wavelength` when the bands are Gaussian in wavelength, then `/photon` when the
+    /// components have a constant photon yield (none: the energy form).
+    pub fn name(&self) -> String {
+        let bands = if self.absorption_bands == self.emission_bands {
+            format!("{}", self.absorption_bands)
+        } else {
+            format!("{}/{}", self.absorption_bands, self.emission_bands)
+        };
+        let reflectance = match self.reflectance {
+            ReflectanceForm::Tabulated => "+rt".to_string(),
+            ReflectanceForm::Polynomial(d) => format!("+r{d}"),
+        };
+        let domain = match self.domain {
+            BandDomain::Wavenumber => "",
+            BandDomain::Wavelength => "@wavelength",
+        };
+        let form = match self.yield_form {
+            YieldForm::Energy => "",
+            YieldForm::Photon => PHOTON_SUFFIX,
+        };
+        format!(
+            "gaussian:{}x{bands}{reflectance}{domain}{form}",
+            self.components
+        )
+    }
+
+    /// Whether component rows carry the photon factor λi/λ̄e.
+    fn photon(&self) -> bool {
+        self.yield_form == YieldForm::Photon
+    }
+
+    /// Solver parameters per component (bands only).
+    fn component_params(&self) -> usize {
+        PARAMS_PER_BAND * (self.absorption_bands + self.emission_bands)
+    }
+
+    /// Free parameters of the material the model describes (the solver has a few more:
+    /// the band heights' scales, fixed by normalisation). `diagonal_samples` counts the
+    /// samples of a tabulated reflectance.
+    pub fn parameter_count(&self, diagonal_samples: usize) -> usize {
+        let per_component = self.component_params() - 2 + 1;
+        let reflectance = match self.reflectance {
+            ReflectanceForm::Tabulated => diagonal_samples,
+            ReflectanceForm::Polynomial(d) => d + 1,
+        };
+        self.components * per_component + reflectance
+    }
+}
+
+/// Where each block of parameters sits in the solver vector.
+#[derive(Debug, Clone, Copy)]
+pub struct Layout {
+    /// The model.
+    pub spec: ModelSpec,
+    /// Index of the first component's absorption bands.
+    first_component: usize,
+    /// Index of the reflectance coefficients.
+    reflectance: usize,
+    /// Total length.
+    pub len: usize,
+}
+
+impl Layout {
+    /// The layout of `spec`.
+    pub fn new(spec: ModelSpec) -> Self {
+        let first_component = spec.components;
+        let reflectance = first_component + spec.components * spec.component_params();
+        let len = reflectance
+            + match spec.reflectance {
+                ReflectanceForm::Tabulated => 0,
+                ReflectanceForm::Polynomial(d) => d + 1,
+            };
+        Layout {
+            spec,
+            first_component,
+            reflectance,
+            len,
+        }
+    }
+
+    /// Range of component `k`'s absorption band parameters.
+    pub fn absorption(&self, k: usize) -> std::ops::Range<usize> {
+        let start = self.first_component + k * self.spec.component_params();
+        start..start + PARAMS_PER_BAND * self.spec.absorption_bands
+    }
+
+    /// Range of component `k`'s emission band parameters.
+    pub fn emission(&self, k: usize) -> std::ops::Range<usize> {
+        let start = self.absorption(k).end;
+        start..start + PARAMS_PER_BAND * self.spec.emission_bands
+    }
+
+    /// Range of the reflectance coefficients (empty when tabulated).
+    pub fn reflectance(&self) -> std::ops::Range<usize> {
+        self.reflectance..self.len
+    }
+
+    /// κ_k = sin²t_k for every component.
+    fn kappas(&self, theta: &[f64]) -> Vec<f64> {
+        theta[..self.spec.components]
+            .iter()
+            .map(|t| t.sin().powi(2))
+            .collect()
+    }
+}
+
+/// The colour weights of one light on the fit grids: CIELAB of the patch, linearised at
+/// the measured colour, as linear functionals of the cell residuals.
+#[derive(Debug, Clone)]
+struct PatchLight {
+    /// ∫L·h_i over the excitation grid.
+    light_weights: Vec<f64>,
+    /// Per Lab channel and emission column: ∂Lab/∂(reradiated density at j).
+    emitted: [Vec<f64>; 3],
+    /// Per Lab channel and emission column: ∂Lab/∂(diagonal at j).
+    reflected: [Vec<f64>; 3],
+}
+
+/// A diagonal position of the fit.
+#[derive(Debug, Clone, Copy)]
+struct DiagonalSample {
+    row: usize,
+    column: usize,
+    /// Measured value, if the cell is measured.
+    value: Option<f64>,
+    /// Legendre position of its wavelength.
+    x: f64,
+}
+
+/// Everything an evaluation needs, precomputed from the data, the lights and the spec.
+pub struct Problem<'a> {
+    /// The cells.
+    pub data: &'a FitData,
+    /// Parameter layout.
+    pub layout: Layout,
+    excitation_u: Vec<f64>,
+    emission_u: Vec<f64>,
+    /// u_j: e_j·u_j is the model's column value (bin width per bin, 1 per nm).
+    column_factor: Vec<f64>,
+    /// f_j turning a column sum into an emitted density (1/Δλ per bin, 1 per nm).
+    density_factor: Vec<f64>,
+    diagonal: Vec<DiagonalSample>,
+    /// Index into `diagonal` for each emission column with a diagonal position.
+    diagonal_of_column: Vec<Option<usize>>,
+    /// Weight of each excitation row's residuals (how much light the scene sends there).
+    row_weight: Vec<f64>,
+    /// The off-diagonal cells, dense (row-major, excitation × emission): 1 where a cell
+    /// is fitted, 0 elsewhere, and the measured values (0 elsewhere). The objective runs
+    /// over whole rows, which vectorises; scattered cell lists did not.
+    cell_mask: Vec<f64>,
+    cell_value: Vec<f64>,
+    patches: Vec<PatchLight>,
+    colour_weight: f64,
+    /// The reflectance's Legendre support (nm).
+    pub reflectance_support: [f64; 2],
+}
+
+/// The model's quantities on the grids for one parameter vector.
+#[derive(Debug, Clone)]
+pub struct GridModel {
+    /// κ_k.
+    pub kappa: Vec<f64>,
+    /// a_ik normalised to max 1 on the excitation grid, per component.
+    pub absorption: Vec<Vec<f64>>,
+    /// G_k: the unnormalised absorption peak on the grid, per component.
+    pub absorption_peak: Vec<f64>,
+    /// Index of the absorption peak.
+    pub peak_index: Vec<usize>,
+    /// e_jk (unnormalised density), per component.
+    pub emission: Vec<Vec<f64>>,
+    /// S_k = Σ e_j·Δλ_j.
+    pub normaliser: Vec<f64>,
+    /// λ̄e_k.
+    pub emission_mean_nm: Vec<f64>,
+    /// λmin_k (absorption above [`ABSORPTION_FLOOR`]).
+    pub shortest_absorbed_nm: Vec<f64>,
+    /// γ_k: max(1, λ̄e/λmin) in the energy form (c = κ is the smallest feasible c =
+    /// k·γ), 1 in the photon form (c = k, Φ = 1).
+    pub photon_factor: Vec<f64>,
+    /// s_k = κ_k/(γ_k·S_k).
+    pub scale: Vec<f64>,
+    /// x_ik: the row factor beside a_ik on the excitation grid, 1 in the energy form and
+    /// λi/λ̄e in the photon form (the energy yield over Φ).
+    pub excitation_factor: Vec<Vec<f64>>,
+    /// m_ik = max(1, x_ik): the diagonal's cap is 1 − Σk κ_k·a_ik·m_ik (r ≤ 1 and, where
+    /// a photon-form component emits more energy than it absorbs, ρ ≤ 1).
+    pub cap_factor: Vec<Vec<f64>>,
+    /// r at each diagonal sample (polynomial reflectance only).
+    pub reflectance: Vec<f64>,
+    /// ∂g/∂(band parameters) of the unnormalised absorption at each excitation sample,
+    /// row-major (sample × parameter), per component: the adjoint reuses them.
+    absorption_jacobian: Vec<Vec<f64>>,
+    /// The same for the emission at each emission sample.
+    emission_jacobian: Vec<Vec<f64>>,
+}
+
+/// How a tabulated diagonal sample was projected onto its feasible interval.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Projection {
+    /// Matched exactly.
+    Free,
+    /// Clamped at zero.
+    AtZero,
+    /// Clamped at 1 − Σκ·a.
+    AtCap,
+    /// Not measured (filled later).
+    Unmeasured,
+}
+
+/// The median spacing of a grid (in whatever coordinate it is given).
+fn median_step(grid: &[f64]) -> f64 {
+    let mut steps: Vec<f64> = grid.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    if steps.is_empty() {
+        return 0.0;
+    }
+    steps.sort_by(f64::total_cmp);
+    steps[steps.len() / 2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::SynthSpec;
+
+    fn problem_data() -> FitData {
+        let (m, _) = SynthSpec::preset("green-dye").unwrap().generate().unwrap();
+        FitData::new(&m, m.default_guard_nm())
+    }
+
+    fn theta_for(layout: &Layout) -> Vec<f64> {
+        let spec = layout.spec;
+        let mut theta = vec![0.0; layout.len];
+        for k in 0..spec.components {
+            // Both components absorb almost everything near 21 kK: the Σκa penalty acts.
+            theta[k] = 1.2 + 0.1 * k as f64;
+            let centres = [20.5 + 3.0 * k as f64, 26.0];
+            for (b, chunk) in theta[layout.absorption(k)].chunks_mut(3).enumerate() {
+                chunk.copy_from_slice(&[-0.2 * b as f64, centres[b % 2], 0.1]);
+            }
+            for (b, chunk) in theta[layout.emission(k)].chunks_mut(3).enumerate() {
+                chunk.copy_from_slice(&[
+                    0.3 - 0.4 * b as f64,
+                    19.0 - 2.0 * k as f64 - b as f64,
+                    -0.3,
+                ]);
+            }
+        }
+        // One band wider than the box allows: the box penalty acts.
+        theta[layout.emission(0).start + 2] = 4.0;
+        for (n, t) in theta[layout.reflectance()].iter_mut().enumerate() {
+            *t = [1.0, -1.5, 0.4, 0.2, -0.1][n % 5];
+        }
+        theta
+    }
+
+    #[test]
+    fn bands_stay_wider_than_half_the_grid_step() {
+        let data = problem_data();
+        let spec = ModelSpec {
+            components: 1,
+            absorption_bands: 1,
+            emission_bands: 1,
+            reflectance: ReflectanceForm::Tabulated,
+            domain: BandDomain::Wavenumber,
+            yield_form: YieldForm::Energy,
+        };
+        let problem = Problem::new(&data, spec, &[], &[], 0.0);
+        let layout = problem.layout;
+        let mut theta = theta_for(&layout);
+        theta[layout.emission(0).start + 2] = -0.3;
+        let width = layout.absorption(0).start + 2;
+        // The grid is 10 nm: about 0.44 kK at 480 nm, the median excitation step.
+        let floor = 0.5 * median_step(&problem.excitation_u);
+        assert!((0.15..0.3).contains(&floor), "{floor}");
+        let mut gradient = vec![0.0; layout.len];
+        theta[width] = (0.9 * floor).ln();
+        let below = problem.band_penalty(&theta, &mut gradient);
+        assert!(below > 0.0 && gradient[width] < 0.0, "{below}");
+        gradient.iter_mut().for_each(|g| *g = 0.0);
+        theta[width] = (1.1 * floor).ln();
+        assert_eq!(problem.band_penalty(&theta, &mut gradient), 0.0);
+        theta[width] = (0.1 * floor).ln();
+        problem.clamp_to_box(&mut theta);
+        assert!(theta[width].exp() >= floor * (1.0 - 1e-12));
+    }
+
+    #[test]
+    fn gradient_matches_central_differences() {
+        let data = problem_data();
+        let lights = Light::standard();
+        let cases = [ReflectanceForm::Polynomial(4), ReflectanceForm::Tabulated]
+            .into_iter()
+            .flat_map(|r| [YieldForm::Energy, YieldForm::Photon].map(|y| (r, y)));
+        for (reflectance, yield_form) in cases {
+            for (components, absorption_bands, emission_bands) in [(1, 1, 1), (2, 2, 1)] {
+                let spec = ModelSpec {
+                    components,
+                    absorption_bands,
+                    emission_bands,
+                    reflectance,
+                    domain: BandDomain::Wavenumber,
+                    yield_form,
+                };
+                let reference: Vec<Xyz> = lights.iter().map(|_| [40.0, 35.0, 20.0]).collect();
+                let problem = Problem::new(&data, spec, &lights, &reference, 0.3);
+                let theta = theta_for(&problem.layout);
+                let (_, analytic) = problem.cost_gradient(&theta);
+                let numeric = problem.numerical_gradient(&theta, 1e-6);
+                let norm = numeric.iter().map(|g| g * g).sum::<f64>().sqrt();
+                assert!(norm > 1e-6, "a test point away from the optimum");
+                for (n, (a, b)) in analytic.iter().zip(&numeric).enumerate() {
+                    assert!(
+                        (a - b).abs() <= 1e-5 * norm + 1e-9,
+                        "{}: parameter {n}: analytic {a} vs numeric {b} (norm {norm})",
+                        spec.name()
+                    );
+                }
+            }
+        }
+    }
+}
