@@ -5,6 +5,10 @@
 
 use nalgebra::DMatrix;
 
+/// The largest κ a start may have, grid or parametric: with κ = sin²t the bound κ = 1 is
+/// a stationary point, where a start exactly on it would stay.
+pub const START_KAPPA_CAP: f64 = 0.98;
+
 /// The spectra a parameter vector stands for, on the fit grids.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GridSpectra {

@@ -18,11 +18,11 @@ use crate::measurement::Measurement;
 use crate::parametric::fit::{fit_bands, fit_sigmoid_polynomial};
 use crate::parametric::{BandDomain, PARAMS_PER_BAND, logit};
 
-use super::START_KAPPA_CAP;
 use super::assess::bic;
 use super::data::FitData;
 use super::init::{Factors, masked_nmf};
 use super::parametric::{ModelSpec, PHOTON_SUFFIX, Problem, ReflectanceForm};
+use super::representation::START_KAPPA_CAP;
 use super::{FitOptions, FitOutcome, YieldChoice, assess, solve};
 
 mod model_name;
@@ -120,7 +120,7 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         model: ModelChoice::Tabulated,
         ..options.clone()
     };
-    let base = match super::fit_checked(m, &base_options, false)? {
+    let base = match super::tabulated::fit_checked(m, &base_options, false)? {
         FitOutcome::Material(material) => *material,
         FitOutcome::Shapes(_) => {
             return Err(Error::Fit(format!(
