@@ -20,6 +20,7 @@
 
 pub mod assess;
 pub mod checks;
+mod colour_term;
 pub mod data;
 mod grid_material;
 pub mod init;

@@ -1,0 +1,190 @@
+//! The colour term of the grid fit: CIELAB of the flat patch under the scene's lights,
+//! linearised at the measured colour, as linear functionals of the cell residuals, with a
+//! robust loss that leaves the noise to the matrix term (model.md §7).
+
+use crate::colour::{Light, PatchColorimeter, Xyz};
+
+use super::data::FitData;
+use super::objective::dot;
+
+/// τ of the colour term's robust loss (ΔE76 units): about the difference a person sees.
+pub const COLOUR_SCALE: f64 = 1.0;
+
+/// The colour term: per light, CIELAB of the flat patch linearised at the measured
+/// colour, as linear functionals of the cell residuals (measured − model).
+#[derive(Debug, Clone)]
+pub struct ColourTerm {
+    /// w: the cost is ½·w·Σ_lights τ²·ln(1 + ΔE76²/τ²).
+    pub(super) weight: f64,
+    /// Number of lights.
+    pub(super) n_lights: usize,
+    /// Per light: the RMS ΔE76 the measurement's noise alone gives the patch; the colour
+    /// term pulls only on the difference beyond it.
+    pub(super) noise_delta_e: Vec<f64>,
+    /// ∫L·h_i, row-major (excitation row × light).
+    pub(super) row_lights: Vec<f64>,
+    /// Per light and Lab channel: ∂Lab/∂(off-diagonal cell of column j) / L_i.
+    pub(super) emitted: Vec<[Vec<f64>; 3]>,
+    /// Per light and Lab channel: ∂Lab/∂(diagonal cell of column j).
+    pub(super) reflected: Vec<[Vec<f64>; 3]>,
+}
+
+impl ColourTerm {
+    /// The colour term of `lights` on the grids of `data`, linearised at the measured
+    /// patch colours `reference` (XYZ per light, as [`PatchColorimeter::xyz`] gives them).
+    /// `noise_sigma` is the cells' noise level: the colour difference it alone explains is
+    /// left to the matrix term (least squares is the right estimate under noise; the
+    /// colour term is for structure the model cannot follow).
+    pub fn new(
+        data: &FitData,
+        lights: &[Light],
+        reference: &[Xyz],
+        weight: f64,
+        noise_sigma: f64,
+    ) -> Self {
+        let n_lights = lights.len().min(reference.len());
+        let mut term = ColourTerm {
+            weight,
+            n_lights,
+            noise_delta_e: vec![0.0; n_lights],
+            row_lights: vec![0.0; data.n_excitation() * n_lights],
+            emitted: Vec::with_capacity(n_lights),
+            reflected: Vec::with_capacity(n_lights),
+        };
+        for (l, (light, xyz)) in lights.iter().zip(reference).enumerate() {
+            let pc = PatchColorimeter::cached(light, &data.excitation_nm, &data.emission_nm);
+            let (light_weights, reflected, emitted, widths, scale) = pc.weights();
+            let jacobian = crate::colour::lab_jacobian(*xyz, pc.white);
+            // Cells are in the data's units: per bin, or per nm (then ×Δλ = emission_weight).
+            let project = |weights: &[Xyz], channel: usize, per_bin: bool| -> Vec<f64> {
+                weights
+                    .iter()
+                    .enumerate()
+                    .map(|(j, w)| {
+                        let unit = data.emission_weight[j] / if per_bin { widths[j] } else { 1.0 };
+                        scale * unit * (0..3).map(|x| jacobian[channel][x] * w[x]).sum::<f64>()
+                    })
+                    .collect()
+            };
+            for (i, w) in light_weights.iter().enumerate() {
+                term.row_lights[i * n_lights + l] = *w;
+            }
+            term.emitted
+                .push([0, 1, 2].map(|channel| project(emitted, channel, true)));
+            term.reflected
+                .push([0, 1, 2].map(|channel| project(reflected, channel, false)));
+        }
+        // Var(ΔLab) = σ²·Σ over measured cells of the squared coefficients.
+        let sigma2 = if noise_sigma.is_finite() {
+            noise_sigma * noise_sigma
+        } else {
+            0.0
+        };
+        for l in 0..n_lights {
+            let mut sum = 0.0;
+            for c in data.off_diagonal.iter().chain(&data.guard) {
+                let w = term.row_lights[c.row * n_lights + l];
+                for channel in 0..3 {
+                    sum += (w * term.emitted[l][channel][c.column]).powi(2);
+                }
+            }
+            for c in &data.diagonal {
+                for channel in 0..3 {
+                    sum += term.reflected[l][channel][c.column].powi(2);
+                }
+            }
+            term.noise_delta_e[l] = (sigma2 * sum).sqrt();
+        }
+        term
+    }
+
+    /// ∫L·h_i of every light for excitation row `row`.
+    pub(super) fn lights_of_row(&self, row: usize) -> &[f64] {
+        &self.row_lights[row * self.n_lights..(row + 1) * self.n_lights]
+    }
+
+    /// ΔLab (measured − model, linearised) per light and channel, from the column sums
+    /// Σ_i L_li·r_ij of the off-diagonal residuals (light-major) and the diagonal
+    /// residuals (column, r).
+    pub(super) fn patch(
+        &self,
+        column_sum: &[f64],
+        diagonal: &[(usize, f64)],
+        n_em: usize,
+    ) -> Vec<f64> {
+        let mut patch = vec![0.0; 3 * self.n_lights];
+        for l in 0..self.n_lights {
+            let sums = &column_sum[l * n_em..(l + 1) * n_em];
+            for channel in 0..3 {
+                let re = &self.reflected[l][channel];
+                patch[3 * l + channel] = dot(&self.emitted[l][channel], sums)
+                    + diagonal.iter().map(|&(j, r)| re[j] * r).sum::<f64>();
+            }
+        }
+        patch
+    }
+
+    /// The colour cost ½·w·Σ_l τ²·ln(1 + u_l²/τ²) of the patch ΔLab, with ΔE_l = |ΔLab_l|
+    /// beyond the noise, u_l = max(0, ΔE_l − δ_l) (δ_l = the noise's RMS ΔE76, τ =
+    /// [`COLOUR_SCALE`]), and ∂cost/∂ΔLab / w. A colour difference the noise explains costs
+    /// nothing (the matrix term alone decides there); beyond it the cost is ½·w·u² while
+    /// u < τ, and a light whose difference the model cannot bring near τ (a second emitter
+    /// a one-fluorophore model cannot follow) pulls less and less instead of trading the
+    /// other lights' colour for a small gain of its own.
+    pub(super) fn robust(&self, patch: &[f64]) -> (f64, Vec<f64>) {
+        let tau2 = COLOUR_SCALE * COLOUR_SCALE;
+        let mut cost = 0.0;
+        let mut pull = patch.to_vec();
+        for (light, delta) in pull.chunks_exact_mut(3).zip(&self.noise_delta_e) {
+            let t = light.iter().map(|p| p * p).sum::<f64>().sqrt();
+            let u = (t - delta).max(0.0);
+            cost += 0.5 * self.weight * tau2 * (u * u / tau2).ln_1p();
+            // ∂cost/∂ΔLab = w·u/(1 + u²/τ²)·ΔLab/t.
+            let factor = if t > 0.0 {
+                u / (1.0 + u * u / tau2) / t
+            } else {
+                1.0
+            };
+            light.iter_mut().for_each(|p| *p *= factor);
+        }
+        (cost, pull)
+    }
+
+    /// φ(t) and φ′(t) for light `l` at ΔE t: the residual √w·φ(t)·ΔLab has ½‖·‖² equal
+    /// to that light's cost in [`ColourTerm::robust`].
+    pub(super) fn residual_factor(&self, l: usize, t: f64) -> (f64, f64) {
+        let tau = COLOUR_SCALE;
+        let delta = self.noise_delta_e[l];
+        if t <= delta {
+            return (if t == 0.0 && delta == 0.0 { 1.0 } else { 0.0 }, 0.0);
+        }
+        let u = t - delta;
+        let x = (u / tau).powi(2);
+        if x < 1e-10 {
+            // g(t) = τ·√ln(1 + u²/τ²) ≈ u: φ = u/t, φ′ = δ/t².
+            return (u / t, delta / (t * t));
+        }
+        let g = tau * x.ln_1p().sqrt();
+        let dg = u / (tau * x.ln_1p().sqrt() * (1.0 + x));
+        (g / t, dg / t - g / (t * t))
+    }
+
+    /// The colour cost's pull on the residuals, given ∂cost/∂ΔLab / w: per light and
+    /// column q_lj (light-major; an off-diagonal cell's pull is Σ_l L_li·q_lj) and per
+    /// column h_j (a diagonal cell's pull).
+    pub(super) fn pulls(&self, pull_patch: &[f64], n_em: usize) -> (Vec<f64>, Vec<f64>) {
+        let mut q = vec![0.0; self.n_lights * n_em];
+        let mut h = vec![0.0; n_em];
+        for l in 0..self.n_lights {
+            for channel in 0..3 {
+                let p = self.weight * pull_patch[3 * l + channel];
+                let (em, re) = (&self.emitted[l][channel], &self.reflected[l][channel]);
+                for j in 0..n_em {
+                    q[l * n_em + j] += p * em[j];
+                    h[j] += p * re[j];
+                }
+            }
+        }
+        (q, h)
+    }
+}
