@@ -234,9 +234,9 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                 } else {
                     model_table_row(&m, &outcome)
                 });
-                if let FitOutcome::Material(_) = outcome {
+                if let FitOutcome::Material(material) = &outcome {
                     if args.plot {
-                        crate::cli::plot::plot_fit_with(out, input, &read_options)
+                        crate::cli::plot::plot_fit(material, &m, out)
                             .with_context(|| format!("plotting {}", out.display()))?;
                     }
                     if args.render {

@@ -59,17 +59,17 @@ pub fn run(args: PlotArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Plots a freshly fitted material against its data (used by `fit --plot`), reading
-/// the data with the same options the fit used.
-pub fn plot_fit_with(
+/// Plots a fit just made, handed over in memory (`fit --plot`): the material beside the
+/// JSON it was written to, named after it, against the measurement it was fitted to.
+pub fn plot_fit(
+    material: &Material,
+    measurement: &fluorite::Measurement,
     material_path: &Path,
-    data_path: &Path,
-    read_options: &ReadOptions,
 ) -> anyhow::Result<()> {
-    plot_files(
+    write_figures(
+        material,
+        Some(measurement),
         material_path,
-        Some(data_path),
-        read_options,
         None,
         ImageFormat::Png,
     )
@@ -89,9 +89,22 @@ fn plot_files(
     let data = data_path
         .map(|p| formats::read(p, read_options))
         .transpose()?;
+    write_figures(&material, data.as_ref(), material_path, output_dir, format)
+}
+
+/// Renders every figure of `material` (against `data`) in memory, then writes them all
+/// into `output_dir` or beside `material_path`, named after it; prints each written path
+/// and what was skipped.
+fn write_figures(
+    material: &Material,
+    data: Option<&fluorite::Measurement>,
+    material_path: &Path,
+    output_dir: Option<&Path>,
+    format: ImageFormat,
+) -> anyhow::Result<Vec<PathBuf>> {
     let plots = plot::plot(
-        &material,
-        data.as_ref(),
+        material,
+        data,
         &PlotOptions {
             format,
             guard_nm: None,
