@@ -19,6 +19,7 @@ pub mod import;
 pub mod material;
 pub mod measurement;
 pub mod model;
+pub mod numeric;
 pub mod parametric;
 pub mod plot;
 pub mod render;

@@ -189,15 +189,8 @@ impl Measurement {
     /// The default guard band: one grid step, the larger of the two grids' typical
     /// (median) spacings.
     pub fn default_guard_nm(&self) -> f64 {
-        let median_step = |g: &[f64]| {
-            let mut steps: Vec<f64> = g.windows(2).map(|w| w[1] - w[0]).collect();
-            if steps.is_empty() {
-                return 0.0;
-            }
-            steps.sort_by(f64::total_cmp);
-            steps[steps.len() / 2]
-        };
-        median_step(&self.excitation_nm).max(median_step(&self.emission_nm))
+        crate::numeric::median_step(&self.excitation_nm)
+            .max(crate::numeric::median_step(&self.emission_nm))
     }
 
     /// Emission bin widths (nm) by the trapezoid rule, see [`crate::spectrum::bin_widths`].

@@ -200,7 +200,13 @@ pub fn measure_width(
     if rows < MIN_ROWS_MEASURED {
         return (None, rows);
     }
-    (Some((median(&mut below), median(&mut above))), rows)
+    (
+        Some((
+            crate::numeric::median(&below),
+            crate::numeric::median(&above),
+        )),
+        rows,
+    )
 }
 
 /// Decides each line's band on `m` (widths set, measured, from the bandwidth or the
@@ -295,24 +301,7 @@ pub fn mask(m: &mut Measurement, options: &ScatterOptions) -> Vec<MaskedBand> {
     bands
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
-/// Typical (median) spacing of a grid (0 for a single wavelength).
-pub fn median_step(grid: &[f64]) -> f64 {
-    let mut steps: Vec<f64> = grid.windows(2).map(|w| w[1] - w[0]).collect();
-    if steps.is_empty() {
-        return 0.0;
-    }
-    median(&mut steps)
-}
+pub use crate::numeric::median_step;
 
 #[cfg(test)]
 mod tests {

@@ -110,22 +110,7 @@ pub fn all_methods() -> Vec<Method> {
     methods
 }
 
-/// The median of `values` (NaN when empty; NaNs are ignored).
-pub fn median(values: &[f64]) -> f64 {
-    quantile(values, 0.5)
-}
-
-/// The `q`-quantile of the finite `values`, linearly interpolated (NaN when none).
-pub fn quantile(values: &[f64], q: f64) -> f64 {
-    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let pos = q.clamp(0.0, 1.0) * (v.len() - 1) as f64;
-    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
-    v[lo] + (v[hi] - v[lo]) * (pos - lo as f64)
-}
+pub use crate::numeric::{median, quantile};
 
 #[cfg(test)]
 mod tests {

@@ -5,7 +5,7 @@
 use crate::colour::{Light, PatchColorimeter, Xyz};
 
 use super::data::FitData;
-use super::objective::dot;
+use crate::numeric::dot;
 
 /// τ of the colour term's robust loss (ΔE76 units): about the difference a person sees.
 pub const COLOUR_SCALE: f64 = 1.0;

@@ -113,22 +113,13 @@ impl FitData {
 
 /// 1.4826 × median absolute deviation from the median (σ for Gaussian noise).
 pub fn robust_sigma(values: impl Iterator<Item = f64>) -> f64 {
-    let mut v: Vec<f64> = values.filter(|x| x.is_finite()).collect();
+    let v: Vec<f64> = values.filter(|x| x.is_finite()).collect();
     if v.is_empty() {
         return 0.0;
     }
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        let n = v.len();
-        if n % 2 == 1 {
-            v[n / 2]
-        } else {
-            0.5 * (v[n / 2 - 1] + v[n / 2])
-        }
-    };
-    let m = median(&mut v);
-    let mut dev: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
-    1.4826 * median(&mut dev)
+    let m = crate::numeric::median(&v);
+    let dev: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
+    1.4826 * crate::numeric::median(&dev)
 }
 
 /// Fills unmeasured diagonal samples (not finite) by linear interpolation between the

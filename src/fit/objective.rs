@@ -24,6 +24,7 @@ use crate::material::YieldForm;
 pub use super::colour_term::{COLOUR_SCALE, ColourTerm};
 use super::data::{Cell, FitData};
 use super::representation::GridSpectra;
+use crate::numeric::dot;
 
 /// Weight of the term that fixes the free scale of the emission samples (S = 1). The
 /// model does not depend on that scale, so the term changes no fitted material.
@@ -577,25 +578,6 @@ impl<'a> Objective<'a> {
         }
         j
     }
-}
-
-/// Σ a_k·b_k with four partial sums, so the reduction vectorises (a single running sum
-/// fixes the order of the additions and stays scalar).
-pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut partial = [0.0; 4];
-    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = a4
-        .remainder()
-        .iter()
-        .zip(b4.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    for (x, y) in a4.zip(b4) {
-        for k in 0..4 {
-            partial[k] += x[k] * y[k];
-        }
-    }
-    partial.iter().sum::<f64>() + tail
 }
 
 /// The infimum of wavelengths where a > 0 for a piecewise-linear a: the sample before

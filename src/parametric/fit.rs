@@ -15,6 +15,7 @@ use super::{
     logit, position, sigmoid,
 };
 use crate::error::{Error, Result};
+use crate::numeric::dot;
 
 /// The band domain fits use unless told otherwise: wavenumber, because real dyes need
 /// fewer bands in it.
@@ -746,24 +747,6 @@ impl Workspace {
             }
         }
     }
-}
-
-/// Σ aᵢbᵢ, with four partial sums so that the additions overlap.
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut partial = [0.0; 4];
-    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = a4
-        .remainder()
-        .iter()
-        .zip(b4.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    for (x, y) in a4.zip(b4) {
-        for k in 0..4 {
-            partial[k] += x[k] * y[k];
-        }
-    }
-    partial.iter().sum::<f64>() + tail
 }
 
 /// Minimises Σ r² from `params` (updated in place) by Levenberg–Marquardt with

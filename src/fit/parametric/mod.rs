@@ -25,6 +25,8 @@ use super::data::FitData;
 mod build;
 mod cost;
 
+use crate::numeric::median_step;
+
 pub use build::{TABULATION_STEP_NM, fine_grid};
 
 /// Absorption below this fraction of its peak counts as none for the photon law: a
@@ -287,16 +289,6 @@ pub enum Projection {
     AtCap,
     /// Not measured (filled later).
     Unmeasured,
-}
-
-/// The median spacing of a grid (in whatever coordinate it is given).
-fn median_step(grid: &[f64]) -> f64 {
-    let mut steps: Vec<f64> = grid.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
-    if steps.is_empty() {
-        return 0.0;
-    }
-    steps.sort_by(f64::total_cmp);
-    steps[steps.len() / 2]
 }
 
 #[cfg(test)]
