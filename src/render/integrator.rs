@@ -283,17 +283,20 @@ pub fn trace(scene: &Scene, mut ray: Ray, mut lambda: Vec4, rng: &mut Rng) -> Ve
         let origin = point + normal * RAY_EPSILON;
         radiance += weight * emitted * direct_light(scene, origin, normal, rng);
         // Russian roulette after the direct light: survival in proportion to the path
-        // weight (light-aware: times the light ratio above, and from the second surface
-        // on — at the first, a fluorescent channel's weight says little about what the
-        // pixel gains, and ending its path there made the furnace under F11 twice as
-        // noisy), so that surviving paths carry weight ≈ 1.
+        // weight (light-aware: times the light ratio above, and never at a fluorescent
+        // first surface, where a channel's weight says little about what the pixel
+        // gains: ending such paths there made the furnace under F11 twice as noisy),
+        // so that surviving paths carry weight ≈ 1.
         let importance = match sampling {
             SpectralSampling::Paper => weight,
             SpectralSampling::LightAware => {
                 weight * (emitted + Vec4::splat(mean_light)) / start_light
             }
         };
-        let survival = if bounce == 0 && sampling == SpectralSampling::LightAware {
+        let survival = if bounce == 0
+            && sampling == SpectralSampling::LightAware
+            && surfaces[surface].is_fluorescent()
+        {
             1.0
         } else {
             importance.max_element().min(1.0)
