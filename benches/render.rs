@@ -2,13 +2,14 @@
 //! issue's target: under 3 s on the 2-core machine). Criterion reports the throughput
 //! in camera paths per second ("elem/s"; each path carries four wavelengths).
 //!
-//! Run with `cargo bench --bench render`.
+//! `_paper` runs the paper's sampling rules (`--sampling paper`), the renderer as it was
+//! before issue 14, for comparison. Run with `cargo bench --bench render`.
 
 use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use fluorite::colour::Light;
-use fluorite::render::{RenderSettings, Scene, SceneKind, render};
+use fluorite::render::{RenderSettings, Scene, SceneKind, SpectralSampling, render};
 use fluorite::spectrum::uniform_grid;
 use fluorite::{Fluorophore, Material, Spectrum};
 
@@ -47,20 +48,27 @@ fn bench_render(c: &mut Criterion) {
     let mut group = c.benchmark_group("render");
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(1));
-    group.measurement_time(Duration::from_secs(15));
+    group.measurement_time(Duration::from_secs(10));
     for (name, light, compare) in [("preview_d65", "d65", false), ("compare_uv", "uv", true)] {
-        let settings = RenderSettings {
-            width: 512,
-            height: 512,
-            samples_per_pixel: 64,
-            seed: 1,
-        };
-        let light = Light::builtin(light).unwrap();
-        let scene = Scene::build(SceneKind::Preview, &material, &light, compare, 1.0).unwrap();
-        group.throughput(Throughput::Elements(settings.paths()));
-        group.bench_function(format!("{name}_512x512_64spp"), |b| {
-            b.iter(|| render(&scene, &settings, &|| {}).unwrap())
-        });
+        for (rule, sampling) in [
+            ("", SpectralSampling::LightAware),
+            ("_paper", SpectralSampling::Paper),
+        ] {
+            let settings = RenderSettings {
+                width: 512,
+                height: 512,
+                samples_per_pixel: 64,
+                seed: 1,
+            };
+            let light = Light::builtin(light).unwrap();
+            let mut scene =
+                Scene::build(SceneKind::Preview, &material, &light, compare, 1.0).unwrap();
+            scene.set_spectral_sampling(sampling);
+            group.throughput(Throughput::Elements(settings.paths()));
+            group.bench_function(format!("{name}_512x512_64spp{rule}"), |b| {
+                b.iter(|| render(&scene, &settings, &|| {}).unwrap())
+            });
+        }
     }
     group.finish();
 }

@@ -38,7 +38,7 @@ if [ -d "$shared" ]; then
   # The paper's first figure: each material beside its twin without fluorescence (same r, c = 0).
   for material in HERPICER CIBA12; do
     for light in d65 uv; do
-      $fluorite render fits/measured/$material.json --compare --light $light --spp 256 \
+      $fluorite render fits/measured/$material.json --compare --light $light --spp 64 \
         -o fits/measured/$material-compare-$light.png
     done
   done

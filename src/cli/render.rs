@@ -13,7 +13,10 @@ use fluorite::export::write_atomic;
 use fluorite::render::image::{
     check_exposure, encode_exr, encode_png, film_to_linear_srgb, to_srgb8, xyz_to_srgb_matrix,
 };
-use fluorite::render::{DEFAULT_EXPOSURE_EV, RenderSettings, Scene, SceneKind, render};
+use fluorite::render::report::furnace_noise;
+use fluorite::render::{
+    DEFAULT_EXPOSURE_EV, RenderSettings, Scene, SceneKind, SpectralSampling, render,
+};
 
 /// The built-in scene to render.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -24,11 +27,31 @@ pub enum SceneArg {
     Furnace,
 }
 
+/// How paths draw wavelengths.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum SamplingArg {
+    /// Light-aware: excitation by multiple importance sampling of a(λ) and a(λ)·L(λ) (L
+    /// the scene's light), camera wavelengths guided by L and the surfaces' radiance.
+    Light,
+    /// The paper's rules: λi ∝ a(λ) (× λ/λ̄e in the photon form), observer wavelengths.
+    Paper,
+}
+
+impl From<SamplingArg> for SpectralSampling {
+    fn from(arg: SamplingArg) -> SpectralSampling {
+        match arg {
+            SamplingArg::Light => SpectralSampling::LightAware,
+            SamplingArg::Paper => SpectralSampling::Paper,
+        }
+    }
+}
+
 /// Arguments of `fluorite render`.
 #[derive(clap::Args)]
 pub struct RenderArgs {
-    /// Material JSON to render (fluorite-material/1).
-    pub material: PathBuf,
+    /// Material JSON to render (fluorite-material/1); with `--report`, one or more.
+    #[arg(required = true, num_args = 1..)]
+    pub materials: Vec<PathBuf>,
     /// Output PNG [default: the material's path with the extension .png].
     #[arg(short, long)]
     pub output: Option<PathBuf>,
@@ -46,9 +69,10 @@ pub struct RenderArgs {
     /// Camera paths per pixel (1 to 16384); each path carries four wavelengths.
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
-    /// Image size WIDTHxHEIGHT in pixels (each 1 to 16384).
-    #[arg(long, default_value = "640x400")]
-    pub size: String,
+    /// Image size WIDTHxHEIGHT in pixels (each 1 to 16384) [default: 640x400; with
+    /// `--report` 128x128].
+    #[arg(long)]
+    pub size: Option<String>,
     /// Random seed: the same seed, settings and material give the same image.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -56,12 +80,27 @@ pub struct RenderArgs {
     /// white; the default leaves half a stop for fluorescence brighter than white.
     #[arg(long, default_value_t = DEFAULT_EXPOSURE_EV, allow_negative_numbers = true)]
     pub exposure: f64,
-    /// Also write linear sRGB (no exposure, no clipping) as OpenEXR beside the PNG.
+    /// Also write scene-referred linear radiance as OpenEXR beside the PNG: linear sRGB
+    /// primaries of the film's XYZ, without chromatic adaptation, exposure or clipping
+    /// (the PNG alone gets the display transform).
     #[arg(long)]
     pub exr: bool,
-    /// Show the light's own colour instead of adapting its white to D65.
+    /// Show the light's own colour in the PNG instead of adapting its white to D65.
     #[arg(long)]
     pub no_adapt: bool,
+    /// Instead of a picture, print a Markdown table of furnace noise (relative standard
+    /// deviation of Y over the pixels wholly inside the sphere) and median render time
+    /// per light, for the paper's excitation sampling and the light-aware one, at the
+    /// given --spp and --size; nothing is written.
+    #[arg(long)]
+    pub report: bool,
+    /// Lights of `--report`, comma-separated (names or CSV files).
+    #[arg(long, default_value = "d65,a,f11,uv")]
+    pub lights: String,
+    /// Spectral sampling: `light` (camera wavelengths and excitation wavelengths guided
+    /// by the scene's light spectrum) or `paper` (the paper's rules, for comparison).
+    #[arg(long, value_enum, default_value = "light")]
+    pub sampling: SamplingArg,
     /// No progress bar or summary line.
     #[arg(short, long)]
     pub quiet: bool,
@@ -69,9 +108,22 @@ pub struct RenderArgs {
 
 /// Runs `fluorite render`.
 pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
-    let material = Material::load(&args.material)?;
+    if args.report {
+        return report(&args);
+    }
+    let [material_path] = args.materials.as_slice() else {
+        return Err(Error::invalid(
+            "material",
+            format!(
+                "{} files given; render takes one (several only with --report)",
+                args.materials.len()
+            ),
+        )
+        .into());
+    };
+    let material = Material::load(material_path)?;
     let light = Light::parse(&args.light)?;
-    let (width, height) = parse_size(&args.size)?;
+    let (width, height) = parse_size(args.size.as_deref().unwrap_or(DEFAULT_SIZE))?;
     let settings = RenderSettings {
         width,
         height,
@@ -83,14 +135,16 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     let output = args
         .output
         .clone()
-        .unwrap_or_else(|| args.material.with_extension("png"));
+        .unwrap_or_else(|| material_path.with_extension("png"));
     check_output_folder(&output)?;
     let kind = match args.scene {
         SceneArg::Preview => SceneKind::Preview,
         SceneArg::Furnace => SceneKind::Furnace,
     };
     let scene = Scene::build(kind, &material, &light, args.compare, settings.aspect())
-        .with_context(|| format!("cannot render {}", args.material.display()))?;
+        .with_context(|| format!("cannot render {}", material_path.display()))?;
+    let mut scene = scene;
+    scene.set_spectral_sampling(args.sampling.into());
 
     let progress = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(height as u64);
@@ -141,9 +195,11 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         &description,
     )?;
     let exr = if args.exr {
+        // Scene-referred: the film's radiance in linear sRGB primaries, never adapted.
+        let scene_referred = film_to_linear_srgb(&film, &xyz_to_srgb_matrix(scene.light(), false));
         Some((
             output.with_extension("exr"),
-            encode_exr(width, height, &linear)?,
+            encode_exr(width, height, &scene_referred)?,
         ))
     } else {
         None
@@ -173,23 +229,82 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
 /// `<stem>.png` next to the material JSON, daylight (D65), default size and samples.
 pub fn preview(material_path: &Path) -> anyhow::Result<()> {
     let args = RenderArgs {
-        material: material_path.to_path_buf(),
+        materials: vec![material_path.to_path_buf()],
         output: None,
         light: "d65".to_string(),
         compare: false,
         scene: SceneArg::Preview,
         spp: RenderSettings::default().samples_per_pixel,
-        size: {
-            let s = RenderSettings::default();
-            format!("{}x{}", s.width, s.height)
-        },
+        size: None,
         seed: RenderSettings::default().seed,
         exposure: DEFAULT_EXPOSURE_EV,
         exr: false,
         no_adapt: false,
+        report: false,
+        lights: String::new(),
+        sampling: SamplingArg::Light,
         quiet: false,
     };
     run(args).map(|_| ())
+}
+
+/// Image size of a picture when `--size` is not given.
+const DEFAULT_SIZE: &str = "640x400";
+/// Image size of `--report` when `--size` is not given (the furnace figure).
+const REPORT_SIZE: &str = "128x128";
+/// Renders per rule and light in `--report`; the time is their median.
+const REPORT_RUNS: usize = 5;
+
+/// `--report`: furnace noise and time per material, light and excitation sampling rule.
+fn report(args: &RenderArgs) -> anyhow::Result<ExitCode> {
+    let (width, height) = parse_size(args.size.as_deref().unwrap_or(REPORT_SIZE))?;
+    let settings = RenderSettings {
+        width,
+        height,
+        samples_per_pixel: args.spp,
+        seed: args.seed,
+    };
+    settings.validate()?;
+    let lights = args
+        .lights
+        .split(',')
+        .map(|l| Light::parse(l.trim()))
+        .collect::<fluorite::Result<Vec<_>>>()?;
+    let materials = args
+        .materials
+        .iter()
+        .map(|p| Material::load(p).map(|m| (p, m)))
+        .collect::<fluorite::Result<Vec<_>>>()?;
+    let rules = [SpectralSampling::Paper, SpectralSampling::LightAware];
+    println!(
+        "Furnace, {width}×{height}, {} spp, seed {}: relative std of Y over the sphere's pixels; median time of {REPORT_RUNS} renders.",
+        settings.samples_per_pixel, settings.seed
+    );
+    println!();
+    println!(
+        "| material | light | noise, paper | time | noise, light-aware | time | light-aware noise at the paper's time |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for (path, material) in &materials {
+        for light in &lights {
+            let r = furnace_noise(material, light, &settings, &rules, REPORT_RUNS)
+                .with_context(|| format!("cannot report on {}", path.display()))?;
+            let (paper, lit) = (&r[0], &r[1]);
+            // Noise falls as 1/√samples, hence as 1/√time.
+            let equal_time = lit.noise * (lit.seconds / paper.seconds).sqrt();
+            println!(
+                "| {} | {} | {:.3} | {:.3} s | {:.3} | {:.3} s | {:.3} |",
+                material.name,
+                light.name,
+                paper.noise,
+                paper.seconds,
+                lit.noise,
+                lit.seconds,
+                equal_time
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 /// Parses `WIDTHxHEIGHT`.

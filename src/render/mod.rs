@@ -7,6 +7,7 @@
 //! - [`integrator`]: the path tracer (hero wavelengths, fluorescent events, next-event
 //!   estimation with multiple importance sampling, Russian roulette).
 //! - [`image`]: the exposure rule, sRGB PNG and linear EXR.
+//! - [`report`]: furnace noise and time, to compare sampling rules.
 //!
 //! [`render`] produces a film of CIE XYZ for pictures; [`spectral_radiance`] estimates
 //! spectral radiance with standard errors over a pixel region, so that tests check
@@ -16,6 +17,7 @@
 pub mod geometry;
 pub mod image;
 pub mod integrator;
+pub mod report;
 pub mod rng;
 pub mod scene;
 pub mod spectra;
@@ -27,8 +29,10 @@ use crate::error::{Error, Result};
 
 pub use geometry::{Camera, Quad, Ray, Shape};
 pub use image::DEFAULT_EXPOSURE_EV;
-pub use scene::{Object, Scene, SceneKind};
-pub use spectra::{LAMBDA_MAX_NM, LAMBDA_MIN_NM, LightSpectrum, Observer, SurfaceTables};
+pub use scene::{Object, Scene, SceneKind, SpectralSampling};
+pub use spectra::{
+    LAMBDA_MAX_NM, LAMBDA_MIN_NM, LightSpectrum, Observer, SurfaceTables, WavelengthSampler,
+};
 
 use integrator::{CHANNELS, trace};
 use rng::Rng;
@@ -103,7 +107,7 @@ pub struct Film {
 
 /// Wavelength-sampling density and colour matching for the film, with the hero rotation.
 #[inline]
-fn camera_wavelengths(observer: &Observer, hero: f32) -> (Vec4, [f32; CHANNELS]) {
+fn camera_wavelengths(sampler: &WavelengthSampler, hero: f32) -> (Vec4, [f32; CHANNELS]) {
     let mut lambda = [0.0; CHANNELS];
     let mut inverse_pdf = [0.0; CHANNELS];
     for j in 0..CHANNELS {
@@ -114,7 +118,7 @@ fn camera_wavelengths(observer: &Observer, hero: f32) -> (Vec4, [f32; CHANNELS])
         } else {
             shifted
         };
-        let (nm, pdf) = observer.sample(u);
+        let (nm, pdf) = sampler.sample(u);
         lambda[j] = nm;
         inverse_pdf[j] = 1.0 / (pdf * CHANNELS as f32);
     }
@@ -131,6 +135,7 @@ pub fn render(
     settings.validate()?;
     let (width, height) = (settings.width, settings.height);
     let observer = Observer::get();
+    let sampler = scene.wavelength_sampler();
     let camera = *scene.camera();
     let mut xyz = vec![[0.0f32; 3]; width as usize * height as usize];
     xyz.par_chunks_mut(width as usize)
@@ -145,7 +150,7 @@ pub fn render(
                     let u = (x as f32 + rng.next_f32()) / width as f32;
                     let v = (y as f32 + rng.next_f32()) / height as f32;
                     let ray = camera.ray(u, v);
-                    let (lambda, inverse_pdf) = camera_wavelengths(observer, rng.next_f32());
+                    let (lambda, inverse_pdf) = camera_wavelengths(&sampler, rng.next_f32());
                     let radiance = trace(scene, ray, lambda, &mut rng).to_array();
                     let wavelengths = lambda.to_array();
                     for j in 0..CHANNELS {

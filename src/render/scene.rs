@@ -8,7 +8,7 @@ use crate::error::{Error, Result};
 use crate::material::Material;
 
 use super::geometry::{Camera, Quad, Ray, Shape};
-use super::spectra::{LightSpectrum, SurfaceTables};
+use super::spectra::{LightSpectrum, SurfaceTables, Table, WavelengthSampler};
 
 /// Reflectance of the neutral grey ground of the preview scene.
 pub const GROUND_REFLECTANCE: f32 = 0.35;
@@ -66,6 +66,27 @@ pub struct Scene {
     light: LightSpectrum,
     environment: f32,
     camera: Camera,
+    sampling: SpectralSampling,
+}
+
+/// How camera paths draw their wavelengths and, at fluorescent events, the excitation
+/// wavelength λi.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SpectralSampling {
+    /// The paper's rules (model.md §6), as the renderer had them first: camera
+    /// wavelengths from the observer's density; at a surface the event ∝ the row albedo
+    /// and λi ∝ x·a; Russian roulette on the path weight. Noisy under lights with lines
+    /// or UV peaks that the absorption rarely lands on.
+    Paper,
+    /// Light-aware: camera wavelengths from [`Scene::wavelength_sampler`]; at a
+    /// fluorescent surface one-sample multiple importance sampling (balance heuristic)
+    /// of the paper's rule and of the same rule weighted by the scene's light spectrum L
+    /// at λi (the event ∝ d·L(λo) or k·e(λo)·∫x·a·L, λi ∝ x·a·L), which follows
+    /// absorption × incident light wherever the incident light has the light's spectrum
+    /// and stays unbiased where it does not; Russian roulette on the path weight times
+    /// the light at the path's wavelength.
+    #[default]
+    LightAware,
 }
 
 impl Scene {
@@ -78,11 +99,14 @@ impl Scene {
             light,
             environment: 0.0,
             camera,
+            sampling: SpectralSampling::default(),
         }
     }
 
-    /// Adds a surface; returns its index for [`Object::surface`].
-    pub fn add_surface(&mut self, surface: SurfaceTables) -> usize {
+    /// Adds a surface; returns its index for [`Object::surface`]. Its light-aware
+    /// excitation samplers are built for the scene's light spectrum.
+    pub fn add_surface(&mut self, mut surface: SurfaceTables) -> usize {
+        surface.light_with(&self.light.radiance);
         self.surfaces.push(surface);
         self.surfaces.len() - 1
     }
@@ -129,6 +153,16 @@ impl Scene {
         Ok(())
     }
 
+    /// Chooses how paths draw wavelengths (default [`SpectralSampling::LightAware`]).
+    pub fn set_spectral_sampling(&mut self, sampling: SpectralSampling) {
+        self.sampling = sampling;
+    }
+
+    /// How paths draw wavelengths.
+    pub fn spectral_sampling(&self) -> SpectralSampling {
+        self.sampling
+    }
+
     /// Replaces the camera.
     pub fn set_camera(&mut self, camera: Camera) {
         self.camera = camera;
@@ -152,6 +186,28 @@ impl Scene {
     /// The light spectrum shared by all emitters and the environment.
     pub fn light(&self) -> &LightSpectrum {
         &self.light
+    }
+
+    /// The density of the camera paths' wavelengths: the observer's under
+    /// [`SpectralSampling::Paper`], else guided by the light spectrum L (the emitters,
+    /// the environment) and by each surface's radiance in a furnace of the light,
+    /// d·L + G (G its light-aware fluorescent albedo), see [`WavelengthSampler`].
+    pub fn wavelength_sampler(&self) -> WavelengthSampler {
+        if self.sampling == SpectralSampling::Paper {
+            return WavelengthSampler::observer();
+        }
+        let light = self.light.radiance.values();
+        let mut guides = vec![self.light.radiance.clone()];
+        for surface in &self.surfaces {
+            let radiance = light
+                .iter()
+                .zip(surface.diagonal.values())
+                .zip(surface.lit_albedo.values())
+                .map(|((l, d), g)| d * l + g)
+                .collect();
+            guides.push(Table::from_values(radiance));
+        }
+        WavelengthSampler::guided(&guides)
     }
 
     /// The environment radiance (multiple of the light spectrum).

@@ -62,6 +62,14 @@ impl Table {
         }
     }
 
+    /// A table from its 481 values (entry i at 300 + i nm); shorter input is padded
+    /// with its last value (zero when empty), longer input cut.
+    pub fn from_values(mut values: Vec<f32>) -> Table {
+        let last = values.last().copied().unwrap_or(0.0);
+        values.resize(TABLE_LEN, last);
+        Table { values }
+    }
+
     /// A constant spectrum.
     pub fn constant(value: f32) -> Table {
         Table {
@@ -198,6 +206,65 @@ impl IntervalCdf {
     }
 }
 
+/// Where in [0, 1] a point falls when drawn from the density ∝ y0 + (y1 − y0)·t on
+/// [0, 1], given `v`, the uniform fraction of the interval's mass below it.
+#[inline]
+fn linear_inverse(y0: f32, y1: f32, v: f32) -> f32 {
+    // Solve y0·t + (y1 − y0)·t²/2 = v·(y0 + y1)/2 in the cancellation-free form.
+    let den = y0 + (y0 * y0 + v * (y1 * y1 - y0 * y0)).max(0.0).sqrt();
+    let t = if den > 0.0 { v * (y0 + y1) / den } else { v };
+    t.clamp(0.0, 1.0)
+}
+
+/// The light-aware excitation sampler of a fluorophore under a scene's light L: the
+/// density ĝ/B, where ĝ is the piecewise-linear interpolant of g = x·a·L between the
+/// 1 nm nodes (x the yield form's excitation factor) and B = ∫ĝ dλ.
+#[derive(Debug, Clone)]
+pub struct LitExcitation {
+    /// g = x·a·L at each node (entry i at 300 + i nm).
+    pub product: Table,
+    /// B = ∫ĝ dλ: the light this fluorophore absorbs per unit of its yield scale.
+    pub absorbed: f32,
+    cdf: IntervalCdf,
+}
+
+impl LitExcitation {
+    /// The sampler for excitation factor × absorption `xa` (at the nodes) under `light`;
+    /// None when the fluorophore absorbs none of the light.
+    fn new(xa: &[f32], light: &Table) -> Option<LitExcitation> {
+        let product = Table {
+            values: xa
+                .iter()
+                .zip(&light.values)
+                .map(|(a, l)| (a * l).max(0.0))
+                .collect(),
+        };
+        let masses: Vec<f64> = product
+            .values
+            .windows(2)
+            .map(|w| 0.5 * (w[0] as f64 + w[1] as f64))
+            .collect();
+        let absorbed = masses.iter().sum::<f64>() as f32;
+        if !(absorbed > 0.0 && absorbed.is_finite()) {
+            return None;
+        }
+        let cdf = IntervalCdf::new(masses.into_iter())?;
+        Some(LitExcitation {
+            product,
+            absorbed,
+            cdf,
+        })
+    }
+
+    /// Draws an excitation wavelength with density exactly ĝ(λ)/B from `u` in [0, 1).
+    #[inline]
+    pub fn sample(&self, u: f32) -> f32 {
+        let (i, v) = self.cdf.locate(u);
+        let g = &self.product.values;
+        LAMBDA_MIN_NM + i as f32 + linear_inverse(g[i], g[i + 1], v)
+    }
+}
+
 /// One fluorophore as a camera path meets it: its yield scale k, absorption and
 /// emission, and a sampler for the excitation wavelength with density x(λ)·a(λ)/A, where
 /// x is the excitation factor of the yield form: 1 in the energy form, λ/λ̄e in the
@@ -219,6 +286,9 @@ pub struct FluorophoreTables {
     pub absorption_integral: f32,
     /// k·A·e(λo): this fluorophore's share of the fluorescent albedo at λo.
     pub albedo: Table,
+    /// The light-aware sampler under the scene's light (set by
+    /// [`SurfaceTables::light_with`]); None before, or when it absorbs none of the light.
+    pub lit: Option<LitExcitation>,
     cdf: Option<IntervalCdf>,
 }
 
@@ -271,7 +341,17 @@ impl FluorophoreTables {
             emission,
             absorption_integral,
             albedo,
+            lit: None,
             cdf,
+        }
+    }
+
+    /// The yield form's excitation factor x(λ): 1 (energy form) or λ/λ̄e (photon form).
+    #[inline]
+    pub fn excitation_factor(&self, nm: f32) -> f32 {
+        match self.yield_form {
+            YieldForm::Energy => 1.0,
+            YieldForm::Photon => (nm as f64 / self.emission_mean_nm) as f32,
         }
     }
 
@@ -290,12 +370,7 @@ impl FluorophoreTables {
         let a0 = self.absorption.values[i];
         let a1 = self.absorption.values[i + 1];
         let start = LAMBDA_MIN_NM + i as f32;
-        let point = |v: f32| {
-            // Solve a0·t + (a1 − a0)·t²/2 = v·(a0 + a1)/2 in the cancellation-free form.
-            let den = a0 + (a0 * a0 + v * (a1 * a1 - a0 * a0)).max(0.0).sqrt();
-            let t = if den > 0.0 { v * (a0 + a1) / den } else { v };
-            start + t.clamp(0.0, 1.0)
-        };
+        let point = |v: f32| start + linear_inverse(a0, a1, v);
         match self.yield_form {
             YieldForm::Energy => point(v),
             YieldForm::Photon => {
@@ -329,6 +404,10 @@ pub struct SurfaceTables {
     pub fluorescent_albedo: Table,
     /// The fluorophores (empty for a plain Lambertian reflector).
     pub fluorophores: Vec<FluorophoreTables>,
+    /// G(λo) = Σ k·B·e(λo), B = ∫x·a·L dλ: the light a camera path at λo gathers through
+    /// fluorescence when the incident radiance is the scene's light spectrum L (set by
+    /// [`SurfaceTables::light_with`]; zero before).
+    pub lit_albedo: Table,
 }
 
 impl SurfaceTables {
@@ -354,6 +433,7 @@ impl SurfaceTables {
             diagonal,
             fluorescent_albedo,
             fluorophores,
+            lit_albedo: Table::constant(0.0),
         })
     }
 
@@ -364,7 +444,30 @@ impl SurfaceTables {
             diagonal: Table::constant(reflectance),
             fluorescent_albedo: Table::constant(0.0),
             fluorophores: Vec::new(),
+            lit_albedo: Table::constant(0.0),
         }
+    }
+
+    /// Builds the light-aware excitation samplers for a scene whose every emitter (area
+    /// lights and environment) shares the spectrum `light`, and the lit albedo G.
+    pub fn light_with(&mut self, light: &Table) {
+        let mut lit_albedo = Table::constant(0.0);
+        for f in &mut self.fluorophores {
+            let xa: Vec<f32> = f
+                .absorption
+                .values
+                .iter()
+                .enumerate()
+                .map(|(i, a)| a * f.excitation_factor(table_nm(i) as f32))
+                .collect();
+            f.lit = LitExcitation::new(&xa, light);
+            if let Some(lit) = &f.lit {
+                for (total, e) in lit_albedo.values.iter_mut().zip(&f.emission.values) {
+                    *total += f.k * lit.absorbed * e;
+                }
+            }
+        }
+        self.lit_albedo = lit_albedo;
     }
 
     /// True when the surface has a fluorescent component in the rendered range.
@@ -397,6 +500,8 @@ pub struct LightSpectrum {
     pub normalisation: LightNormalisation,
     /// XYZ of the normalised light (its white, Y = 1 under luminance normalisation).
     pub white_xyz: [f64; 3],
+    /// Mean normalised radiance over 300–780 nm (∫L dλ / 480 nm).
+    pub mean_radiance: f32,
 }
 
 /// A light whose luminance per radiant power is below this fraction of D65's counts as
@@ -444,13 +549,102 @@ impl LightSpectrum {
             radiance.integral_of_product(&observer.y),
             radiance.integral_of_product(&observer.z),
         ];
+        let mean_radiance = (radiance.integral() / (TABLE_LEN - 1) as f64) as f32;
         Ok(LightSpectrum {
+            mean_radiance,
             name: light.name.clone(),
             radiance,
             scale,
             normalisation,
             white_xyz,
         })
+    }
+}
+
+/// Share of the camera's wavelengths drawn from the observer's own density (the rest
+/// follow the observer times the scene's expected radiance).
+pub const OBSERVER_SHARE: f32 = 0.25;
+
+/// The density with which a scene's camera paths draw their wavelengths: the mixture
+/// OBSERVER_SHARE·p_obs + (1 − OBSERVER_SHARE)·p_S of the [`Observer`]'s density
+/// (piecewise constant) and of p_S ∝ the linear interpolant of max(x̄, ȳ, z̄)·S between
+/// the 1 nm nodes, S the radiance the scene is expected to send (its light spectrum plus
+/// what its fluorescent surfaces emit under it). Within each 1 nm interval the mixture is
+/// linear and is sampled exactly. Under a light with lines (F11) or a strongly
+/// fluorescent surface the estimate of each pixel's colour then varies far less with the
+/// wavelengths drawn; the observer's share keeps every wavelength the observer sees
+/// reachable.
+#[derive(Debug, Clone)]
+pub struct WavelengthSampler {
+    cdf: IntervalCdf,
+    /// Density (1/nm) at the start and at the end of each 1 nm interval.
+    ends: Vec<[f32; 2]>,
+}
+
+impl WavelengthSampler {
+    /// The observer's density alone.
+    pub fn observer() -> WavelengthSampler {
+        let o = Observer::get();
+        WavelengthSampler {
+            cdf: o.cdf.clone(),
+            ends: o.density.iter().map(|&p| [p, p]).collect(),
+        }
+    }
+
+    /// The mixture for the radiances `guides` a scene is expected to send (each at the
+    /// 1 nm nodes): p_S is the equal-weight mixture of the densities ∝ max(x̄, ȳ, z̄)·S
+    /// of every guide S that the observer sees (so that each is sampled at least in its
+    /// share of proportion to its own colour signal); the observer's density alone when
+    /// none is seen.
+    pub fn guided(guides: &[Table]) -> WavelengthSampler {
+        let o = Observer::get();
+        let mut h = vec![0.0f64; TABLE_LEN];
+        for guide in guides {
+            let hc: Vec<f64> = (0..TABLE_LEN)
+                .map(|i| o.cmf[i].max_element() as f64 * (guide.values[i] as f64).max(0.0))
+                .collect();
+            let mass: f64 = hc.windows(2).map(|w| 0.5 * (w[0] + w[1])).sum();
+            if mass > 0.0 && mass.is_finite() {
+                for (sum, v) in h.iter_mut().zip(&hc) {
+                    *sum += v / mass;
+                }
+            }
+        }
+        let total: f64 = h.windows(2).map(|w| 0.5 * (w[0] + w[1])).sum();
+        if !(total > 0.0 && total.is_finite()) {
+            return WavelengthSampler::observer();
+        }
+        let share = OBSERVER_SHARE as f64;
+        let ends: Vec<[f64; 2]> = (0..TABLE_LEN - 1)
+            .map(|i| {
+                let base = share * o.density[i] as f64;
+                [
+                    base + (1.0 - share) * h[i] / total,
+                    base + (1.0 - share) * h[i + 1] / total,
+                ]
+            })
+            .collect();
+        match IntervalCdf::new(ends.iter().map(|e| 0.5 * (e[0] + e[1]))) {
+            Some(cdf) => {
+                // Renormalise so that the densities match the CDF's masses exactly.
+                let sum: f64 = ends.iter().map(|e| 0.5 * (e[0] + e[1])).sum();
+                let ends = ends
+                    .iter()
+                    .map(|e| [(e[0] / sum) as f32, (e[1] / sum) as f32])
+                    .collect();
+                WavelengthSampler { cdf, ends }
+            }
+            None => WavelengthSampler::observer(),
+        }
+    }
+
+    /// Draws a wavelength from `u` in [0, 1); returns it and its density (1/nm).
+    #[inline]
+    pub fn sample(&self, u: f32) -> (f32, f32) {
+        let (i, v) = self.cdf.locate(u);
+        let [y0, y1] = self.ends[i];
+        let t = linear_inverse(y0, y1, v);
+        (LAMBDA_MIN_NM + i as f32 + t, y0 + t * (y1 - y0))
     }
 }
 
@@ -543,7 +737,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn excitation_sampling_follows_absorption() {
+    fn spectral_sampling_follows_absorption() {
         // A triangle absorption 400–500 nm peaking at 430 nm: the sampled histogram in
         // 10 nm bins must match the exact bin masses.
         let a = Table::from_fn(|nm| {
@@ -564,6 +758,7 @@ mod tests {
             albedo: Table::constant(0.0),
             emission: Table::constant(0.0),
             absorption: a,
+            lit: None,
             cdf,
         };
         let n = 200_000;
