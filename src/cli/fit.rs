@@ -240,7 +240,7 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                             .with_context(|| format!("plotting {}", out.display()))?;
                     }
                     if args.render {
-                        crate::cli::render::preview(out)
+                        crate::cli::render::preview(material, out)
                             .with_context(|| format!("rendering {}", out.display()))?;
                     }
                 }

@@ -9,7 +9,6 @@ use anyhow::Context;
 use fluorite::Material;
 use fluorite::colour::Light;
 use fluorite::error::Error;
-use fluorite::export::write_atomic;
 use fluorite::render::image::{
     check_exposure, encode_exr, encode_png, film_to_linear_srgb, to_srgb8, xyz_to_srgb_matrix,
 };
@@ -122,31 +121,73 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         .into());
     };
     let material = Material::load(material_path)?;
-    let light = Light::parse(&args.light)?;
     let (width, height) = parse_size(args.size.as_deref().unwrap_or(DEFAULT_SIZE))?;
-    let settings = RenderSettings {
-        width,
-        height,
-        samples_per_pixel: args.spp,
-        seed: args.seed,
+    let picture = Picture {
+        light: Light::parse(&args.light)?,
+        settings: RenderSettings {
+            width,
+            height,
+            samples_per_pixel: args.spp,
+            seed: args.seed,
+        },
+        kind: match args.scene {
+            SceneArg::Preview => SceneKind::Preview,
+            SceneArg::Furnace => SceneKind::Furnace,
+        },
+        compare: args.compare,
+        sampling: args.sampling,
+        exposure: args.exposure,
+        exr: args.exr,
+        adapt: !args.no_adapt,
+        quiet: args.quiet,
+        output: args
+            .output
+            .clone()
+            .unwrap_or_else(|| material_path.with_extension("png")),
     };
-    settings.validate()?;
-    check_exposure(args.exposure)?;
-    let output = args
-        .output
-        .clone()
-        .unwrap_or_else(|| material_path.with_extension("png"));
-    check_output_folder(&output)?;
-    let kind = match args.scene {
-        SceneArg::Preview => SceneKind::Preview,
-        SceneArg::Furnace => SceneKind::Furnace,
-    };
-    let scene = Scene::build(kind, &material, &light, args.compare, settings.aspect())
-        .with_context(|| format!("cannot render {}", material_path.display()))?;
-    let mut scene = scene;
-    scene.set_spectral_sampling(args.sampling.into());
+    render_picture(&material, material_path, &picture)?;
+    Ok(ExitCode::SUCCESS)
+}
 
-    let progress = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
+/// One picture to render: everything but the material.
+struct Picture {
+    light: Light,
+    settings: RenderSettings,
+    kind: SceneKind,
+    compare: bool,
+    sampling: SamplingArg,
+    exposure: f64,
+    exr: bool,
+    adapt: bool,
+    quiet: bool,
+    output: PathBuf,
+}
+
+/// Renders `material` (read from or written to `material_path`, for messages) into the
+/// picture's PNG (display-referred) and, with `exr`, a scene-referred EXR beside it.
+fn render_picture(
+    material: &Material,
+    material_path: &Path,
+    picture: &Picture,
+) -> anyhow::Result<()> {
+    let Picture {
+        light,
+        settings,
+        kind,
+        compare,
+        exposure,
+        output,
+        ..
+    } = picture;
+    let (width, height) = (settings.width, settings.height);
+    settings.validate()?;
+    check_exposure(*exposure)?;
+    check_output_folder(output)?;
+    let mut scene = Scene::build(*kind, material, light, *compare, settings.aspect())
+        .with_context(|| format!("cannot render {}", material_path.display()))?;
+    scene.set_spectral_sampling(picture.sampling.into());
+
+    let progress = (!picture.quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(height as u64);
         bar.set_style(
             indicatif::ProgressStyle::with_template(
@@ -157,7 +198,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         bar
     });
     let started = Instant::now();
-    let film = render(&scene, &settings, &|| {
+    let film = render(&scene, settings, &|| {
         if let Some(bar) = &progress {
             bar.inc(1);
         }
@@ -167,13 +208,13 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         bar.finish_and_clear();
     }
 
-    let matrix = xyz_to_srgb_matrix(scene.light(), !args.no_adapt);
+    let matrix = xyz_to_srgb_matrix(scene.light(), picture.adapt);
     let linear = film_to_linear_srgb(&film, &matrix);
     let description = format!(
         "{} under {}{}, scene {:?}, {} spp, seed {}, exposure {:+} EV{}",
         material.name,
         light.name,
-        if args.compare {
+        if *compare {
             " (right: same reflectance without fluorescence)"
         } else {
             ""
@@ -181,20 +222,15 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         kind,
         settings.samples_per_pixel,
         settings.seed,
-        args.exposure,
-        if args.no_adapt {
-            ", not adapted"
-        } else {
+        exposure,
+        if picture.adapt {
             ", adapted to D65"
+        } else {
+            ", not adapted"
         }
     );
-    let png = encode_png(
-        width,
-        height,
-        &to_srgb8(&linear, args.exposure),
-        &description,
-    )?;
-    let exr = if args.exr {
+    let png = encode_png(width, height, &to_srgb8(&linear, *exposure), &description)?;
+    let exr = if picture.exr {
         // Scene-referred: the film's radiance in linear sRGB primaries, never adapted.
         let scene_referred = film_to_linear_srgb(&film, &xyz_to_srgb_matrix(scene.light(), false));
         Some((
@@ -204,11 +240,10 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     } else {
         None
     };
-    write_atomic(&output, &png)?;
-    if let Some((path, bytes)) = &exr {
-        write_atomic(path, bytes)?;
-    }
-    if !args.quiet {
+    let mut files = vec![(output.clone(), png)];
+    files.extend(exr.iter().cloned());
+    fluorite::files::write_files(&files)?;
+    if !picture.quiet {
         let paths = settings.paths();
         eprintln!(
             "wrote {}{} ({width}×{height}, {} spp, light {}): {:.2} s, {:.2} M paths/s",
@@ -222,30 +257,31 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             paths as f64 / seconds / 1e6
         );
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }
 
-/// Renders the default preview of a freshly fitted material (used by `fit --render`):
+/// Renders the default preview of a material just fitted, handed over in memory (`fit
+/// --render`):
 /// `<stem>.png` next to the material JSON, daylight (D65), default size and samples.
-pub fn preview(material_path: &Path) -> anyhow::Result<()> {
-    let args = RenderArgs {
-        materials: vec![material_path.to_path_buf()],
-        output: None,
-        light: "d65".to_string(),
+pub fn preview(material: &Material, material_path: &Path) -> anyhow::Result<()> {
+    let (width, height) = parse_size(DEFAULT_SIZE)?;
+    let picture = Picture {
+        light: Light::parse("d65")?,
+        settings: RenderSettings {
+            width,
+            height,
+            ..RenderSettings::default()
+        },
+        kind: SceneKind::Preview,
         compare: false,
-        scene: SceneArg::Preview,
-        spp: RenderSettings::default().samples_per_pixel,
-        size: None,
-        seed: RenderSettings::default().seed,
+        sampling: SamplingArg::Light,
         exposure: DEFAULT_EXPOSURE_EV,
         exr: false,
-        no_adapt: false,
-        report: false,
-        lights: String::new(),
-        sampling: SamplingArg::Light,
+        adapt: true,
         quiet: false,
+        output: material_path.with_extension("png"),
     };
-    run(args).map(|_| ())
+    render_picture(material, material_path, &picture)
 }
 
 /// Image size of a picture when `--size` is not given.
