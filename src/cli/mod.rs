@@ -9,6 +9,7 @@ mod export;
 mod fit;
 mod import_spectra;
 mod plot;
+mod printer;
 mod render;
 mod stability;
 mod synth;

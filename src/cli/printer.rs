@@ -1,0 +1,362 @@
+//! What `fluorite fit` prints: the per-file summary and the Markdown tables (output
+//! formatting apart from the command, as ripgrep keeps its printer).
+
+use std::path::Path;
+
+use fluorite::YieldForm;
+use fluorite::fit::FitOutcome;
+use fluorite::measurement::Measurement;
+
+/// The Markdown table of accuracy and speed over all inputs (`fit --table`): the model
+/// table for parametric fits, the grid table otherwise.
+pub fn fit_table(parametric: bool, rows: &[String]) -> String {
+    let header = if parametric {
+        "| material | model chosen | parameters | ΔE D65 | ΔE A | ΔE F11 | ΔE UV | bound met | conservation laws | candidates | fit time (ms) |"
+    } else {
+        "| material | k = c·Q | c (feasible) | fluorescence residual | diagonal RMSE | ΔE D65 | ΔE A | ΔE F11 | ΔE UV | iterations | time (ms) |"
+    };
+    let mut out = format!("\n{header}\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for row in rows {
+        out.push_str(row);
+        out.push('\n');
+    }
+    out
+}
+
+/// The per-file summary printed after a fit.
+pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let report = outcome.report();
+    let _ = writeln!(s, "{} → {}", input.display(), out.display());
+    for note in &m.notes {
+        let _ = writeln!(s, "  note: {note}");
+    }
+    match outcome {
+        FitOutcome::Material(material) => {
+            if !report.model.is_empty() {
+                let _ = writeln!(
+                    s,
+                    "  model {} ({} parameters{})",
+                    report.model,
+                    report.parameter_count,
+                    report
+                        .bic
+                        .map(|b| format!(", BIC {b:.1}"))
+                        .unwrap_or_default()
+                );
+            }
+            if let Some(search) = &report.model_search {
+                let _ = writeln!(
+                    s,
+                    "  search ({}): {} of {} candidates tried in {:.1} ms; {}; lowest BIC: {}",
+                    search.rule,
+                    search.chosen,
+                    search.candidates.len(),
+                    1e3 * search.seconds,
+                    if search.met { "met" } else { "NOT met" },
+                    search.lowest_bic
+                );
+                if let Some(skipped) = &search.skipped {
+                    let _ = writeln!(s, "    skipped {skipped}");
+                }
+                for c in &search.candidates {
+                    let de: Vec<String> = c
+                        .delta_e2000
+                        .iter()
+                        .map(|(l, v)| format!("{l} {v:.2}"))
+                        .collect();
+                    let _ = writeln!(
+                        s,
+                        "    {:<22} {:>4} p   ΔE {}   BIC {:.1}   {:.1} ms{}",
+                        c.model,
+                        c.parameters,
+                        if de.is_empty() {
+                            "–".into()
+                        } else {
+                            de.join(" ")
+                        },
+                        c.bic,
+                        1e3 * c.seconds,
+                        c.error
+                            .as_ref()
+                            .map(|e| format!("   failed: {e}"))
+                            .unwrap_or_default()
+                    );
+                }
+            }
+            if material.fluorophores.is_empty() {
+                let _ = writeln!(s, "  plain reflector: c = 0 (no fluorescence)");
+            }
+            for (n, f) in material.fluorophores.iter().enumerate() {
+                let [c_lo, c_hi] = f
+                    .concentration_range
+                    .unwrap_or([f.concentration, f.concentration]);
+                let label = if material.fluorophores.len() > 1 {
+                    format!("  [{}] ", n + 1)
+                } else {
+                    "  ".into()
+                };
+                let mean = f.emission_mean_nm();
+                // The yield that varies with λi, over the absorbed wavelengths: Φ(λ) from
+                // the longest to the shortest (energy form), Q(λ) from the shortest to the
+                // longest (photon form).
+                let [lo, hi] = absorbed_nm(f).unwrap_or([f64::NAN; 2]);
+                let (symbol, varying) = match f.yield_form {
+                    YieldForm::Energy => (
+                        "Q",
+                        format!(
+                            "photon yield Φ(λ) = {:.3}–{:.3} (Φ(λmin) = Q·λ̄e/λmin)",
+                            f.photon_yield_with_mean(hi, mean),
+                            f.photon_yield_with_mean(lo, mean)
+                        ),
+                    ),
+                    YieldForm::Photon => (
+                        "Φ",
+                        format!(
+                            "energy yield Q(λ) = Φ·λ/λ̄e = {:.3}–{:.3}",
+                            f.energy_yield_with_mean(lo, mean),
+                            f.energy_yield_with_mean(hi, mean)
+                        ),
+                    ),
+                };
+                let _ = writeln!(
+                    s,
+                    "{label}k = c·{symbol} = {:.4}   c = {:.4} (feasible {:.4}–{:.4})   {symbol} = {:.4} ({} form)   λ̄e = {:.1} nm   {varying}",
+                    f.k(),
+                    f.concentration,
+                    c_lo,
+                    c_hi,
+                    f.quantum_yield,
+                    f.yield_form.name(),
+                    mean,
+                );
+            }
+            if !material.fluorophores.is_empty() {
+                let _ = writeln!(s, "  gauge: {}", report.gauge);
+            }
+            if !report.yield_choice.is_empty() {
+                let _ = writeln!(s, "  yield form: {}", report.yield_choice);
+            }
+        }
+        FitOutcome::Shapes(shapes) => {
+            let _ = writeln!(
+                s,
+                "  absorption and emission shapes only; k = {:.4e} in data units",
+                shapes.k_data_units
+            );
+            for u in &shapes.undetermined {
+                let _ = writeln!(s, "  undetermined: {u}");
+            }
+        }
+    }
+    let diagonal = if m.has_diagonal {
+        format!(", diagonal RMSE {:.4}", report.rmse_diagonal)
+    } else {
+        String::new()
+    };
+    let guard = if report.guard_nm > 0.0 {
+        format!(
+            "guard band ({} nm) set aside measured cells holding {:.1} % of the fluorescent signal",
+            report.guard_nm,
+            100.0 * report.guard_signal_fraction
+        )
+    } else {
+        "every measured cell fitted (no guard band)".to_string()
+    };
+    let _ = writeln!(
+        s,
+        "  residual: fluorescent cells {:.1} % (relative){diagonal}; noise σ ≈ {:.3e}; {guard}",
+        100.0 * report.rel_residual_fluorescence,
+        report.noise_sigma,
+    );
+    if !report.delta_e2000.is_empty() {
+        let de: Vec<String> = report
+            .delta_e2000
+            .iter()
+            .map(|(l, v)| format!("{l} {v:.2}"))
+            .collect();
+        let reference = if report.reference_filled_cells == 0 {
+            "against every cell as measured".to_string()
+        } else {
+            format!(
+                "against the cells as measured; {} missing cells filled from the model carry {:.2} % of the patch's light",
+                report.reference_filled_cells,
+                100.0 * report.reference_filled_share
+            )
+        };
+        let _ = writeln!(s, "  ΔE2000: {}   ({reference})", de.join("   "));
+    }
+    let _ = writeln!(
+        s,
+        "  solver {}: {} after {} iterations, {:.2} ms",
+        report.solver,
+        if report.converged {
+            "converged"
+        } else {
+            "NOT converged"
+        },
+        report.iterations,
+        1e3 * report.seconds
+    );
+    for w in &report.warnings {
+        let _ = writeln!(s, "  warning: {w}");
+    }
+    s
+}
+
+/// One Markdown table row for `--table` with a parametric model or the search.
+pub fn model_table_row(m: &Measurement, outcome: &FitOutcome) -> String {
+    let report = outcome.report();
+    let de = |l: &str| {
+        report
+            .delta_e2000
+            .get(l)
+            .map(|v| format!("{v:.2}"))
+            .unwrap_or_else(|| "–".into())
+    };
+    let laws = match outcome {
+        FitOutcome::Material(material) => {
+            let failed = fluorite::check::check_material(material).failed();
+            if failed.is_empty() {
+                "all hold".to_string()
+            } else {
+                format!("FAILED: {failed:?}")
+            }
+        }
+        FitOutcome::Shapes(_) => "–".into(),
+    };
+    let (met, tried) = match &report.model_search {
+        Some(search) => (
+            if search.met { "yes" } else { "no" },
+            search.candidates.len(),
+        ),
+        None => ("–", 1),
+    };
+    format!(
+        "| {} | {} | {} | {} | {} | {} | {} | {met} | {laws} | {tried} | {:.1} |",
+        m.name,
+        report.model,
+        report.parameter_count,
+        de("d65"),
+        de("a"),
+        de("f11"),
+        de("uv"),
+        1e3 * report.seconds
+    )
+}
+
+/// Shortest and longest wavelength where a > 0 (nm): the zero samples beside the absorbed
+/// ones bound the interval (a is linear between samples).
+fn absorbed_nm(f: &fluorite::Fluorophore) -> Option<[f64; 2]> {
+    let a = &f.absorption;
+    let first = a.value.iter().position(|&v| v > 0.0)?;
+    let last = a.value.iter().rposition(|&v| v > 0.0)?;
+    Some([
+        a.wavelength_nm[first.saturating_sub(1)],
+        a.wavelength_nm[(last + 1).min(a.len() - 1)],
+    ])
+}
+
+/// One Markdown table row for `--table`.
+pub fn table_row(m: &Measurement, outcome: &FitOutcome) -> String {
+    let report = outcome.report();
+    let de = |l: &str| {
+        report
+            .delta_e2000
+            .get(l)
+            .map(|v| format!("{v:.2}"))
+            .unwrap_or_else(|| "–".into())
+    };
+    let (k, c) = match outcome {
+        FitOutcome::Material(material) => match material.fluorophores.first() {
+            Some(f) => {
+                let [lo, hi] = f.concentration_range.unwrap_or([f.concentration; 2]);
+                let k = match f.yield_form {
+                    YieldForm::Energy => format!("{:.3}", f.k()),
+                    YieldForm::Photon => format!("{:.3} (c·Φ, photon form)", f.k()),
+                };
+                (k, format!("{:.3} ({lo:.3}–{hi:.3})", f.concentration))
+            }
+            None => ("0".into(), "0 (plain reflector)".into()),
+        },
+        FitOutcome::Shapes(s) => (
+            format!("{:.3e} (data units)", s.k_data_units),
+            "undetermined".into(),
+        ),
+    };
+    format!(
+        "| {} | {k} | {c} | {:.1} % | {:.4} | {} | {} | {} | {} | {} | {:.2} |",
+        m.name,
+        100.0 * report.rel_residual_fluorescence,
+        report.rmse_diagonal,
+        de("d65"),
+        de("a"),
+        de("f11"),
+        de("uv"),
+        report.iterations,
+        1e3 * report.seconds
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fluorite::material::FitReport;
+    use fluorite::{Fluorophore, Material, Spectrum};
+
+    /// a: a triangle 400–500 nm (absorbed 400–500), e: flat on 550–650 nm (λ̄e = 600),
+    /// c = 0.5 with the yield 0.8 in `form`.
+    fn material(form: YieldForm) -> Material {
+        let mut m = Material::new(
+            "hand",
+            Spectrum::new(vec![300.0, 800.0], vec![0.5, 0.5], "r").unwrap(),
+            vec![Fluorophore {
+                concentration: 0.5,
+                quantum_yield: 0.8,
+                yield_form: form,
+                concentration_range: None,
+                absorption: Spectrum::new(vec![400.0, 450.0, 500.0], vec![0.0, 1.0, 0.0], "a")
+                    .unwrap(),
+                emission: Spectrum::new(vec![550.0, 650.0], vec![0.01, 0.01], "e").unwrap(),
+            }],
+        );
+        m.fit = Some(FitReport::default());
+        m
+    }
+
+    fn lines(form: YieldForm) -> (String, String) {
+        let m = material(form);
+        let grid: Vec<f64> = (0..=40).map(|i| 380.0 + 10.0 * i as f64).collect();
+        let data =
+            fluorite::model::predict(&m, "hand", &grid, &grid, fluorite::Units::PerBin, true);
+        let outcome = FitOutcome::Material(Box::new(m));
+        (
+            summary(Path::new("in.csv"), Path::new("out.json"), &data, &outcome),
+            table_row(&data, &outcome),
+        )
+    }
+
+    #[test]
+    fn summary_states_the_yield_form_and_the_varying_yield() {
+        // Photon form: Φ = 0.8, energy yield Φ·λ/600 from 400/600·0.8 to 500/600·0.8.
+        let (text, row) = lines(YieldForm::Photon);
+        assert!(
+            text.contains("k = c·Φ = 0.4000")
+                && text.contains("Φ = 0.8000 (photon form)")
+                && text.contains("λ̄e = 600.0 nm")
+                && text.contains("energy yield Q(λ) = Φ·λ/λ̄e = 0.533–0.667"),
+            "{text}"
+        );
+        assert!(row.contains("| 0.400 (c·Φ, photon form) |"), "{row}");
+        // Energy form: Q = 0.8, photon yield 0.8·600/λ from 0.960 (500 nm) to 1.200.
+        let (text, row) = lines(YieldForm::Energy);
+        assert!(
+            text.contains("k = c·Q = 0.4000")
+                && text.contains("Q = 0.8000 (energy form)")
+                && text.contains("photon yield Φ(λ) = 0.960–1.200"),
+            "{text}"
+        );
+        assert!(row.contains("| 0.400 |"), "{row}");
+    }
+}
