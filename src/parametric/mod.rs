@@ -12,6 +12,7 @@ use crate::error::{Error, Result};
 use crate::spectrum::Spectrum;
 
 pub mod fit;
+mod lm;
 
 /// The axis on which bands are Gaussian.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
