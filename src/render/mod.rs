@@ -21,6 +21,7 @@ pub mod report;
 pub mod rng;
 pub mod scene;
 pub mod spectra;
+pub mod wavelengths;
 
 use glam::Vec4;
 use rayon::prelude::*;
@@ -30,9 +31,8 @@ use crate::error::{Error, Result};
 pub use geometry::{Camera, Quad, Ray, Shape};
 pub use image::DEFAULT_EXPOSURE_EV;
 pub use scene::{Object, Scene, SceneKind, SpectralSampling};
-pub use spectra::{
-    LAMBDA_MAX_NM, LAMBDA_MIN_NM, LightSpectrum, Observer, SurfaceTables, WavelengthSampler,
-};
+pub use spectra::{LAMBDA_MAX_NM, LAMBDA_MIN_NM, LightSpectrum, Observer, SurfaceTables};
+pub use wavelengths::WavelengthSampler;
 
 use integrator::{CHANNELS, trace};
 use rng::Rng;

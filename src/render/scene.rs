@@ -8,7 +8,8 @@ use crate::error::{Error, Result};
 use crate::material::Material;
 
 use super::geometry::{Camera, Quad, Ray, Shape};
-use super::spectra::{LightSpectrum, SurfaceTables, Table, WavelengthSampler};
+use super::spectra::{LightSpectrum, SurfaceTables, Table};
+use super::wavelengths::WavelengthSampler;
 
 /// Reflectance of the neutral grey ground of the preview scene.
 pub const GROUND_REFLECTANCE: f32 = 0.35;

@@ -27,7 +27,7 @@ fn table_nm(i: usize) -> f64 {
 /// nanometres the table reproduces them exactly.
 #[derive(Debug, Clone)]
 pub struct Table {
-    values: Vec<f32>,
+    pub(super) values: Vec<f32>,
 }
 
 /// Where four wavelengths fall in the 1 nm tables: computed once per wavelength change
@@ -139,7 +139,7 @@ impl Table {
 /// wavelengths with a density proportional to the table (piecewise linear) or to a
 /// piecewise-constant weight.
 #[derive(Debug, Clone)]
-struct IntervalCdf {
+pub(super) struct IntervalCdf {
     /// cdf[i] = probability of the intervals before i; cdf[480] = 1.
     cdf: Vec<f32>,
     /// 1 / (cdf[i + 1] − cdf[i]), 0 for intervals without mass.
@@ -153,7 +153,7 @@ const GUIDE_CELLS: usize = 4096;
 
 impl IntervalCdf {
     /// From the masses of the 480 intervals; None when they sum to zero.
-    fn new(masses: impl Iterator<Item = f64>) -> Option<IntervalCdf> {
+    pub(super) fn new(masses: impl Iterator<Item = f64>) -> Option<IntervalCdf> {
         let mut cdf = Vec::with_capacity(TABLE_LEN);
         let mut sum = 0.0;
         cdf.push(0.0);
@@ -190,7 +190,7 @@ impl IntervalCdf {
 
     /// The interval holding `u` in [0, 1) and where `u` falls inside its mass, in [0, 1).
     #[inline]
-    fn locate(&self, u: f32) -> (usize, f32) {
+    pub(super) fn locate(&self, u: f32) -> (usize, f32) {
         let cell = ((u * GUIDE_CELLS as f32) as i32 as usize).min(GUIDE_CELLS - 1);
         let mut i = self.guide[cell] as usize;
         while i < LAST_INTERVAL && self.cdf[i + 1] <= u {
@@ -201,7 +201,7 @@ impl IntervalCdf {
         (i, v)
     }
 
-    fn mass(&self, i: usize) -> f32 {
+    pub(super) fn mass(&self, i: usize) -> f32 {
         self.cdf[i + 1] - self.cdf[i]
     }
 }
@@ -209,7 +209,7 @@ impl IntervalCdf {
 /// Where in [0, 1] a point falls when drawn from the density ∝ y0 + (y1 − y0)·t on
 /// [0, 1], given `v`, the uniform fraction of the interval's mass below it.
 #[inline]
-fn linear_inverse(y0: f32, y1: f32, v: f32) -> f32 {
+pub(super) fn linear_inverse(y0: f32, y1: f32, v: f32) -> f32 {
     // Solve y0·t + (y1 − y0)·t²/2 = v·(y0 + y1)/2 in the cancellation-free form.
     let den = y0 + (y0 * y0 + v * (y1 * y1 - y0 * y0)).max(0.0).sqrt();
     let t = if den > 0.0 { v * (y0 + y1) / den } else { v };
@@ -561,93 +561,6 @@ impl LightSpectrum {
     }
 }
 
-/// Share of the camera's wavelengths drawn from the observer's own density (the rest
-/// follow the observer times the scene's expected radiance).
-pub const OBSERVER_SHARE: f32 = 0.25;
-
-/// The density with which a scene's camera paths draw their wavelengths: the mixture
-/// OBSERVER_SHARE·p_obs + (1 − OBSERVER_SHARE)·p_S of the [`Observer`]'s density
-/// (piecewise constant) and of p_S ∝ the linear interpolant of max(x̄, ȳ, z̄)·S between
-/// the 1 nm nodes, S the radiance the scene is expected to send (its light spectrum plus
-/// what its fluorescent surfaces emit under it). Within each 1 nm interval the mixture is
-/// linear and is sampled exactly. Under a light with lines (F11) or a strongly
-/// fluorescent surface the estimate of each pixel's colour then varies far less with the
-/// wavelengths drawn; the observer's share keeps every wavelength the observer sees
-/// reachable.
-#[derive(Debug, Clone)]
-pub struct WavelengthSampler {
-    cdf: IntervalCdf,
-    /// Density (1/nm) at the start and at the end of each 1 nm interval.
-    ends: Vec<[f32; 2]>,
-}
-
-impl WavelengthSampler {
-    /// The observer's density alone.
-    pub fn observer() -> WavelengthSampler {
-        let o = Observer::get();
-        WavelengthSampler {
-            cdf: o.cdf.clone(),
-            ends: o.density.iter().map(|&p| [p, p]).collect(),
-        }
-    }
-
-    /// The mixture for the radiances `guides` a scene is expected to send (each at the
-    /// 1 nm nodes): p_S is the equal-weight mixture of the densities ∝ max(x̄, ȳ, z̄)·S
-    /// of every guide S that the observer sees (so that each is sampled at least in its
-    /// share of proportion to its own colour signal); the observer's density alone when
-    /// none is seen.
-    pub fn guided(guides: &[Table]) -> WavelengthSampler {
-        let o = Observer::get();
-        let mut h = vec![0.0f64; TABLE_LEN];
-        for guide in guides {
-            let hc: Vec<f64> = (0..TABLE_LEN)
-                .map(|i| o.cmf[i].max_element() as f64 * (guide.values[i] as f64).max(0.0))
-                .collect();
-            let mass: f64 = hc.windows(2).map(|w| 0.5 * (w[0] + w[1])).sum();
-            if mass > 0.0 && mass.is_finite() {
-                for (sum, v) in h.iter_mut().zip(&hc) {
-                    *sum += v / mass;
-                }
-            }
-        }
-        let total: f64 = h.windows(2).map(|w| 0.5 * (w[0] + w[1])).sum();
-        if !(total > 0.0 && total.is_finite()) {
-            return WavelengthSampler::observer();
-        }
-        let share = OBSERVER_SHARE as f64;
-        let ends: Vec<[f64; 2]> = (0..TABLE_LEN - 1)
-            .map(|i| {
-                let base = share * o.density[i] as f64;
-                [
-                    base + (1.0 - share) * h[i] / total,
-                    base + (1.0 - share) * h[i + 1] / total,
-                ]
-            })
-            .collect();
-        match IntervalCdf::new(ends.iter().map(|e| 0.5 * (e[0] + e[1]))) {
-            Some(cdf) => {
-                // Renormalise so that the densities match the CDF's masses exactly.
-                let sum: f64 = ends.iter().map(|e| 0.5 * (e[0] + e[1])).sum();
-                let ends = ends
-                    .iter()
-                    .map(|e| [(e[0] / sum) as f32, (e[1] / sum) as f32])
-                    .collect();
-                WavelengthSampler { cdf, ends }
-            }
-            None => WavelengthSampler::observer(),
-        }
-    }
-
-    /// Draws a wavelength from `u` in [0, 1); returns it and its density (1/nm).
-    #[inline]
-    pub fn sample(&self, u: f32) -> (f32, f32) {
-        let (i, v) = self.cdf.locate(u);
-        let [y0, y1] = self.ends[i];
-        let t = linear_inverse(y0, y1, v);
-        (LAMBDA_MIN_NM + i as f32 + t, y0 + t * (y1 - y0))
-    }
-}
-
 /// The CIE 1931 colour-matching functions over the rendered range, and the density with
 /// which camera paths draw their wavelengths: piecewise constant per nanometre,
 /// proportional to max(x̄, ȳ, z̄) plus a small floor, zero below 360 nm where the observer
@@ -661,11 +574,11 @@ pub struct Observer {
     pub y: Table,
     /// z̄(λ).
     pub z: Table,
-    cdf: IntervalCdf,
+    pub(super) cdf: IntervalCdf,
     /// Density of each 1 nm interval (1/nm).
-    density: Vec<f32>,
+    pub(super) density: Vec<f32>,
     /// (x̄, ȳ, z̄, 0) per table entry, for one read per wavelength.
-    cmf: Vec<Vec4>,
+    pub(super) cmf: Vec<Vec4>,
 }
 
 impl Observer {
