@@ -150,3 +150,17 @@ pub fn fill_missing(
     }
     Ok(())
 }
+
+/// A fit report naming the measurement it comes from (its file, or its name, and the
+/// file's SHA-256), the rest default.
+pub fn provenance(m: &Measurement) -> crate::material::FitReport {
+    crate::material::FitReport {
+        source: m
+            .source
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| m.name.clone()),
+        source_sha256: m.source_sha256.clone().unwrap_or_default(),
+        ..Default::default()
+    }
+}

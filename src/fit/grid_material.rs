@@ -305,19 +305,13 @@ pub(super) fn plain_reflector(
         Vec::new(),
     );
     let report = FitReport {
-        source: m
-            .source
-            .as_ref()
-            .map(|p| p.display().to_string())
-            .unwrap_or_else(|| m.name.clone()),
-        source_sha256: m.source_sha256.clone().unwrap_or_default(),
         solver: "none (plain reflector)".into(),
         converged: true,
         guard_nm: data.guard_nm,
         gauge: "no fluorescence: c = 0".into(),
         noise_sigma,
         guard_signal_fraction: guard_fraction(data),
-        ..FitReport::default()
+        ..data::provenance(m)
     };
     material.fit = Some(report);
     let accuracy = assess::accuracy(&material, m, data, &options.lights);

@@ -344,12 +344,6 @@ pub(super) fn fit_checked(
 
     // 3. Material and gauge.
     let report = FitReport {
-        source: m
-            .source
-            .as_ref()
-            .map(|p| p.display().to_string())
-            .unwrap_or_else(|| m.name.clone()),
-        source_sha256: m.source_sha256.clone().unwrap_or_default(),
         solver: options.solver.name().to_string(),
         converged: refined.converged,
         iterations: refined.iterations,
@@ -365,7 +359,7 @@ pub(super) fn fit_checked(
             + (data.n_excitation() - 1)
             + (data.n_emission() - 1)
             + data.diagonal_positions.len(),
-        ..FitReport::default()
+        ..data::provenance(m)
     };
     let unobservable =
         assess::unobservable_absorption(&data, &spectra.emission, OBSERVABILITY_THRESHOLD);

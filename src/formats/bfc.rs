@@ -278,15 +278,7 @@ pub(super) fn read(path: &Path, lines: &[Line], options: &ReadOptions) -> Result
         );
     }
     let (excitation_nm, emission_nm, values) = table.to_excitation_major(RowsAre::Emission);
-    Ok(Parsed {
-        excitation_nm,
-        emission_nm,
-        values,
-        has_diagonal: true,
-        arbitrary_scale: false,
-        zeros_missing_by_default: false,
-        notes,
-    })
+    Ok(Parsed::surface(excitation_nm, emission_nm, values, notes))
 }
 
 /// Checks that wavelengths follow `start + k·step`, as the grid line says.

@@ -148,13 +148,10 @@ pub(super) fn read(path: &Path, lines: &[Line]) -> Result<Parsed> {
         first_line[k] = line;
         values[k] = v;
     }
-    Ok(Parsed {
+    Ok(Parsed::surface(
         excitation_nm,
         emission_nm,
         values,
-        has_diagonal: true,
-        arbitrary_scale: false,
-        zeros_missing_by_default: false,
-        notes: Vec::new(),
-    })
+        Vec::new(),
+    ))
 }

@@ -91,6 +91,26 @@ struct Parsed {
     notes: Vec<String>,
 }
 
+impl Parsed {
+    /// A surface matrix in radiance factors (a diagonal; zeros are measured zeros).
+    fn surface(
+        excitation_nm: Vec<f64>,
+        emission_nm: Vec<f64>,
+        values: Vec<f64>,
+        notes: Vec<String>,
+    ) -> Parsed {
+        Parsed {
+            excitation_nm,
+            emission_nm,
+            values,
+            has_diagonal: true,
+            arbitrary_scale: false,
+            zeros_missing_by_default: false,
+            notes,
+        }
+    }
+}
+
 /// Reads a reradiation matrix from `path`, detecting the format unless
 /// `options.format` names it.
 pub fn read(path: &Path, options: &ReadOptions) -> Result<Measurement> {

@@ -44,15 +44,7 @@ pub(super) fn read(path: &Path, lines: &[Line], options: &ReadOptions) -> Result
     let mut notes = Vec::new();
     let rows_are = orientation(&table, options.rows, &mut notes);
     let (excitation_nm, emission_nm, values) = table.to_excitation_major(rows_are);
-    Ok(Parsed {
-        excitation_nm,
-        emission_nm,
-        values,
-        has_diagonal: true,
-        arbitrary_scale: false,
-        zeros_missing_by_default: false,
-        notes,
-    })
+    Ok(Parsed::surface(excitation_nm, emission_nm, values, notes))
 }
 
 /// What a corner label says the rows are, if it says anything.
