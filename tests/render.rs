@@ -1430,3 +1430,90 @@ fn cli_bad_input_is_one_clear_line_and_no_output_file() {
         assert_eq!(files_in(d), before, "{args:?} left a file behind");
     }
 }
+
+/// The noise report: one row per material and light with both samplings' figures, and
+/// nothing written. Under F11's lines the light-aware excitation is far less noisy than
+/// the paper's rule (the synthetic dye absorbs around the 435 nm line).
+#[test]
+fn cli_report_prints_noise_per_light_for_both_samplings_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = write_material(dir.path(), "dye", &synthetic());
+    let out = fluorite()
+        .args(["render", json.to_str().unwrap(), "--report"])
+        .args(["--spp", "16", "--size", "32x32", "--lights", "d65,f11"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let rows: Vec<Vec<String>> = stdout
+        .lines()
+        .filter(|l| l.starts_with("| synthetic |"))
+        .map(|l| l.split('|').map(|c| c.trim().to_string()).collect())
+        .collect();
+    assert_eq!(rows.len(), 2, "{stdout}");
+    let noise = |row: &[String], column: usize| -> f64 {
+        let v: f64 = row[column].parse().unwrap_or_else(|_| panic!("{row:?}"));
+        assert!(v.is_finite() && v > 0.0 && v < 1.0, "{row:?}");
+        v
+    };
+    for (row, light) in rows.iter().zip(["d65", "f11"]) {
+        assert_eq!(row[2], light);
+        noise(row, 3);
+        noise(row, 5);
+        assert!(row[4].ends_with(" s") && row[6].ends_with(" s"), "{row:?}");
+    }
+    let f11 = &rows[1];
+    assert!(noise(f11, 5) < 0.5 * noise(f11, 3), "{stdout}");
+    assert_eq!(files_in(dir.path()), ["dye.json"]);
+}
+
+/// `--sampling paper` renders the same scene with the paper's rules: a valid picture whose
+/// mean colour agrees with the light-aware one (both are unbiased) but whose pixels differ.
+#[test]
+fn cli_sampling_paper_renders_the_same_scene_by_other_rules() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = write_material(dir.path(), "dye", &synthetic());
+    let mut means = Vec::new();
+    let mut pixels = Vec::new();
+    for sampling in ["light", "paper"] {
+        let png_path = dir.path().join(format!("{sampling}.png"));
+        let out = fluorite()
+            .args(["render", json.to_str().unwrap(), "--sampling", sampling])
+            .args(["--scene", "furnace", "--size", "24x24", "--spp", "64", "-q"])
+            .arg("-o")
+            .arg(&png_path)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let decoder = png::Decoder::new(std::io::BufReader::new(
+            std::fs::File::open(&png_path).unwrap(),
+        ));
+        let mut reader = decoder.read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        let bytes = buf[..info.buffer_size()].to_vec();
+        // The centre 8×8 pixels lie on the sphere.
+        let mut sum = [0.0f64; 3];
+        for y in 8..16 {
+            for x in 8..16 {
+                for c in 0..3 {
+                    sum[c] += bytes[(y * 24 + x) * 3 + c] as f64 / 64.0;
+                }
+            }
+        }
+        means.push(sum);
+        pixels.push(bytes);
+    }
+    assert_ne!(pixels[0], pixels[1]);
+    for c in 0..3 {
+        assert!((means[0][c] - means[1][c]).abs() < 6.0, "{means:?}");
+    }
+}

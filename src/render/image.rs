@@ -7,8 +7,9 @@
 //! The picture is that XYZ, adapted from the light's
 //! white to D65 (Bradford, unless adaptation is off: a viewer adapted to each light),
 //! converted to linear sRGB and multiplied by 2^EV, EV = [`DEFAULT_EXPOSURE_EV`] unless
-//! `--exposure` says otherwise; then clipped to [0, 1] and sRGB encoded. The default
-//! leaves half a stop of headroom for fluorescent surfaces brighter than white.
+//! `--exposure` says otherwise; then brought into the display's gamut by [`gamut_map`]
+//! and sRGB encoded. The default leaves half a stop of headroom for fluorescent surfaces
+//! brighter than white.
 
 use std::io::Cursor;
 
@@ -73,12 +74,48 @@ pub fn check_exposure(ev: f64) -> Result<()> {
     Ok(())
 }
 
-/// 8-bit sRGB bytes (RGB, row by row) of linear sRGB pixels at exposure `ev` stops.
+/// Luminance weights of linear sRGB (the Y row of its matrix to XYZ).
+const SRGB_LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
+
+/// Brings a linear sRGB colour into [0, 1]³ keeping its luminance and hue: a colour out
+/// of range moves straight towards the grey of the same luminance, just as far as needed
+/// (white when its luminance is above 1, black when at or below 0); colours in range are
+/// unchanged. Fluorescent colours are often brighter and purer than sRGB holds: clipping
+/// each channel instead shifts their hue and, once the strong channel clips, shows the
+/// Monte Carlo colour noise of the weak channels as dark grain (a saturated red at
+/// preview sample counts), while the luminance, which this keeps, is as clean as a plain
+/// reflector's.
+pub fn gamut_map(rgb: [f64; 3]) -> [f64; 3] {
+    if rgb.iter().all(|c| (0.0..=1.0).contains(c)) {
+        return rgb;
+    }
+    let luminance: f64 = rgb.iter().zip(SRGB_LUMINANCE).map(|(c, w)| c * w).sum();
+    if !luminance.is_finite() || luminance <= 0.0 {
+        return [0.0; 3];
+    }
+    if luminance >= 1.0 {
+        return [1.0; 3];
+    }
+    // The largest s in [0, 1] with luminance + s·(c − luminance) in [0, 1] per channel.
+    let mut s = 1.0f64;
+    for &c in &rgb {
+        let offset = c - luminance;
+        if c > 1.0 {
+            s = s.min((1.0 - luminance) / offset);
+        } else if c < 0.0 {
+            s = s.min(luminance / -offset);
+        }
+    }
+    rgb.map(|c| (luminance + s * (c - luminance)).clamp(0.0, 1.0))
+}
+
+/// 8-bit sRGB bytes (RGB, row by row) of linear sRGB pixels at exposure `ev` stops,
+/// gamut-mapped by [`gamut_map`].
 pub fn to_srgb8(linear: &[[f32; 3]], ev: f64) -> Vec<u8> {
     let gain = 2f64.powf(ev);
     linear
         .iter()
-        .flat_map(|rgb| rgb.map(|c| srgb_encode(c as f64 * gain)))
+        .flat_map(|rgb| gamut_map(rgb.map(|c| c as f64 * gain)).map(srgb_encode))
         .collect()
 }
 
@@ -121,4 +158,49 @@ pub fn encode_exr(width: u32, height: u32, linear: &[[f32; 3]]) -> Result<Vec<u8
         crate::error::Error::invalid("exr", format!("could not encode the image: {e}"))
     })?;
     Ok(cursor.into_inner())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn luminance(rgb: [f64; 3]) -> f64 {
+        0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
+    }
+
+    #[test]
+    fn colours_in_range_are_unchanged() {
+        for rgb in [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.3, 0.7, 0.05]] {
+            assert_eq!(gamut_map(rgb), rgb);
+        }
+    }
+
+    #[test]
+    fn out_of_range_colours_keep_luminance_and_hue() {
+        // A fluorescent red brighter than white in its red channel, and a green whose
+        // red channel is negative (outside the sRGB triangle).
+        for rgb in [[2.05, 0.025, 0.085], [-0.2, 0.8, 0.1], [1.4, 0.9, -0.05]] {
+            let mapped = gamut_map(rgb);
+            let y = luminance(rgb);
+            assert!(
+                (luminance(mapped) - y).abs() < 1e-12,
+                "{rgb:?} → {mapped:?}"
+            );
+            assert!(mapped.iter().all(|c| (0.0..=1.0).contains(c)));
+            // Same direction from the grey of that luminance: (mapped − y) = s·(rgb − y).
+            let s = (mapped[0] - y) / (rgb[0] - y);
+            assert!(s > 0.0 && s < 1.0);
+            for c in 0..3 {
+                assert!((mapped[c] - y - s * (rgb[c] - y)).abs() < 1e-12);
+            }
+            // Just as far as needed: one channel sits on the boundary.
+            assert!(mapped.iter().any(|c| *c == 0.0 || (*c - 1.0).abs() < 1e-12));
+        }
+    }
+
+    #[test]
+    fn brighter_than_white_is_white_and_darker_than_black_is_black() {
+        assert_eq!(gamut_map([3.0, 1.2, 0.9]), [1.0; 3]);
+        assert_eq!(gamut_map([-0.1, -0.3, 0.2]), [0.0; 3]);
+    }
 }
