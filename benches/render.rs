@@ -3,7 +3,7 @@
 //! in camera paths per second ("elem/s"; each path carries four wavelengths).
 //!
 //! `_paper` runs the paper's sampling rules (`--sampling paper`), the renderer as it was
-//! before issue 14, for comparison. Run with `cargo bench --bench render`.
+//! before light-aware sampling, for comparison. Run with `cargo bench --bench render`.
 
 use std::time::Duration;
 

@@ -1,4 +1,4 @@
-//! Plotting a fit (issue 4): every figure renders for a synthetic fit, decodes as a PNG of
+//! Plotting a fit: every figure renders for a synthetic fit, decodes as a PNG of
 //! the stated size, is not blank, and shows the colour map's colour at known heat-map
 //! cells; bad input fails cleanly and writes nothing.
 

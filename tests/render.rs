@@ -1,4 +1,4 @@
-//! Acceptance tests of the built-in spectral renderer (issue 3).
+//! Acceptance tests of the built-in spectral renderer.
 //!
 //! Error model used throughout: every camera path gives an independent, unbiased
 //! estimate of the spectral radiance at each wavelength it carries, so the mean of n
@@ -1046,7 +1046,7 @@ fn fitted_materials() -> Vec<Material> {
 
 #[test]
 fn furnace_colour_at_1024_spp_is_within_delta_e_0_3_for_every_fitted_material_and_light() {
-    // Issue 14: at 1024 samples per pixel the furnace sphere's colour (the mean film XYZ
+    // At 1024 samples per pixel the furnace sphere's colour (the mean film XYZ
     // over the ~120 pixels wholly inside it at 32 × 32; worst 0.12–0.15 over seeds 7, 9
     // and 23, noise: CIBA12 under F11 reads 0.05 at 16384 spp) is within ΔE2000 0.3 of the flat patch's exact
     // colour (colour::material_xyz, an independent 1 nm integration), under every light

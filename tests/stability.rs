@@ -1,4 +1,4 @@
-//! The evaluation harness (issue 6): a small version of the stability sweep, one test
+//! The evaluation harness: a small version of the stability sweep, one test
 //! per failure mode showing that `fit` flags it, and the benchmark table's structure and
 //! accuracy numbers (never its times).
 

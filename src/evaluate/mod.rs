@@ -1,4 +1,4 @@
-//! Evaluation of the fitting methods (issue 6): speed against accuracy on given inputs
+//! Evaluation of the fitting methods: speed against accuracy on given inputs
 //! ([`mod@bench`]) and where each method fails on synthetic data with known truth
 //! ([`stability`]). Both produce tables (CSV, Markdown) and charts
 //! ([`crate::plot::evaluation`]).

@@ -1,4 +1,4 @@
-//! Charts of the method evaluation (issue 6): speed against accuracy, and success rate
+//! Charts of the method evaluation: speed against accuracy, and success rate
 //! against each swept condition.
 
 use plotters::coord::Shift;

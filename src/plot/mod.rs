@@ -1,4 +1,4 @@
-//! Figures that show how well a fitted material matches its measurement (issue 4):
+//! Figures that show how well a fitted material matches its measurement:
 //!
 //! 1. residual map — measured matrix, fitted matrix and their difference as heat maps
 //!    ([`heatmap`]);
