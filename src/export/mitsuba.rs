@@ -135,7 +135,7 @@ pub(super) fn mitsuba(material: &Material, stem: &str, lights: &[Light]) -> Vec<
      dimensionless, wavelengths in nm (1 nm steps, 1 nm trapezoid sums), for L = light \"{light}\": the\n\
      fluorescence this light excites, folded into a reflectance (max βT = {max}; Mitsuba's diffuse takes\n\
      values above 1). Stock Mitsuba 3 has no fluorescent BSDF: under any other light this material shows\n\
-     the wrong colour; export again with --light NAME for each light you render with.{unlit}\n\
+     the wrong colour; export once per light you render with (fluorite's light option).{unlit}\n\
      The scene: the material on a unit sphere in a uniform environment of the light (a furnace), a\n\
      perspective camera and a path tracer. Copy the <bsdf> into your own scene: it needs no file.",
             light = xml_comment(&light.name),
