@@ -300,7 +300,11 @@ fn pbrt_read_float_file(text: &str) -> Result<Vec<f32>, String> {
 /// `PiecewiseLinearSpectrum::Read`: an even count of numbers, increasing wavelengths.
 fn pbrt_spectrum(text: &str) -> Vec<(f64, f64)> {
     let v = pbrt_read_float_file(text).unwrap();
-    assert!(!v.is_empty() && v.len() % 2 == 0, "{} values", v.len());
+    assert!(
+        !v.is_empty() && v.len().is_multiple_of(2),
+        "{} values",
+        v.len()
+    );
     let pairs: Vec<(f64, f64)> = v
         .chunks(2)
         .map(|p| (f64::from(p[0]), f64::from(p[1])))
