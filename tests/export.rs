@@ -374,24 +374,11 @@ fn truth() -> Material {
 }
 
 fn render(m: &Material, format: ExportFormat) -> Vec<(String, String)> {
-    export(m, &ExportOptions::new(format))
-        .unwrap()
-        .into_iter()
-        .map(|f| (f.name, String::from_utf8(f.contents).unwrap()))
-        .collect()
+    common::exported(m, &ExportOptions::new(format))
 }
 
 fn file<'a>(files: &'a [(String, String)], name: &str) -> &'a str {
-    &files
-        .iter()
-        .find(|(n, _)| n == name)
-        .unwrap_or_else(|| {
-            panic!(
-                "{name} missing among {:?}",
-                files.iter().map(|f| &f.0).collect::<Vec<_>>()
-            )
-        })
-        .1
+    common::named(files, name)
 }
 
 #[test]

@@ -21,9 +21,11 @@
 use std::path::Path;
 
 use fluorite::colour::{Light, cie1931};
-use fluorite::export::{ExportFormat, ExportOptions, export};
+use fluorite::export::{ExportFormat, ExportOptions};
 use fluorite::material::{Material, YieldForm};
 use fluorite::synth::SynthSpec;
+
+mod common;
 
 // ---- the truth, computed independently ------------------------------------------
 
@@ -230,19 +232,11 @@ fn render(m: &Material, format: ExportFormat) -> Vec<(String, String)> {
         lights: lights(),
         ..ExportOptions::new(format)
     };
-    export(m, &options)
-        .unwrap()
-        .into_iter()
-        .map(|f| (f.name, String::from_utf8(f.contents).unwrap()))
-        .collect()
+    common::exported(m, &options)
 }
 
 fn file<'a>(files: &'a [(String, String)], name: &str) -> &'a str {
-    &files
-        .iter()
-        .find(|(n, _)| n == name)
-        .unwrap_or_else(|| panic!("{name} missing among {:?}", files.iter().map(|f| &f.0)))
-        .1
+    common::named(files, name)
 }
 
 // ---- pbrt-v4 -------------------------------------------------------------------
