@@ -979,3 +979,32 @@ fn art_archive_holds_the_reradiation_matrix() {
         assert!(ex0 <= samples[0] && em0 + dem * (em.len() - 1) as f64 >= 780.0);
     }
 }
+
+/// A material without fluorophores: βT is its reflectance under every light, no fork
+/// scene (nothing to re-emit), PearRay's plain `diffuse`, and no fluorescence in ART.
+#[test]
+fn a_plain_material_exports_as_plain_diffuse() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fits");
+    let m = Material::load(&dir.join("plain.json")).unwrap();
+    assert!(m.fluorophores.is_empty());
+    let truth = Truth::new(&m);
+    let files = render(&m, ExportFormat::Mitsuba);
+    let mut names: Vec<&str> = files.iter().map(|f| f.0.as_str()).collect();
+    names.sort();
+    assert_eq!(names, ["plain_a.xml", "plain_d65.xml"]);
+    let (_, bsdf, _) = check_mitsuba_scene(file(&files, "plain_a.xml"));
+    for (l, v) in spectrum_param(&bsdf, "reflectance") {
+        assert!(f32_close(v, truth.r(l), 1e-12), "{l}");
+    }
+    let files = render(&m, ExportFormat::Pearray);
+    let prc = file(&files, "plain.prc");
+    assert!(prc.contains("\t:type 'diffuse'\n\t:albedo (spd 'plain_pearray.csv' 3)\n)"));
+    let (_, rows) = pearray_csv(file(&files, "plain_pearray.csv"));
+    for row in rows {
+        assert!(f32_close(
+            f64::from(row[3]),
+            truth.r(f64::from(row[0])),
+            1e-12
+        ));
+    }
+}

@@ -73,6 +73,17 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
         .split(',')
         .map(|l| Light::parse(l.trim()))
         .collect::<fluorite::Result<Vec<_>>>()?;
+    if let Some(twice) = lights
+        .iter()
+        .enumerate()
+        .find(|(i, l)| lights[..*i].iter().any(|o| o.name == l.name))
+    {
+        return Err(Error::invalid(
+            "--light",
+            format!("names {} twice; give each light once", twice.1.name),
+        )
+        .into());
+    }
     let material = Material::load(&args.material)?;
     if format == ExportFormat::Mitsuba && material.fluorophores.len() < 2 && matrix_options {
         return Err(refuse(&format!(

@@ -158,7 +158,7 @@ pub(super) fn mitsuba(material: &Material, stem: &str, lights: &[Light]) -> Vec<
 
 /// The `diffusefluoro` scene for the fluorescence fork (blzq/mitsuba3, branch
 /// `fluorescence`, `src/bsdfs/diffuse_fluoro.cpp`), lit by the first light. None for a
-/// material without fluorophores.
+/// material that re-emits nothing.
 fn fork_scene(
     material: &Material,
     stem: &str,
@@ -180,8 +180,16 @@ fn fork_scene(
     } else {
         String::new()
     };
-    let (grid, _) = colour_grid();
     let mean = f.emission_mean_nm();
+    let excitation: Vec<(f64, f64)> = excitation_grid(f)
+        .into_iter()
+        .map(|l| (l, f.reradiated_with_mean(l, mean)))
+        .collect();
+    // The fork samples λi from the excitation: it needs some.
+    if excitation.iter().all(|&(_, x)| x <= 0.0) {
+        return None;
+    }
+    let (grid, _) = colour_grid();
     let id = format!("{stem}_fluoro");
     let comment = format!(
         "fluorite {VERSION} export of material \"{name}\" for the Mitsuba 3 fluorescence fork (blzq/mitsuba3,\n\
@@ -213,11 +221,7 @@ fn fork_scene(
                 .copied()
                 .zip(f.emission.value.iter().copied())
         ),
-        inline(
-            excitation_grid(f)
-                .into_iter()
-                .map(|l| (l, f.reradiated_with_mean(l, mean)))
-        ),
+        inline(excitation.into_iter()),
     );
     Some((
         format!("{id}.xml"),

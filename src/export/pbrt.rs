@@ -200,7 +200,8 @@ pub(super) fn pbrt(material: &Material, stem: &str, lights: &[Light]) -> Vec<(St
     let mut scene = format!(
         "# fluorite {VERSION} export of material \"{name}\" for pbrt-v4: named materials to Include.\n\
 # File names are relative to this folder and pbrt-v4 resolves them against the folder of the\n\
-# scene file given on its command line: put the scene that Includes this file in this folder.\n\
+# scene file given on its command line: put the scene that Includes this file in this folder,\n\
+# and Include it after WorldBegin (MakeNamedMaterial is a world-block statement).\n\
 # Stock pbrt-v4 has no fluorescent material. Each \"{stem}_<light>\" material below is a diffuse\n\
 # material whose reflectance is the baked total radiance factor for that light ONLY,\n\
 #   βT(λ) = d(λ) + Σ e(λ)·∫ c·Q(λi)·a(λi)·L(λi) dλi / L(λ),   d = (1 - Σc·a)·r  (dimensionless),\n\

@@ -54,7 +54,7 @@ pub(super) fn pearray(material: &Material, stem: &str, lights: &[Light]) -> Vec<
             vec![0.0; grid.len()],
             0.0,
             0.0,
-            "; The material has no fluorophore: concentration 0, the albedo is the reflectance.\n"
+            "; The material has no fluorophore: PearRay's plain `diffuse` material (lambert.cpp) with the reflectance.\n"
                 .into(),
         ),
         Some(((index, share), light)) => {
@@ -124,6 +124,18 @@ pub(super) fn pearray(material: &Material, stem: &str, lights: &[Light]) -> Vec<
             number(albedo)
         ));
     }
+    // PearRay normalises the emission by its integral: without a fluorophore its plain
+    // `diffuse` (lambert.cpp) takes the albedo alone.
+    let block = if kept.is_some() {
+        format!(
+            "(material\n\t:name '{stem}'\n\t:type 'fluorescent'\n\t:absorption (spd '{csv_name}' 1)\n\t:emission (spd '{csv_name}' 2)\n\t:albedo (spd '{csv_name}' 3)\n\t:aefactor {}\n\t:concentration {}\n)\n",
+            aefactor as f32, concentration as f32
+        )
+    } else {
+        format!(
+            "(material\n\t:name '{stem}'\n\t:type 'diffuse'\n\t:albedo (spd '{csv_name}' 3)\n)\n"
+        )
+    };
     let prc = format!(
         "; fluorite {VERSION} export of material \"{name}\" for PearRay: its `fluorescent` material, the diffuse\n\
 ; fluorescent BBRRDF of Jung et al. 2018, f = [c·Q·a(λi)·e(λo) + δ(λi - λo)·(1 - c·a)·albedo] / π.\n\
@@ -133,17 +145,7 @@ pub(super) fn pearray(material: &Material, stem: &str, lights: &[Light]) -> Vec<
 ; (1/nm, integral 1; PearRay normalises it again), 3 albedo (dimensionless reflectance of the\n\
 ; non-fluorescent part). aefactor is the energy quantum yield Q, concentration c. Valid under every light.\n\
 {about}\
-(material\n\
-\t:name '{stem}'\n\
-\t:type 'fluorescent'\n\
-\t:absorption (spd '{csv_name}' 1)\n\
-\t:emission (spd '{csv_name}' 2)\n\
-\t:albedo (spd '{csv_name}' 3)\n\
-\t:aefactor {aefactor}\n\
-\t:concentration {concentration}\n\
-)\n",
-        aefactor = aefactor as f32,
-        concentration = concentration as f32,
+{block}",
     );
     vec![(format!("{stem}.prc"), prc), (csv_name, csv)]
 }
