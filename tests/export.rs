@@ -551,7 +551,7 @@ fn bad_input_is_a_one_line_error_and_writes_nothing() {
     )
     .unwrap();
     let before = listing(&dir);
-    let cases: [(&[&str], &str); 10] = [
+    let cases: [(&[&str], &str); 15] = [
         (
             &["--to", "obj", "-o", "out.csv"],
             "--to: \"obj\" is not a known format",
@@ -604,6 +604,33 @@ fn bad_input_is_a_one_line_error_and_writes_nothing() {
         ),
         (
             &["--to", "csv", "--grid", "300:780:5", "-o", "out.csv"],
+            "apply to the matrix formats",
+        ),
+        (
+            &["--to", "mitsuba", "--light", "nowhere", "-o", "out/"],
+            "--light",
+        ),
+        (
+            &["--to", "mitsuba", "--light", "d65,a,D65", "-o", "out/"],
+            "names d65 twice",
+        ),
+        (
+            &["--to", "art", "--per-nm", "-o", "out.ark"],
+            "--per-nm: ART archives hold radiance factors per emission bin",
+        ),
+        (
+            &[
+                "--to",
+                "art",
+                "--grid",
+                "300:400:10,405:780:5",
+                "-o",
+                "out.ark",
+            ],
+            "ART archives hold regular grids",
+        ),
+        (
+            &["--to", "pearray", "--grid", "300:780:5", "-o", "out/"],
             "apply to the matrix formats",
         ),
     ];

@@ -71,7 +71,12 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     let lights = args
         .light
         .split(',')
-        .map(|l| Light::parse(l.trim()))
+        .map(|l| {
+            Light::parse(l.trim()).map_err(|e| match e {
+                Error::Invalid { message, .. } => Error::invalid("--light", message),
+                other => other,
+            })
+        })
         .collect::<fluorite::Result<Vec<_>>>()?;
     if let Some(twice) = lights
         .iter()
