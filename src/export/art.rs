@@ -91,12 +91,12 @@ pub(super) fn art(
     let text = format!(
         "ART measurement archive version 1.1\n\
 \n\
-Archive content: fluorite {VERSION} export of material \"{name}\": the reradiation matrix of the diffuse fluorescent BBRRDF (Jung et al. 2018) fitted to it, as a bispectral radiance factor per emission bin (dimensionless): diagonal d = (1 - c*a)*r plus fluorescence c*Q*a(excitation)*e(emission)*bin width{summed}.\n\
+Archive content: fluorite {VERSION} export of material \"{name}\": the reradiation matrix of the diffuse fluorescent BBRRDF (Jung et al. 2018) fitted to it, as a bispectral radiance factor per emission bin (dimensionless): diagonal d = (1 - c*a)*r plus fluorescence c*Q(excitation)*a(excitation)*e(emission)*bin width{summed}.\n\
 \n\
 \n\
 Entry ID:   {stem}\n\
 ---------------------------------------------------------------------------\n\
-Description           :  fluorite model of {name}: bispectral radiance factor per {em_step} nm emission bin, dimensionless; series = emission wavelengths, values within a series = excitation wavelengths; every cell of the model, the anti-Stokes ones included.{step_note}\n\
+Description           :  fluorite model of {name}: bispectral radiance factor per emission bin (trapezoid widths: {em_step} nm, half at the two ends), dimensionless; series = emission wavelengths, values within a series = excitation wavelengths; every cell of the model, the anti-Stokes ones included.{step_note}\n\
 Type                  :  reflectance spectrum\n\
 Fluorescence data     :  yes\n\
 Measurement device    :  fluorite {VERSION} (a model, not a measurement)\n\
