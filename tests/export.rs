@@ -355,8 +355,10 @@ fn check_spd(
     for line in &data {
         let v = numbers(line, " ");
         assert_eq!(v.len(), 2, "{line}");
+        // Renderers read f32: the files hold f32 values in shortest form (within one f32
+        // ulp, 2^-23 relative, of the exact value).
         assert!(
-            close(v[1], want(v[0])),
+            (v[1] - want(v[0])).abs() <= 2.4e-7 * want(v[0]).abs().max(1e-3),
             "{quantity} at {}: {} vs {}",
             v[0],
             v[1],
@@ -372,24 +374,11 @@ fn truth() -> Material {
 }
 
 fn render(m: &Material, format: ExportFormat) -> Vec<(String, String)> {
-    export(m, &ExportOptions::new(format))
-        .unwrap()
-        .into_iter()
-        .map(|f| (f.name, String::from_utf8(f.contents).unwrap()))
-        .collect()
+    common::exported(m, &ExportOptions::new(format))
 }
 
 fn file<'a>(files: &'a [(String, String)], name: &str) -> &'a str {
-    &files
-        .iter()
-        .find(|(n, _)| n == name)
-        .unwrap_or_else(|| {
-            panic!(
-                "{name} missing among {:?}",
-                files.iter().map(|f| &f.0).collect::<Vec<_>>()
-            )
-        })
-        .1
+    common::named(files, name)
 }
 
 #[test]
@@ -482,8 +471,8 @@ fn renderer_exports_read_back() {
     let albedo = |l: f64| {
         (1.0 - f.concentration * f.absorption.eval_zero_outside(l)) * m.reflectance.eval_clamped(l)
     };
-    for format in [ExportFormat::Mitsuba, ExportFormat::Pbrt] {
-        let files = render(&m, format);
+    {
+        let files = render(&m, ExportFormat::Pbrt);
         let n = check_spd(
             file(&files, "green-dye_albedo.spd"),
             &m,
@@ -514,36 +503,11 @@ fn renderer_exports_read_back() {
             "1/nm",
             |l| f.emission.eval_zero_outside(l),
         );
-        match format {
-            ExportFormat::Mitsuba => {
-                let xml = file(&files, "green-dye.xml");
-                assert!(
-                    xml.contains(&format!("fluorite {VERSION}")) && xml.contains("\"green-dye\"")
-                );
-                // Outside comments: one diffuse BSDF reading the albedo file.
-                let mut outside = String::new();
-                let mut rest = xml;
-                while let Some(start) = rest.find("<!--") {
-                    outside.push_str(&rest[..start]);
-                    rest = &rest[start + rest[start..].find("-->").unwrap() + 3..];
-                }
-                outside.push_str(rest);
-                assert_eq!(
-                    outside.trim(),
-                    "<bsdf type=\"diffuse\" id=\"green-dye\">\n    <spectrum name=\"reflectance\" filename=\"green-dye_albedo.spd\"/>\n</bsdf>"
-                );
-                assert!(
-                    xml.contains("filename=\"green-dye_excitation.spd\"")
-                        && xml.contains("filename=\"green-dye_emission.spd\"")
-                );
-            }
-            _ => {
-                let scene = file(&files, "green-dye.pbrt");
-                assert!(scene.contains(&format!("fluorite {VERSION}")));
-                assert!(scene.contains("\"string type\" \"diffuse\"\n    \"spectrum reflectance\" \"green-dye_albedo.spd\""));
-                check_wide_matrix(file(&files, "green-dye_reradiation.csv"), &m, false);
-            }
-        }
+        let scene = file(&files, "green-dye.pbrt");
+        assert!(scene.contains(&format!("fluorite {VERSION}")));
+        assert!(scene.contains("MakeNamedMaterial \"green-dye_albedo\"\n    \"string type\" \"diffuse\"\n    \"spectrum reflectance\" \"green-dye_albedo.spd\""));
+        assert!(scene.contains("MakeNamedMaterial \"green-dye_d65\"\n    \"string type\" \"diffuse\"\n    \"spectrum reflectance\" \"green-dye_baked_d65.spd\""));
+        check_wide_matrix(file(&files, "green-dye_reradiation.csv"), &m, false);
     }
 }
 
@@ -587,7 +551,7 @@ fn bad_input_is_a_one_line_error_and_writes_nothing() {
     )
     .unwrap();
     let before = listing(&dir);
-    let cases: [(&[&str], &str); 10] = [
+    let cases: [(&[&str], &str); 15] = [
         (
             &["--to", "obj", "-o", "out.csv"],
             "--to: \"obj\" is not a known format",
@@ -642,6 +606,33 @@ fn bad_input_is_a_one_line_error_and_writes_nothing() {
             &["--to", "csv", "--grid", "300:780:5", "-o", "out.csv"],
             "apply to the matrix formats",
         ),
+        (
+            &["--to", "mitsuba", "--light", "nowhere", "-o", "out/"],
+            "--light",
+        ),
+        (
+            &["--to", "mitsuba", "--light", "d65,a,D65", "-o", "out/"],
+            "names d65 twice",
+        ),
+        (
+            &["--to", "art", "--per-nm", "-o", "out.ark"],
+            "--per-nm: ART archives hold radiance factors per emission bin",
+        ),
+        (
+            &[
+                "--to",
+                "art",
+                "--grid",
+                "300:400:10,405:780:5",
+                "-o",
+                "out.ark",
+            ],
+            "ART archives hold regular grids",
+        ),
+        (
+            &["--to", "pearray", "--grid", "300:780:5", "-o", "out/"],
+            "apply to the matrix formats",
+        ),
     ];
     for (args, expected) in cases {
         let mut all = vec!["export", "m.json"];
@@ -675,6 +666,7 @@ fn bad_input_is_a_one_line_error_and_writes_nothing() {
         [
             "green-dye.pbrt",
             "green-dye_albedo.spd",
+            "green-dye_baked_d65.spd",
             "green-dye_emission.spd",
             "green-dye_excitation.spd",
             "green-dye_reflectance.spd",
@@ -782,8 +774,8 @@ fn every_format_keeps_both_fluorophores() {
         }
     }
 
-    // mitsuba and pbrt: one excitation and emission file per fluorophore, the albedo
-    // (1 − Σc·a)·r, the full matrix, and a snippet naming every lobe.
+    // pbrt: one excitation and emission file per fluorophore, the albedo (1 − Σc·a)·r,
+    // the full matrix, and a snippet naming every lobe (mitsuba: tests/export_renderers.rs).
     let albedo = |l: f64| {
         let absorbed: f64 = m
             .fluorophores
@@ -792,18 +784,15 @@ fn every_format_keeps_both_fluorophores() {
             .sum();
         (1.0 - absorbed) * m.reflectance.eval_clamped(l)
     };
-    for format in [ExportFormat::Mitsuba, ExportFormat::Pbrt] {
-        let files = render(&m, format);
+    {
+        let files = render(&m, ExportFormat::Pbrt);
         let mut names: Vec<&str> = files.iter().map(|f| f.0.as_str()).collect();
         names.sort();
-        let snippet = if format == ExportFormat::Mitsuba {
-            "two-dyes.xml"
-        } else {
-            "two-dyes.pbrt"
-        };
+        let snippet = "two-dyes.pbrt";
         let mut expected = vec![
             snippet,
             "two-dyes_albedo.spd",
+            "two-dyes_baked_d65.spd",
             "two-dyes_emission_0.spd",
             "two-dyes_emission_1.spd",
             "two-dyes_excitation_0.spd",
@@ -812,7 +801,7 @@ fn every_format_keeps_both_fluorophores() {
             "two-dyes_reradiation.csv",
         ];
         expected.sort();
-        assert_eq!(names, expected, "{format:?}");
+        assert_eq!(names, expected);
         check_spd(
             file(&files, "two-dyes_albedo.spd"),
             &m,
@@ -839,19 +828,10 @@ fn every_format_keeps_both_fluorophores() {
         }
         check_wide_matrix(file(&files, "two-dyes_reradiation.csv"), &m, false);
         let text = file(&files, snippet);
-        assert!(text.contains("2 fluorescent components"), "{text}");
+        assert!(text.contains("all 2 fluorophores summed"), "{text}");
         for k in 0..2 {
             assert!(text.contains(&format!("two-dyes_excitation_{k}.spd")));
             assert!(text.contains(&format!("two-dyes_emission_{k}.spd")));
-        }
-        if format == ExportFormat::Mitsuba {
-            assert!(text.contains("<integer name=\"lobes\" value=\"2\"/>"));
-            for (k, f) in m.fluorophores.iter().enumerate() {
-                assert!(text.contains(&format!(
-                    "<float name=\"quantum_yield_{k}\" value=\"{}\"/>",
-                    f.quantum_yield
-                )));
-            }
         }
     }
 }
@@ -906,10 +886,10 @@ fn forms_are_sampled_and_their_parameters_kept() {
         file(&files, "two-dyes.BFC")
             .contains(";spectra from the continuous forms of model synth\r\n")
     );
-    for format in [ExportFormat::Mitsuba, ExportFormat::Pbrt] {
-        let files = render(&m, format);
+    {
+        let files = render(&m, ExportFormat::Pbrt);
         for (name, text) in &files {
-            if name.ends_with(".spd") {
+            if name.ends_with(".spd") && !name.contains("_baked_") {
                 assert!(
                     text.contains("# spectra: samples of the continuous forms of model synth"),
                     "{name}"
@@ -1051,10 +1031,10 @@ fn photon_form_exports_write_the_form_and_the_photon_yield() {
         }
     }
 
-    // Mitsuba and pbrt: the excitation file holds c·Φ·(λ/λ̄e)·a(λ), at least every 1 nm
-    // (λ·a is quadratic between the absorption samples), through every absorption sample.
-    for format in [ExportFormat::Mitsuba, ExportFormat::Pbrt] {
-        let files = render(&m, format);
+    // pbrt: the excitation file holds c·Φ·(λ/λ̄e)·a(λ), at least every 1 nm (λ·a is
+    // quadratic between the absorption samples), through every absorption sample.
+    {
+        let files = render(&m, ExportFormat::Pbrt);
         let text = file(&files, "green-photon_excitation.spd");
         check_spd(
             text,
@@ -1072,22 +1052,12 @@ fn photon_form_exports_write_the_form_and_the_photon_yield() {
         for l in &f.absorption.wavelength_nm {
             assert!(grid.iter().any(|g| (g - l).abs() < 1e-9), "{l} missing");
         }
-        let snippet = match format {
-            ExportFormat::Mitsuba => file(&files, "green-photon.xml"),
-            _ => file(&files, "green-photon.pbrt"),
-        };
+        let snippet = file(&files, "green-photon.pbrt");
         assert!(
             snippet.contains("constant PHOTON yield Φ = 0.8") && snippet.contains("cannot express"),
             "{snippet}"
         );
-        match format {
-            ExportFormat::Mitsuba => {
-                assert!(snippet.contains("<float name=\"photon_yield\" value=\"0.8\"/>"));
-                assert!(snippet.contains("<string name=\"yield_form\" value=\"photon\"/>"));
-                assert!(!snippet.contains("quantum_yield\" value"), "{snippet}");
-            }
-            _ => assert!(snippet.contains("photon form, Φ = 0.8"), "{snippet}"),
-        }
+        assert!(snippet.contains("photon form, Φ = 0.8"), "{snippet}");
     }
 }
 
@@ -1106,18 +1076,21 @@ fn mixed_forms_keep_each_fluorophores_own_yield() {
             assert!(close(row[i], cell(&m, li, em[j], w[j])), "{li} {}", em[j]);
         }
     }
-    let files = render(&m, ExportFormat::Mitsuba);
-    let xml = file(&files, "two-dyes.xml");
+    let files = render(&m, ExportFormat::Pbrt);
+    let scene = file(&files, "two-dyes.pbrt");
     let q0 = m.fluorophores[0].quantum_yield;
     assert!(
-        xml.contains(&format!("<float name=\"quantum_yield_0\" value=\"{q0}\"/>")),
-        "{xml}"
+        scene.contains(&format!(
+            "# fluorescent lobe_0: c = {}, Q = {}",
+            m.fluorophores[0].concentration as f32, q0 as f32
+        )),
+        "{scene}"
     );
     assert!(
-        xml.contains("<float name=\"photon_yield_1\" value=\"0.9\"/>"),
-        "{xml}"
+        scene.contains("lobe_1: c = ") && scene.contains("photon form, Φ = 0.9"),
+        "{scene}"
     );
-    assert!(xml.contains("Lobe_1 has a constant PHOTON yield") && !xml.contains("Lobe_0 has"));
+    assert!(scene.contains("Lobe_1 has a constant PHOTON yield") && !scene.contains("Lobe_0 has"));
     let f = &m.fluorophores[0];
     check_spd(
         file(&files, "two-dyes_excitation_0.spd"),

@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+use fluorite::colour::Light;
 use fluorite::export::{ExportFormat, ExportOptions, export, parse_grid, write_files};
 use fluorite::{Error, Material, Units};
 
@@ -11,15 +12,15 @@ use fluorite::{Error, Material, Units};
 pub struct ExportArgs {
     /// The material JSON to export.
     pub material: PathBuf,
-    /// Target format: csv, matrix, bfc, mitsuba or pbrt.
+    /// Target format: csv, matrix, bfc, mitsuba, pbrt, pearray or art.
     #[arg(long)]
     pub to: String,
-    /// Output: a file for csv, matrix and bfc (or a folder, given as an existing folder or
-    /// ending in `/`, to get NAME.csv, NAME.matrix.csv or NAME.BFC inside); a folder for
-    /// mitsuba and pbrt (created if missing).
+    /// Output: a file for csv, matrix, bfc and art (or a folder, given as an existing
+    /// folder or ending in `/`, to get NAME.csv, NAME.matrix.csv, NAME.BFC or NAME.ark
+    /// inside); a folder for mitsuba, pbrt and pearray (created if missing).
     #[arg(short, long)]
     pub out: PathBuf,
-    /// Excitation and emission grid of the matrix (matrix, bfc, pbrt, and mitsuba for
+    /// Excitation and emission grid of the matrix (matrix, bfc, pbrt, art, and mitsuba for
     /// materials with several fluorophores): start:end:step in nm, or comma-separated
     /// segments (300:400:10,405:780:5). Default: the material's own samples (for a fit,
     /// the measurement's grids).
@@ -35,6 +36,12 @@ pub struct ExportArgs {
     /// (read back with `fluorite fit --per-nm`).
     #[arg(long)]
     pub per_nm: bool,
+    /// Lights the baked exports (mitsuba, pbrt) are valid for, comma-separated: d65, a,
+    /// f11, uv or two-column CSV files. One baked spectrum per light; the first also lights
+    /// the fluorescence fork's scene and picks the fluorophore kept by targets that hold
+    /// one (mitsuba's fork, pearray).
+    #[arg(long, default_value = "d65")]
+    pub light: String,
 }
 
 /// Runs `fluorite export`.
@@ -49,17 +56,38 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     let refuse = |what: &str| {
         Error::invalid(
             "--grid/--per-nm",
-            format!("apply to the matrix formats (matrix, bfc, pbrt), not to {what}"),
+            format!("apply to the matrix formats (matrix, bfc, pbrt, art), not to {what}"),
         )
     };
     let has_matrix = matches!(
         format,
-        ExportFormat::Matrix | ExportFormat::Bfc | ExportFormat::Pbrt
+        ExportFormat::Matrix | ExportFormat::Bfc | ExportFormat::Pbrt | ExportFormat::Art
     );
     // Mitsuba exports carry the matrix only for several fluorophores: decided once the
     // material is read.
     if !has_matrix && format != ExportFormat::Mitsuba && matrix_options {
         return Err(refuse(&args.to).into());
+    }
+    let lights = args
+        .light
+        .split(',')
+        .map(|l| {
+            Light::parse(l.trim()).map_err(|e| match e {
+                Error::Invalid { message, .. } => Error::invalid("--light", message),
+                other => other,
+            })
+        })
+        .collect::<fluorite::Result<Vec<_>>>()?;
+    if let Some(twice) = lights
+        .iter()
+        .enumerate()
+        .find(|(i, l)| lights[..*i].iter().any(|o| o.name == l.name))
+    {
+        return Err(Error::invalid(
+            "--light",
+            format!("names {} twice; give each light once", twice.1.name),
+        )
+        .into());
     }
     let material = Material::load(&args.material)?;
     if format == ExportFormat::Mitsuba && material.fluorophores.len() < 2 && matrix_options {
@@ -78,6 +106,7 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
         } else {
             Units::PerBin
         },
+        lights,
     };
     // Everything is rendered before anything is written.
     let files = export(&material, &options)?;

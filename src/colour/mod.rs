@@ -602,8 +602,7 @@ impl PatchColorimeter {
 /// (returned second, Y = 100).
 pub fn material_xyz(material: &Material, light: &Light) -> (Xyz, Xyz) {
     let observer = cie1931();
-    let grid = uniform_grid(300.0, 830.0, 1.0);
-    let widths = crate::spectrum::bin_widths(&grid);
+    let (grid, widths) = colour_grid();
     let mut xyz = [0.0; 3];
     let mut white = [0.0; 3];
     for (l, w) in grid.iter().zip(&widths) {
@@ -615,15 +614,11 @@ pub fn material_xyz(material: &Material, light: &Light) -> (Xyz, Xyz) {
             white[c] += p * cmf[c];
         }
     }
-    for f in &material.fluorophores {
-        // Energy re-emitted: ∫ L·c·Q(λ)·a(λ) dλ, the row factor c·Q(λ)·a of either yield
-        // form (Q(λ) = Φ·λ/λ̄e in the photon form).
-        let mean = f.emission_mean_nm();
-        let reemitted: f64 = grid
-            .iter()
-            .zip(&widths)
-            .map(|(l, w)| light.power(*l) * f.reradiated_with_mean(*l, mean) * w)
-            .sum();
+    for (f, reemitted) in material
+        .fluorophores
+        .iter()
+        .zip(reemitted_energy(material, light))
+    {
         for (l, w) in grid.iter().zip(&widths) {
             let cmf = observer.at(*l);
             let e = f.emission.eval_zero_outside(*l) * w;
@@ -634,6 +629,31 @@ pub fn material_xyz(material: &Material, light: &Light) -> (Xyz, Xyz) {
     }
     let scale = 100.0 / white[1];
     (xyz.map(|v| v * scale), white.map(|v| v * scale))
+}
+
+/// The grid colour integrates on: 300–830 nm every 1 nm, with its trapezoid bin widths.
+pub fn colour_grid() -> (Vec<f64>, Vec<f64>) {
+    let grid = uniform_grid(300.0, 830.0, 1.0);
+    let widths = crate::spectrum::bin_widths(&grid);
+    (grid, widths)
+}
+
+/// Energy each fluorophore of `material` re-emits under `light`, ∫ L(λ)·c·Q(λ)·a(λ) dλ on
+/// [`colour_grid`] (the row factor c·Q(λ)·a of either yield form; Q(λ) = Φ·λ/λ̄e in the
+/// photon form), in the light's units times nm.
+pub fn reemitted_energy(material: &Material, light: &Light) -> Vec<f64> {
+    let (grid, widths) = colour_grid();
+    material
+        .fluorophores
+        .iter()
+        .map(|f| {
+            let mean = f.emission_mean_nm();
+            grid.iter()
+                .zip(&widths)
+                .map(|(l, w)| light.power(*l) * f.reradiated_with_mean(*l, mean) * w)
+                .sum()
+        })
+        .collect()
 }
 
 #[cfg(test)]

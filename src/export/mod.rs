@@ -6,8 +6,10 @@
 //! | [`ExportFormat::Csv`] | `NAME.csv` | wavelength, a, e, r columns; c and Q in the header |
 //! | [`ExportFormat::Matrix`] | `NAME.matrix.csv` | the model's reradiation matrix as a wide CSV fluorite reads |
 //! | [`ExportFormat::Bfc`] | `NAME.BFC` | the same matrix in the BFC-450 layout |
-//! | [`ExportFormat::Mitsuba`] | `NAME_*.spd`, `NAME.xml` (and `NAME_reradiation.csv` for several fluorophores) | Mitsuba 3 spectra and a scene snippet |
-//! | [`ExportFormat::Pbrt`] | `NAME_*.spd`, `NAME_reradiation.csv`, `NAME.pbrt` | pbrt-v4 spectra, the matrix and a scene snippet |
+//! | [`ExportFormat::Mitsuba`] | `NAME_<light>.xml` per light, `NAME_fluoro.xml` | stock Mitsuba 3 scenes with the baked βT per light; a `diffusefluoro` scene for the fluorescence fork |
+//! | [`ExportFormat::Pbrt`] | `NAME_*.spd`, `NAME_baked_<light>.spd`, `NAME_reradiation.csv`, `NAME.pbrt` | pbrt-v4 spectra, the baked βT per light, the matrix and named materials |
+//! | [`ExportFormat::Pearray`] | `NAME.prc`, `NAME_pearray.csv` | PearRay's `fluorescent` material and its spectra |
+//! | [`ExportFormat::Art`] | `NAME.ark` | the reradiation matrix as an ART bispectral archive entry |
 //!
 //! Every file states in its header the quantity and units it holds, the material's name
 //! and the fluorite version. Every fluorophore of a material is exported (per-component
@@ -16,16 +18,22 @@
 //! written all-or-nothing ([`crate::files::write_files`]), so a failure leaves no partial
 //! output.
 
+mod art;
+pub mod baked;
 mod grid;
 mod matrix;
-mod renderers;
+mod mitsuba;
+mod pbrt;
+mod pearray;
 mod spectra;
 
+use crate::colour::Light;
 use crate::error::{Error, Result};
 use crate::material::Material;
 use crate::measurement::Units;
 
 pub use crate::files::{write_atomic, write_files};
+pub use baked::{BakedSpectrum, total_radiance_factor};
 pub use grid::parse_grid;
 pub use matrix::{default_grids, matrix};
 
@@ -38,10 +46,16 @@ pub enum ExportFormat {
     Matrix,
     /// The model's reradiation matrix in the BFC-450 layout.
     Bfc,
-    /// Mitsuba 3 `.spd` spectra and a scene snippet.
+    /// Mitsuba 3 scenes: the baked total radiance factor per light for stock Mitsuba, and
+    /// a `diffusefluoro` scene for the fluorescence fork.
     Mitsuba,
-    /// pbrt-v4 spectra, the reradiation matrix and a scene snippet.
+    /// pbrt-v4 spectra, the baked total radiance factor per light, the reradiation matrix
+    /// and named materials.
     Pbrt,
+    /// PearRay's `fluorescent` material and a CSV of its spectra.
+    Pearray,
+    /// An ART bispectral measurement archive entry (`.ark`).
+    Art,
 }
 
 impl ExportFormat {
@@ -49,11 +63,11 @@ impl ExportFormat {
     pub fn is_single_file(self) -> bool {
         matches!(
             self,
-            ExportFormat::Csv | ExportFormat::Matrix | ExportFormat::Bfc
+            ExportFormat::Csv | ExportFormat::Matrix | ExportFormat::Bfc | ExportFormat::Art
         )
     }
 
-    /// Parses a format name (`csv`, `matrix`, `bfc`, `mitsuba`, `pbrt`).
+    /// Parses a format name (`csv`, `matrix`, `bfc`, `mitsuba`, `pbrt`, `pearray`, `art`).
     pub fn parse(name: &str) -> Result<ExportFormat> {
         match name.to_ascii_lowercase().as_str() {
             "csv" => Ok(ExportFormat::Csv),
@@ -61,10 +75,12 @@ impl ExportFormat {
             "bfc" => Ok(ExportFormat::Bfc),
             "mitsuba" => Ok(ExportFormat::Mitsuba),
             "pbrt" => Ok(ExportFormat::Pbrt),
+            "pearray" => Ok(ExportFormat::Pearray),
+            "art" => Ok(ExportFormat::Art),
             _ => Err(Error::invalid(
                 "--to",
                 format!(
-                    "\"{name}\" is not a known format; choose csv, matrix, bfc, mitsuba or pbrt"
+                    "\"{name}\" is not a known format; choose csv, matrix, bfc, mitsuba, pbrt, pearray or art"
                 ),
             )),
         }
@@ -84,6 +100,9 @@ pub struct ExportOptions {
     pub emission_nm: Option<Vec<f64>>,
     /// Matrix values per emission bin (the default, like a BFC-450) or per nm.
     pub units: Units,
+    /// The lights baked exports are valid for (mitsuba, pbrt; the first also picks the
+    /// fluorophore kept by targets that hold one). Default: D65.
+    pub lights: Vec<Light>,
 }
 
 impl ExportOptions {
@@ -94,6 +113,7 @@ impl ExportOptions {
             excitation_nm: None,
             emission_nm: None,
             units: Units::PerBin,
+            lights: Light::builtin("d65").into_iter().collect(),
         }
     }
 }
@@ -155,12 +175,12 @@ pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<Export
             )]
         }
         ExportFormat::Mitsuba => {
-            let mut files: Vec<ExportFile> = renderers::mitsuba(material, &stem)
+            let mut files: Vec<ExportFile> = mitsuba::mitsuba(material, &stem, &options.lights)
                 .into_iter()
                 .map(|(n, s)| text(n, s))
                 .collect();
-            // A fluorescent BSDF holds one lobe in most plugins: with several
-            // fluorophores the full matrix keeps every one of them.
+            // The fork's BSDF holds one fluorophore: with several the full matrix keeps
+            // every one of them.
             if material.fluorophores.len() > 1 {
                 let (ex, em) = grids()?;
                 files.push(text(
@@ -172,7 +192,7 @@ pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<Export
         }
         ExportFormat::Pbrt => {
             let (ex, em) = grids()?;
-            let mut files: Vec<ExportFile> = renderers::pbrt(material, &stem)
+            let mut files: Vec<ExportFile> = pbrt::pbrt(material, &stem, &options.lights)
                 .into_iter()
                 .map(|(n, s)| text(n, s))
                 .collect();
@@ -181,6 +201,25 @@ pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<Export
                 matrix::wide(material, &ex, &em, options.units)?,
             ));
             files
+        }
+        ExportFormat::Pearray => pearray::pearray(material, &stem, &options.lights)
+            .into_iter()
+            .map(|(n, s)| text(n, s))
+            .collect(),
+        ExportFormat::Art => {
+            if options.units == Units::PerNm {
+                return Err(Error::invalid(
+                    "--per-nm",
+                    "ART archives hold radiance factors per emission bin, like the BFC-450; leave --per-nm out",
+                ));
+            }
+            let (n, s) = art::art(
+                material,
+                &stem,
+                options.excitation_nm.as_deref(),
+                options.emission_nm.as_deref(),
+            )?;
+            vec![text(n, s)]
         }
     })
 }

@@ -121,7 +121,45 @@ pub(super) fn two_column(header: &[String], samples: impl Iterator<Item = (f64, 
         out.push('\n');
     }
     for (l, v) in samples {
-        out.push_str(&format!("{l} {v}\n"));
+        out.push_str(&format!("{} {}\n", number(l), number(v)));
     }
     out
+}
+
+/// A number as the renderers' readers take it: rounded to f32 (they read f32; pbrt-v4's
+/// `std::stof`), in the shorter of plain and exponent form, each the shortest text that
+/// reads back to the same f32 (at most 15 characters; pbrt-v4's buffer holds 31), and 0
+/// below f32's normal range (1.18e-38), where `std::stof` fails.
+pub(super) fn number(value: f64) -> String {
+    let single = value as f32;
+    if single.abs() < f32::MIN_POSITIVE || !single.is_finite() {
+        return "0".to_string();
+    }
+    let plain = format!("{single}");
+    let exponent = format!("{single:e}");
+    if exponent.len() < plain.len() {
+        exponent
+    } else {
+        plain
+    }
+}
+
+/// Where a fluorophore's excitation is written: the absorption's samples, and in the
+/// photon form also points splitting every interval into steps of at most 1 nm (c·Φ·λ·a/λ̄e
+/// is quadratic between samples; linear interpolation over ≤ 1 nm is then within
+/// c·Φ·|Δa|/(4·λ̄e) per nm step of it).
+pub(super) fn excitation_grid(f: &Fluorophore) -> Vec<f64> {
+    let samples = &f.absorption.wavelength_nm;
+    match f.yield_form {
+        YieldForm::Energy => samples.clone(),
+        YieldForm::Photon => {
+            let mut grid = Vec::with_capacity(samples.len());
+            for w in samples.windows(2) {
+                let steps = ((w[1] - w[0]).ceil() as usize).clamp(1, 100_000);
+                grid.extend((0..steps).map(|j| w[0] + (w[1] - w[0]) * j as f64 / steps as f64));
+            }
+            grid.extend(samples.last());
+            grid
+        }
+    }
 }

@@ -47,3 +47,29 @@ pub fn files_in(dir: &Path, extensions: &[&str]) -> Vec<PathBuf> {
 pub fn measured_files() -> Option<Vec<PathBuf>> {
     shared("measured").map(|dir| files_in(&dir, &["bfc", "csv"]))
 }
+
+/// The files `fluorite::export::export` renders for `material`, as (name, text).
+pub fn exported(
+    material: &fluorite::Material,
+    options: &fluorite::export::ExportOptions,
+) -> Vec<(String, String)> {
+    fluorite::export::export(material, options)
+        .unwrap()
+        .into_iter()
+        .map(|f| (f.name, String::from_utf8(f.contents).unwrap()))
+        .collect()
+}
+
+/// The text of the exported file `name` (panics naming the files there are).
+pub fn named<'a>(files: &'a [(String, String)], name: &str) -> &'a str {
+    &files
+        .iter()
+        .find(|(n, _)| n == name)
+        .unwrap_or_else(|| {
+            panic!(
+                "{name} missing among {:?}",
+                files.iter().map(|f| &f.0).collect::<Vec<_>>()
+            )
+        })
+        .1
+}
