@@ -3,7 +3,10 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use fluorite::export::{ExportFormat, ExportOptions, export, parse_grid, write_files};
+use fluorite::colour::Light;
+use fluorite::export::{
+    ExportFormat, ExportOptions, RgbSpace, export, parse_grid, summary, write_files,
+};
 use fluorite::{Error, Material, Units};
 
 /// Arguments of `fluorite export`.
@@ -11,7 +14,8 @@ use fluorite::{Error, Material, Units};
 pub struct ExportArgs {
     /// The material JSON to export.
     pub material: PathBuf,
-    /// Target format: csv, matrix, bfc, mitsuba or pbrt.
+    /// Target format: csv, matrix, bfc, mitsuba, pbrt, exr (bispectral OpenEXR) or rgb
+    /// (3×3 reduced matrices).
     #[arg(long)]
     pub to: String,
     /// Output: a file for csv, matrix and bfc (or a folder, given as an existing folder or
@@ -19,7 +23,7 @@ pub struct ExportArgs {
     /// mitsuba and pbrt (created if missing).
     #[arg(short, long)]
     pub out: PathBuf,
-    /// Excitation and emission grid of the matrix (matrix, bfc, pbrt, and mitsuba for
+    /// Excitation and emission grid of the matrix (matrix, bfc, pbrt, exr, and mitsuba for
     /// materials with several fluorophores): start:end:step in nm, or comma-separated
     /// segments (300:400:10,405:780:5). Default: the material's own samples (for a fit,
     /// the measurement's grids).
@@ -35,6 +39,13 @@ pub struct ExportArgs {
     /// (read back with `fluorite fit --per-nm`).
     #[arg(long)]
     pub per_nm: bool,
+    /// Lights of the rgb reduction, comma-separated (d65, a, f11, uv, or a CSV file):
+    /// one 3×3 matrix per light. Default: d65.
+    #[arg(long, value_delimiter = ',')]
+    pub light: Vec<String>,
+    /// Colour space of the rgb reduction: srgb (linear sRGB, the default) or xyz.
+    #[arg(long)]
+    pub space: Option<String>,
 }
 
 /// Runs `fluorite export`.
@@ -49,13 +60,42 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     let refuse = |what: &str| {
         Error::invalid(
             "--grid/--per-nm",
-            format!("apply to the matrix formats (matrix, bfc, pbrt), not to {what}"),
+            format!("apply to the matrix formats (matrix, bfc, pbrt, exr), not to {what}"),
         )
     };
     let has_matrix = matches!(
         format,
-        ExportFormat::Matrix | ExportFormat::Bfc | ExportFormat::Pbrt
+        ExportFormat::Matrix | ExportFormat::Bfc | ExportFormat::Pbrt | ExportFormat::Exr
     );
+    // The EXR layout's cells are per emission bin, as its reference implementation reads.
+    if format == ExportFormat::Exr && args.per_nm {
+        return Err(Error::invalid(
+            "--per-nm",
+            "does not apply to exr: the layout's reradiation cells are per emission bin",
+        )
+        .into());
+    }
+    if format != ExportFormat::Rgb && (!args.light.is_empty() || args.space.is_some()) {
+        return Err(Error::invalid(
+            "--light/--space",
+            format!("apply to the rgb reduction, not to {}", args.to),
+        )
+        .into());
+    }
+    let mut lights = args
+        .light
+        .iter()
+        .map(|l| Light::parse(l.trim()))
+        .collect::<fluorite::Result<Vec<_>>>()?;
+    if lights.is_empty() {
+        lights.push(Light::parse("d65")?);
+    }
+    let space = args
+        .space
+        .as_deref()
+        .map(RgbSpace::parse)
+        .transpose()?
+        .unwrap_or_default();
     // Mitsuba exports carry the matrix only for several fluorophores: decided once the
     // material is read.
     if !has_matrix && format != ExportFormat::Mitsuba && matrix_options {
@@ -78,6 +118,8 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
         } else {
             Units::PerBin
         },
+        lights,
+        space,
     };
     // Everything is rendered before anything is written.
     let files = export(&material, &options)?;
@@ -97,6 +139,9 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     write_files(&targets)?;
     for (path, _) in &targets {
         println!("{}", path.display());
+    }
+    for line in summary(&material, &options)? {
+        println!("{line}");
     }
     Ok(ExitCode::SUCCESS)
 }

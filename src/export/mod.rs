@@ -8,6 +8,8 @@
 //! | [`ExportFormat::Bfc`] | `NAME.BFC` | the same matrix in the BFC-450 layout |
 //! | [`ExportFormat::Mitsuba`] | `NAME_*.spd`, `NAME.xml` (and `NAME_reradiation.csv` for several fluorophores) | Mitsuba 3 spectra and a scene snippet |
 //! | [`ExportFormat::Pbrt`] | `NAME_*.spd`, `NAME_reradiation.csv`, `NAME.pbrt` | pbrt-v4 spectra, the matrix and a scene snippet |
+//! | [`ExportFormat::Exr`] | `NAME.exr` | a uniform bispectral spectral OpenEXR ([`exr`]; `fluorite fit` reads it back) |
+//! | [`ExportFormat::Rgb`] | `NAME.rgb.json` | the 3×3 reduced matrix per light and its ΔE2000 ([`rgb`]) |
 //!
 //! Every file states in its header the quantity and units it holds, the material's name
 //! and the fluorite version. Every fluorophore of a material is exported (per-component
@@ -16,11 +18,14 @@
 //! written all-or-nothing ([`crate::files::write_files`]), so a failure leaves no partial
 //! output.
 
+pub mod exr;
 mod grid;
 mod matrix;
 mod renderers;
+pub mod rgb;
 mod spectra;
 
+use crate::colour::Light;
 use crate::error::{Error, Result};
 use crate::material::Material;
 use crate::measurement::Units;
@@ -28,6 +33,7 @@ use crate::measurement::Units;
 pub use crate::files::{write_atomic, write_files};
 pub use grid::parse_grid;
 pub use matrix::{default_grids, matrix};
+pub use rgb::RgbSpace;
 
 /// The forms a material can be exported to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -42,6 +48,10 @@ pub enum ExportFormat {
     Mitsuba,
     /// pbrt-v4 spectra, the reradiation matrix and a scene snippet.
     Pbrt,
+    /// A uniform bispectral spectral OpenEXR (Fichet, Mercier, Wilkie 2021).
+    Exr,
+    /// The 3×3 reduced matrix per light (Fichet, Belcour, Barla 2024).
+    Rgb,
 }
 
 impl ExportFormat {
@@ -49,11 +59,15 @@ impl ExportFormat {
     pub fn is_single_file(self) -> bool {
         matches!(
             self,
-            ExportFormat::Csv | ExportFormat::Matrix | ExportFormat::Bfc
+            ExportFormat::Csv
+                | ExportFormat::Matrix
+                | ExportFormat::Bfc
+                | ExportFormat::Exr
+                | ExportFormat::Rgb
         )
     }
 
-    /// Parses a format name (`csv`, `matrix`, `bfc`, `mitsuba`, `pbrt`).
+    /// Parses a format name (`csv`, `matrix`, `bfc`, `mitsuba`, `pbrt`, `exr`, `rgb`).
     pub fn parse(name: &str) -> Result<ExportFormat> {
         match name.to_ascii_lowercase().as_str() {
             "csv" => Ok(ExportFormat::Csv),
@@ -61,10 +75,12 @@ impl ExportFormat {
             "bfc" => Ok(ExportFormat::Bfc),
             "mitsuba" => Ok(ExportFormat::Mitsuba),
             "pbrt" => Ok(ExportFormat::Pbrt),
+            "exr" => Ok(ExportFormat::Exr),
+            "rgb" => Ok(ExportFormat::Rgb),
             _ => Err(Error::invalid(
                 "--to",
                 format!(
-                    "\"{name}\" is not a known format; choose csv, matrix, bfc, mitsuba or pbrt"
+                    "\"{name}\" is not a known format; choose csv, matrix, bfc, mitsuba, pbrt, exr or rgb"
                 ),
             )),
         }
@@ -84,6 +100,10 @@ pub struct ExportOptions {
     pub emission_nm: Option<Vec<f64>>,
     /// Matrix values per emission bin (the default, like a BFC-450) or per nm.
     pub units: Units,
+    /// The lights of the `rgb` reduction (one matrix each; default D65).
+    pub lights: Vec<Light>,
+    /// The colour space of the `rgb` reduction.
+    pub space: RgbSpace,
 }
 
 impl ExportOptions {
@@ -94,6 +114,8 @@ impl ExportOptions {
             excitation_nm: None,
             emission_nm: None,
             units: Units::PerBin,
+            lights: vec![Light::builtin("d65").expect("d65 is built in")],
+            space: RgbSpace::default(),
         }
     }
 }
@@ -182,6 +204,49 @@ pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<Export
             ));
             files
         }
+        ExportFormat::Exr => {
+            let (ex, em) = grids()?;
+            vec![ExportFile {
+                name: format!("{stem}.exr"),
+                contents: exr::exr(material, &exr::layout_grid(&ex, &em))?,
+            }]
+        }
+        ExportFormat::Rgb => vec![text(
+            format!("{stem}.rgb.json"),
+            rgb::rgb_json(material, &options.lights, options.space),
+        )],
+    })
+}
+
+/// What an export drops or approximates, one line each, for the command to print:
+/// the anti-Stokes share the `exr` layout cannot hold, the ΔE2000 of each `rgb`
+/// reduction. Empty for the other formats.
+pub fn summary(material: &Material, options: &ExportOptions) -> Result<Vec<String>> {
+    Ok(match options.format {
+        ExportFormat::Exr => {
+            let (ex, em) = default_grids(material);
+            let grid = exr::layout_grid(
+                options.excitation_nm.as_deref().unwrap_or(&ex),
+                options.emission_nm.as_deref().unwrap_or(&em),
+            );
+            vec![format!(
+                "{}: anti-Stokes cells (λo < λi), which the spectral EXR layout cannot hold, carry {:.3} % of the off-diagonal energy",
+                material.name,
+                100.0 * exr::anti_stokes_share(material, &grid)?
+            )]
+        }
+        ExportFormat::Rgb => options
+            .lights
+            .iter()
+            .map(|light| {
+                let r = rgb::reduce(material, light, options.space);
+                format!(
+                    "{}: 3×3 under {}: ΔE2000 {:.3} between the reduced and the spectral colour",
+                    material.name, r.light, r.delta_e2000
+                )
+            })
+            .collect(),
+        _ => Vec::new(),
     })
 }
 
