@@ -576,7 +576,8 @@ fn fluorescent_reduction_matches_a_dense_computation() {
 }
 
 /// `export --to rgb --light d65,a --space xyz`: one matrix per light in the file, the
-/// same ΔE2000 printed; `--light` with another format is refused.
+/// same ΔE2000 printed; `export --to exr` prints the dropped share and `fit` reads the
+/// file; `--per-nm` and `--light` with exr are refused and write nothing.
 #[test]
 fn rgb_export_writes_one_matrix_per_light_and_prints_the_delta_e() {
     let dir = temp_dir("cli");
@@ -615,6 +616,40 @@ fn rgb_export_writes_one_matrix_per_light_and_prints_the_delta_e() {
             "{stdout}"
         );
     }
+    // exr: the dropped share printed; the file fits from the command line.
+    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .args(["export", "m.json", "--to", "exr", "-o", "m.exr"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        stdout.contains("anti-Stokes") && stdout.contains('%'),
+        "{stdout}"
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .args(["fit", "m.exr", "-o", "fit/"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(dir.join("fit/m.json").exists());
+    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .args(["export", "m.json", "--to", "exr", "--per-nm", "-o", "x.exr"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--per-nm"));
     let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
         .args([
             "export", "m.json", "--to", "exr", "--light", "d65", "-o", "x.exr",

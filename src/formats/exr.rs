@@ -29,10 +29,14 @@ pub fn is_exr(bytes: &[u8]) -> bool {
     bytes.starts_with(&MAGIC)
 }
 
-/// A wavelength as the layout writes it: the shortest decimal that reads back exactly,
-/// with a comma as decimal separator (`432,5`).
+/// A wavelength as the layout writes it: at most six decimals (the reference writer's
+/// `std::to_string` precision), trailing zeros dropped, with a comma as decimal
+/// separator (`432,5`, `300`). Six decimals keep grid steps such as 0.1 nm short:
+/// 300.20000000000005 is `300,2`.
 fn wavelength_text(nm: f64) -> String {
-    format!("{nm}").replace('.', ",")
+    let fixed = format!("{nm:.6}");
+    let trimmed = fixed.trim_end_matches('0').trim_end_matches('.');
+    trimmed.replace('.', ",")
 }
 
 /// The channel holding the diagonal (reflectance) at `nm`: `T.<λ>nm`.
@@ -265,6 +269,8 @@ mod tests {
     fn channel_names_follow_the_reference_grammar() {
         assert_eq!(diagonal_channel(432.5), "T.432,5nm");
         assert_eq!(reradiation_channel(300.0, 310.0), "T.300nm.310nm");
+        assert_eq!(diagonal_channel(300.0 + 0.1 + 0.1), "T.300,2nm");
+        assert_eq!(diagonal_channel(1000.0), "T.1000nm");
         assert_eq!(parse_channel("T.432,5nm"), Some(Channel::Diagonal(432.5)));
         // The reference writer's std::to_string form.
         assert_eq!(
