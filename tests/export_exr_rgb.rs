@@ -361,7 +361,7 @@ fn grey_reduces_to_a_scaled_identity() {
     let grey = Material::new("grey", flat(0.5), vec![]);
     for space in [RgbSpace::Srgb, RgbSpace::Xyz] {
         for light in Light::standard() {
-            let r = reduce(&grey, &light, space);
+            let r = reduce(&grey, &light, space).unwrap();
             for i in 0..3 {
                 for j in 0..3 {
                     let want = if i == j { 0.5 } else { 0.0 };
@@ -395,7 +395,7 @@ fn reduction_is_exact_for_a_light_in_the_span_of_the_observer() {
     };
     for material in [truth("plain"), truth("green-dye"), truth("two-dyes")] {
         for space in [RgbSpace::Srgb, RgbSpace::Xyz] {
-            let r = reduce(&material, &light, space);
+            let r = reduce(&material, &light, space).unwrap();
             for c in 0..3 {
                 assert!(
                     (r.reduced[c] - r.spectral[c]).abs() < 1e-6,
@@ -490,7 +490,7 @@ fn non_fluorescent_colour_reduces_to_a_diagonal_dominant_matrix() {
     let ramp = Spectrum::new(vec![300.0, 830.0], vec![0.1, 0.8], "reflectance").unwrap();
     for material in [Material::new("ramp", ramp, vec![]), truth("plain")] {
         assert!(material.fluorophores.is_empty());
-        let r = reduce(&material, &d65, RgbSpace::Srgb);
+        let r = reduce(&material, &d65, RgbSpace::Srgb).unwrap();
         for i in 0..3 {
             for j in (0..3).filter(|&j| j != i) {
                 assert!(
@@ -534,7 +534,7 @@ fn fluorescent_reduction_matches_a_dense_computation() {
             let light = Light::builtin(light_name).unwrap();
             let (r, reduced, spectral, white) = dense_reduction(material, &light, space, false);
             let want = dense_delta_e(reduced, spectral, white);
-            let got = reduce(material, &light, space);
+            let got = reduce(material, &light, space).unwrap();
             println!(
                 "{} under {light_name} ({space:?}): ΔE2000 {} (dense {want})",
                 material.name, got.delta_e2000
@@ -609,7 +609,8 @@ fn rgb_export_writes_one_matrix_per_light_and_prints_the_delta_e() {
             &truth("green-dye"),
             &Light::builtin(light).unwrap(),
             RgbSpace::Xyz,
-        );
+        )
+        .unwrap();
         assert!((de - want.delta_e2000).abs() < 1e-12);
         assert!(
             stdout.contains(&format!("under {light}: ΔE2000 {de:.3}")),
@@ -707,4 +708,18 @@ fn fitted_materials_round_trip_through_exr() {
         );
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A light the observer does not see (UV only, below the CMFs' 360 nm) has no white to
+/// scale colours against: refused, naming the light.
+#[test]
+fn invisible_light_is_refused() {
+    let light = Light {
+        name: "uv-led".into(),
+        spectrum: Spectrum::new(vec![300.0, 340.0, 350.0], vec![0.0, 1.0, 0.0], "light").unwrap(),
+    };
+    let e = reduce(&truth("brightener"), &light, RgbSpace::Srgb)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("uv-led") && e.contains("Y = 0"), "{e}");
 }

@@ -213,7 +213,7 @@ pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<Export
         }
         ExportFormat::Rgb => vec![text(
             format!("{stem}.rgb.json"),
-            rgb::rgb_json(material, &options.lights, options.space),
+            rgb::rgb_json(material, &options.lights, options.space)?,
         )],
     })
 }
@@ -239,13 +239,13 @@ pub fn summary(material: &Material, options: &ExportOptions) -> Result<Vec<Strin
             .lights
             .iter()
             .map(|light| {
-                let r = rgb::reduce(material, light, options.space);
-                format!(
+                let r = rgb::reduce(material, light, options.space)?;
+                Ok(format!(
                     "{}: 3×3 under {}: ΔE2000 {:.3} between the reduced and the spectral colour",
                     material.name, r.light, r.delta_e2000
-                )
+                ))
             })
-            .collect(),
+            .collect::<Result<Vec<String>>>()?,
         _ => Vec::new(),
     })
 }

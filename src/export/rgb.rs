@@ -101,8 +101,9 @@ pub struct Reduction {
     pub delta_e2000: f64,
 }
 
-/// Reduces `material` to a 3×3 matrix for `light` in `space`.
-pub fn reduce(material: &Material, light: &Light, space: RgbSpace) -> Reduction {
+/// Reduces `material` to a 3×3 matrix for `light` in `space`. A light the observer does
+/// not see (Y = 0, e.g. UV only) has no white to judge colours against and is refused.
+pub fn reduce(material: &Material, light: &Light, space: RgbSpace) -> Result<Reduction> {
     let observer = cie1931();
     let grid = uniform_grid(300.0, 830.0, 1.0);
     let widths = bin_widths(&grid);
@@ -133,12 +134,21 @@ pub fn reduce(material: &Material, light: &Light, space: RgbSpace) -> Reduction 
     let m = r.transpose();
     let (xyz, white) = material_xyz(material, light);
     let white_y = space.xyz_of(light_row)[1];
+    if white_y.is_nan() || white_y <= 0.0 {
+        return Err(Error::invalid(
+            "--light",
+            format!(
+                "{} has no power the observer sees (Y = 0 over 360-830 nm): the reduction needs a visible light to scale colours against; add visible light or choose d65, a, f11 or uv",
+                light.name
+            ),
+        ));
+    }
     let light_colour = light_row / white_y;
     let reduced = m * light_colour;
     let spectral = space.of_xyz(xyz.map(|v| v / 100.0));
     let lab = |v: Vector3<f64>| xyz_to_lab(space.xyz_of(v).map(|c| 100.0 * c), white);
     let array = |v: Vector3<f64>| [v[0], v[1], v[2]];
-    Reduction {
+    Ok(Reduction {
         light: light.name.clone(),
         space,
         matrix: [0, 1, 2].map(|i| [m[(i, 0)], m[(i, 1)], m[(i, 2)]]),
@@ -146,25 +156,25 @@ pub fn reduce(material: &Material, light: &Light, space: RgbSpace) -> Reduction 
         reduced: array(reduced),
         spectral: array(spectral),
         delta_e2000: delta_e2000(lab(reduced), lab(spectral)),
-    }
+    })
 }
 
 /// The JSON file of the reductions of `material` for `lights` in `space`.
-pub(super) fn rgb_json(material: &Material, lights: &[Light], space: RgbSpace) -> String {
-    let reductions: Vec<serde_json::Value> = lights
+pub(super) fn rgb_json(material: &Material, lights: &[Light], space: RgbSpace) -> Result<String> {
+    let reductions = lights
         .iter()
         .map(|light| {
-            let r = reduce(material, light, space);
-            serde_json::json!({
+            let r = reduce(material, light, space)?;
+            Ok(serde_json::json!({
                 "light": r.light,
                 "matrix": r.matrix,
                 "light_colour": r.light_colour,
                 "reduced": r.reduced,
                 "spectral": r.spectral,
                 "delta_e2000": r.delta_e2000,
-            })
+            }))
         })
-        .collect();
+        .collect::<Result<Vec<serde_json::Value>>>()?;
     let doc = serde_json::json!({
         "format": "fluorite-rgb-reduction/1",
         "fluorite_version": VERSION,
@@ -178,5 +188,5 @@ pub(super) fn rgb_json(material: &Material, lights: &[Light], space: RgbSpace) -
     });
     let mut text = serde_json::to_string_pretty(&doc).expect("JSON values serialise");
     text.push('\n');
-    text
+    Ok(text)
 }
