@@ -18,9 +18,9 @@ pub struct ExportArgs {
     /// (3×3 reduced matrices).
     #[arg(long)]
     pub to: String,
-    /// Output: a file for csv, matrix and bfc (or a folder, given as an existing folder or
-    /// ending in `/`, to get NAME.csv, NAME.matrix.csv or NAME.BFC inside); a folder for
-    /// mitsuba and pbrt (created if missing).
+    /// Output: a file for csv, matrix, bfc, exr and rgb (or a folder, given as an existing
+    /// folder or ending in `/`, to get NAME.csv, NAME.matrix.csv, NAME.BFC, NAME.exr or
+    /// NAME.rgb.json inside); a folder for mitsuba and pbrt (created if missing).
     #[arg(short, long)]
     pub out: PathBuf,
     /// Excitation and emission grid of the matrix (matrix, bfc, pbrt, exr, and mitsuba for

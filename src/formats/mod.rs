@@ -8,8 +8,9 @@
 //! | [`Format::Webfluor`] | whitespace; first line emission wavelengths, rows start with excitation | excitation |
 //! | [`Format::Exr`] | bispectral spectral OpenEXR (channels `T.<λ>nm`, `T.<λi>nm.<λo>nm`; see [`exr`]) | — |
 //!
-//! The format is told by content first (OpenEXR's magic number, the `BFC-450 Matrix File` line, a header naming
-//! `excitation_nm` and `emission_nm`, delimiters, a corner label), the extension second.
+//! The format is told by content first (OpenEXR's magic number, the `BFC-450 Matrix
+//! File` line, a header naming `excitation_nm` and `emission_nm`, delimiters, a corner
+//! label), the extension second.
 //! Empty cells, `NaN` and `NA` (any case) are missing values; zeros are missing too in
 //! WebFluor files, where they mean "not measured". Whatever the file's orientation, the
 //! [`Measurement`] is stored excitation-major. Every malformed file gives an
