@@ -4,7 +4,9 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use fluorite::colour::Light;
-use fluorite::export::{ExportFormat, ExportOptions, export, parse_grid, write_files};
+use fluorite::export::{
+    ExportFormat, ExportOptions, RgbSpace, export, parse_grid, summary, write_files,
+};
 use fluorite::{Error, Material, Units};
 
 /// Arguments of `fluorite export`.
@@ -12,15 +14,17 @@ use fluorite::{Error, Material, Units};
 pub struct ExportArgs {
     /// The material JSON to export.
     pub material: PathBuf,
-    /// Target format: csv, matrix, bfc, mitsuba, pbrt, pearray or art.
+    /// Target format: csv, matrix, bfc, mitsuba, pbrt, pearray, art, exr (bispectral
+    /// OpenEXR) or rgb (3×3 reduced matrices).
     #[arg(long)]
     pub to: String,
-    /// Output: a file for csv, matrix, bfc and art (or a folder, given as an existing
-    /// folder or ending in `/`, to get NAME.csv, NAME.matrix.csv, NAME.BFC or NAME.ark
-    /// inside); a folder for mitsuba, pbrt and pearray (created if missing).
+    /// Output: a file for csv, matrix, bfc, art, exr and rgb (or a folder, given as an
+    /// existing folder or ending in `/`, to get NAME.csv, NAME.matrix.csv, NAME.BFC,
+    /// NAME.ark, NAME.exr or NAME.rgb.json inside); a folder for mitsuba, pbrt and pearray
+    /// (created if missing).
     #[arg(short, long)]
     pub out: PathBuf,
-    /// Excitation and emission grid of the matrix (matrix, bfc, pbrt, art, and mitsuba for
+    /// Excitation and emission grid of the matrix (matrix, bfc, pbrt, art, exr, and mitsuba for
     /// materials with several fluorophores): start:end:step in nm, or comma-separated
     /// segments (300:400:10,405:780:5). Default: the material's own samples (for a fit,
     /// the measurement's grids).
@@ -36,12 +40,15 @@ pub struct ExportArgs {
     /// (read back with `fluorite fit --per-nm`).
     #[arg(long)]
     pub per_nm: bool,
-    /// Lights the baked exports (mitsuba, pbrt) are valid for, comma-separated: d65, a,
-    /// f11, uv or two-column CSV files. One baked spectrum per light; the first also lights
-    /// the fluorescence fork's scene and picks the fluorophore kept by targets that hold
-    /// one (mitsuba's fork, pearray).
-    #[arg(long, default_value = "d65")]
-    pub light: String,
+    /// Lights, comma-separated: d65, a, f11, uv or two-column CSV files (default d65).
+    /// Baked exports (mitsuba, pbrt) write one baked spectrum per light; the first also
+    /// lights the fluorescence fork's scene and picks the fluorophore kept by targets that
+    /// hold one (mitsuba's fork, pearray); rgb writes one 3×3 matrix per light.
+    #[arg(long)]
+    pub light: Option<String>,
+    /// Colour space of the rgb reduction: srgb (linear sRGB, the default) or xyz.
+    #[arg(long)]
+    pub space: Option<String>,
 }
 
 /// Runs `fluorite export`.
@@ -56,13 +63,52 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     let refuse = |what: &str| {
         Error::invalid(
             "--grid/--per-nm",
-            format!("apply to the matrix formats (matrix, bfc, pbrt, art), not to {what}"),
+            format!("apply to the matrix formats (matrix, bfc, pbrt, art, exr), not to {what}"),
         )
     };
     let has_matrix = matches!(
         format,
-        ExportFormat::Matrix | ExportFormat::Bfc | ExportFormat::Pbrt | ExportFormat::Art
+        ExportFormat::Matrix
+            | ExportFormat::Bfc
+            | ExportFormat::Pbrt
+            | ExportFormat::Art
+            | ExportFormat::Exr
     );
+    // The EXR layout's cells are per emission bin, as its reference implementation reads.
+    if format == ExportFormat::Exr && args.per_nm {
+        return Err(Error::invalid(
+            "--per-nm",
+            "does not apply to exr: the layout's reradiation cells are per emission bin",
+        )
+        .into());
+    }
+    let uses_lights = matches!(
+        format,
+        ExportFormat::Mitsuba | ExportFormat::Pbrt | ExportFormat::Pearray | ExportFormat::Rgb
+    );
+    if !uses_lights && args.light.is_some() {
+        return Err(Error::invalid(
+            "--light",
+            format!(
+                "applies to mitsuba, pbrt, pearray and rgb (baked spectra, reductions), not to {}",
+                args.to
+            ),
+        )
+        .into());
+    }
+    if format != ExportFormat::Rgb && args.space.is_some() {
+        return Err(Error::invalid(
+            "--space",
+            format!("applies to the rgb reduction, not to {}", args.to),
+        )
+        .into());
+    }
+    let space = args
+        .space
+        .as_deref()
+        .map(RgbSpace::parse)
+        .transpose()?
+        .unwrap_or_default();
     // Mitsuba exports carry the matrix only for several fluorophores: decided once the
     // material is read.
     if !has_matrix && format != ExportFormat::Mitsuba && matrix_options {
@@ -70,6 +116,8 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     }
     let lights = args
         .light
+        .as_deref()
+        .unwrap_or("d65")
         .split(',')
         .map(|l| {
             Light::parse(l.trim()).map_err(|e| match e {
@@ -107,6 +155,7 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
             Units::PerBin
         },
         lights,
+        space,
     };
     // Everything is rendered before anything is written.
     let files = export(&material, &options)?;
@@ -126,6 +175,9 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     write_files(&targets)?;
     for (path, _) in &targets {
         println!("{}", path.display());
+    }
+    for line in summary(&material, &options)? {
+        println!("{line}");
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -40,7 +40,7 @@ enum Command {
     /// Check materials against energy and photon conservation and the model's ranges
     /// (exit 0 valid, 1 violated, 2 unreadable).
     Check(check::CheckArgs),
-    /// Export a material: csv, matrix, bfc, mitsuba, pbrt, pearray or art.
+    /// Export a material: csv, matrix, bfc, mitsuba, pbrt, pearray, art, exr or rgb.
     Export(export::ExportArgs),
     /// Build a material from absorption and emission spectra, c and Q.
     ImportSpectra(import_spectra::ImportSpectraArgs),

@@ -10,6 +10,8 @@
 //! | [`ExportFormat::Pbrt`] | `NAME_*.spd`, `NAME_baked_<light>.spd`, `NAME_reradiation.csv`, `NAME.pbrt` | pbrt-v4 spectra, the baked βT per light, the matrix and named materials |
 //! | [`ExportFormat::Pearray`] | `NAME.prc`, `NAME_pearray.csv` | PearRay's `fluorescent` material and its spectra |
 //! | [`ExportFormat::Art`] | `NAME.ark` | the reradiation matrix as an ART bispectral archive entry |
+//! | [`ExportFormat::Exr`] | `NAME.exr` | a uniform bispectral spectral OpenEXR ([`exr`]; `fluorite fit` reads it back) |
+//! | [`ExportFormat::Rgb`] | `NAME.rgb.json` | the 3×3 reduced matrix per light and its ΔE2000 ([`rgb`]) |
 //!
 //! Every file states in its header the quantity and units it holds, the material's name
 //! and the fluorite version. Every fluorophore of a material is exported (per-component
@@ -20,11 +22,13 @@
 
 mod art;
 pub mod baked;
+pub mod exr;
 mod grid;
 mod matrix;
 mod mitsuba;
 mod pbrt;
 mod pearray;
+pub mod rgb;
 mod spectra;
 
 use crate::colour::Light;
@@ -36,6 +40,7 @@ pub use crate::files::{write_atomic, write_files};
 pub use baked::{BakedSpectrum, total_radiance_factor};
 pub use grid::parse_grid;
 pub use matrix::{default_grids, matrix};
+pub use rgb::RgbSpace;
 
 /// The forms a material can be exported to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -56,6 +61,10 @@ pub enum ExportFormat {
     Pearray,
     /// An ART bispectral measurement archive entry (`.ark`).
     Art,
+    /// A uniform bispectral spectral OpenEXR (Fichet, Mercier, Wilkie 2021).
+    Exr,
+    /// The 3×3 reduced matrix per light (Fichet, Belcour, Barla 2024).
+    Rgb,
 }
 
 impl ExportFormat {
@@ -63,11 +72,17 @@ impl ExportFormat {
     pub fn is_single_file(self) -> bool {
         matches!(
             self,
-            ExportFormat::Csv | ExportFormat::Matrix | ExportFormat::Bfc | ExportFormat::Art
+            ExportFormat::Csv
+                | ExportFormat::Matrix
+                | ExportFormat::Bfc
+                | ExportFormat::Art
+                | ExportFormat::Exr
+                | ExportFormat::Rgb
         )
     }
 
-    /// Parses a format name (`csv`, `matrix`, `bfc`, `mitsuba`, `pbrt`, `pearray`, `art`).
+    /// Parses a format name (`csv`, `matrix`, `bfc`, `mitsuba`, `pbrt`, `pearray`, `art`,
+    /// `exr`, `rgb`).
     pub fn parse(name: &str) -> Result<ExportFormat> {
         match name.to_ascii_lowercase().as_str() {
             "csv" => Ok(ExportFormat::Csv),
@@ -77,10 +92,12 @@ impl ExportFormat {
             "pbrt" => Ok(ExportFormat::Pbrt),
             "pearray" => Ok(ExportFormat::Pearray),
             "art" => Ok(ExportFormat::Art),
+            "exr" => Ok(ExportFormat::Exr),
+            "rgb" => Ok(ExportFormat::Rgb),
             _ => Err(Error::invalid(
                 "--to",
                 format!(
-                    "\"{name}\" is not a known format; choose csv, matrix, bfc, mitsuba, pbrt, pearray or art"
+                    "\"{name}\" is not a known format; choose csv, matrix, bfc, mitsuba, pbrt, pearray, art, exr or rgb"
                 ),
             )),
         }
@@ -101,8 +118,11 @@ pub struct ExportOptions {
     /// Matrix values per emission bin (the default, like a BFC-450) or per nm.
     pub units: Units,
     /// The lights baked exports are valid for (mitsuba, pbrt; the first also picks the
-    /// fluorophore kept by targets that hold one). Default: D65.
+    /// fluorophore kept by targets that hold one) and of the `rgb` reduction (one matrix
+    /// each). Default: D65.
     pub lights: Vec<Light>,
+    /// The colour space of the `rgb` reduction.
+    pub space: RgbSpace,
 }
 
 impl ExportOptions {
@@ -114,6 +134,7 @@ impl ExportOptions {
             emission_nm: None,
             units: Units::PerBin,
             lights: Light::builtin("d65").into_iter().collect(),
+            space: RgbSpace::default(),
         }
     }
 }
@@ -221,6 +242,49 @@ pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<Export
             )?;
             vec![text(n, s)]
         }
+        ExportFormat::Exr => {
+            let (ex, em) = grids()?;
+            vec![ExportFile {
+                name: format!("{stem}.exr"),
+                contents: exr::exr(material, &exr::layout_grid(&ex, &em))?,
+            }]
+        }
+        ExportFormat::Rgb => vec![text(
+            format!("{stem}.rgb.json"),
+            rgb::rgb_json(material, &options.lights, options.space)?,
+        )],
+    })
+}
+
+/// What an export drops or approximates, one line each, for the command to print:
+/// the anti-Stokes share the `exr` layout cannot hold, the ΔE2000 of each `rgb`
+/// reduction. Empty for the other formats.
+pub fn summary(material: &Material, options: &ExportOptions) -> Result<Vec<String>> {
+    Ok(match options.format {
+        ExportFormat::Exr => {
+            let (ex, em) = default_grids(material);
+            let grid = exr::layout_grid(
+                options.excitation_nm.as_deref().unwrap_or(&ex),
+                options.emission_nm.as_deref().unwrap_or(&em),
+            );
+            vec![format!(
+                "{}: anti-Stokes cells (λo < λi), which the spectral EXR layout cannot hold, carry {:.3} % of the off-diagonal energy",
+                material.name,
+                100.0 * exr::anti_stokes_share(material, &grid)?
+            )]
+        }
+        ExportFormat::Rgb => options
+            .lights
+            .iter()
+            .map(|light| {
+                let r = rgb::reduce(material, light, options.space)?;
+                Ok(format!(
+                    "{}: 3×3 under {}: ΔE2000 {:.3} between the reduced and the spectral colour",
+                    material.name, r.light, r.delta_e2000
+                ))
+            })
+            .collect::<Result<Vec<String>>>()?,
+        _ => Vec::new(),
     })
 }
 

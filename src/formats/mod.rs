@@ -6,9 +6,11 @@
 //! | [`Format::Long`] | header `excitation_nm,emission_nm,value` in any order | — |
 //! | [`Format::Bfc`] | Labsphere BFC-450 matrix file | emission |
 //! | [`Format::Webfluor`] | whitespace; first line emission wavelengths, rows start with excitation | excitation |
+//! | [`Format::Exr`] | bispectral spectral OpenEXR (channels `T.<λ>nm`, `T.<λi>nm.<λo>nm`; see [`exr`]) | — |
 //!
-//! The format is told by content first (the `BFC-450 Matrix File` line, a header naming
-//! `excitation_nm` and `emission_nm`, delimiters, a corner label), the extension second.
+//! The format is told by content first (OpenEXR's magic number, the `BFC-450 Matrix
+//! File` line, a header naming `excitation_nm` and `emission_nm`, delimiters, a corner
+//! label), the extension second.
 //! Empty cells, `NaN` and `NA` (any case) are missing values; zeros are missing too in
 //! WebFluor files, where they mean "not measured". Whatever the file's orientation, the
 //! [`Measurement`] is stored excitation-major. Every malformed file gives an
@@ -19,6 +21,7 @@
 
 mod bfc;
 mod detect;
+pub mod exr;
 mod long;
 mod table;
 mod text;
@@ -43,6 +46,8 @@ pub enum Format {
     Bfc,
     /// WebFluor-style whitespace matrix (solution EEM).
     Webfluor,
+    /// Bispectral spectral OpenEXR (Fichet, Mercier, Wilkie 2021), one uniform image.
+    Exr,
 }
 
 impl std::fmt::Display for Format {
@@ -52,6 +57,7 @@ impl std::fmt::Display for Format {
             Format::Long => "long CSV",
             Format::Bfc => "BFC-450 matrix file",
             Format::Webfluor => "WebFluor matrix",
+            Format::Exr => "bispectral OpenEXR",
         })
     }
 }
@@ -121,6 +127,10 @@ pub fn read(path: &Path, options: &ReadOptions) -> Result<Measurement> {
 /// Reads a reradiation matrix from a file's bytes; `path` names it in errors and gives
 /// the measurement its name (the file stem) and source.
 pub fn read_bytes(bytes: &[u8], path: &Path, options: &ReadOptions) -> Result<Measurement> {
+    // Binary: told by its magic number before any text decoding.
+    if options.format == Some(Format::Exr) || (options.format.is_none() && exr::is_exr(bytes)) {
+        return finish(path, bytes, exr::read(path, bytes)?, options);
+    }
     let text = text::decode(bytes);
     if text.trim().is_empty() {
         let what = if bytes.is_empty() {
@@ -144,7 +154,7 @@ pub fn read_bytes(bytes: &[u8], path: &Path, options: &ReadOptions) -> Result<Me
                 0,
                 0,
                 format!(
-                    "unknown format: the content matches none that fluorite reads ({SUPPORTED}); pass --format wide|long|bfc|webfluor to choose one"
+                    "unknown format: the content matches none that fluorite reads ({SUPPORTED}); pass --format wide|long|bfc|webfluor|exr to choose one"
                 ),
             )
         })?,
@@ -154,6 +164,7 @@ pub fn read_bytes(bytes: &[u8], path: &Path, options: &ReadOptions) -> Result<Me
         Format::Long => long::read(path, &lines)?,
         Format::Bfc => bfc::read(path, &lines, options)?,
         Format::Webfluor => webfluor::read(path, &lines, options)?,
+        Format::Exr => exr::read(path, bytes)?,
     };
     finish(path, bytes, parsed, options)
 }
@@ -161,11 +172,14 @@ pub fn read_bytes(bytes: &[u8], path: &Path, options: &ReadOptions) -> Result<Me
 /// Tells the format of a file from its bytes (content first, extension as a hint), as
 /// [`read`] does when no format is given; `None` when nothing matches.
 pub fn detect_format(path: &Path, bytes: &[u8]) -> Option<Format> {
+    if exr::is_exr(bytes) {
+        return Some(Format::Exr);
+    }
     let text = text::decode(bytes);
     detect::detect(path, bytes, &text::split_lines(&text))
 }
 
-const SUPPORTED: &str = "a wide CSV with a corner cell and column wavelengths, a long CSV with columns excitation_nm,emission_nm,value, a BFC-450 matrix file, or a WebFluor whitespace matrix";
+const SUPPORTED: &str = "a wide CSV with a corner cell and column wavelengths, a long CSV with columns excitation_nm,emission_nm,value, a BFC-450 matrix file, a WebFluor whitespace matrix, or a bispectral OpenEXR";
 
 fn finish(path: &Path, bytes: &[u8], parsed: Parsed, options: &ReadOptions) -> Result<Measurement> {
     let Parsed {

@@ -1,0 +1,306 @@
+//! The bispectral spectral OpenEXR layout of Fichet, Mercier and Wilkie ("An OpenEXR
+//! Layout for Spectral Images", JCGT 10(3), 2021; reference implementation
+//! afichet/spectral-exr, `lib/EXRBiSpectralImage.cpp`), read as a measurement.
+//!
+//! A reflective (bispectral) image names its channels after wavelengths: `T.<λ>nm` holds
+//! the diagonal (reflectance) at λ, `T.<λi>nm.<λo>nm` the reradiation from λi to λo > λi.
+//! Numbers use a comma as decimal separator (`T.432,5nm`); the reference's grammar also
+//! allows an exponent, SI prefixes and `Hz`, which are read here too. One wavelength grid
+//! serves both axes, and only λo > λi has channels: the layout holds no anti-Stokes
+//! cell, so those cells read as missing. Every pixel is one matrix; a uniform image (what
+//! `fluorite export --to exr` writes) reads as that matrix, a non-uniform one as the
+//! mean over its pixels, with a note giving the spread.
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+
+use super::Parsed;
+
+/// The header attribute naming the layout's version.
+pub const VERSION_ATTRIBUTE: &str = "spectralLayoutVersion";
+/// The version of the layout written and read.
+pub const VERSION: &str = "1.0";
+/// The first four bytes of every OpenEXR file.
+const MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+
+/// Whether `bytes` start like an OpenEXR file.
+pub fn is_exr(bytes: &[u8]) -> bool {
+    bytes.starts_with(&MAGIC)
+}
+
+/// A wavelength as the layout writes it: at most six decimals (the reference writer's
+/// `std::to_string` precision), trailing zeros dropped, with a comma as decimal
+/// separator (`432,5`, `300`). Six decimals keep grid steps such as 0.1 nm short:
+/// 300.20000000000005 is `300,2`.
+fn wavelength_text(nm: f64) -> String {
+    let fixed = format!("{nm:.6}");
+    let trimmed = fixed.trim_end_matches('0').trim_end_matches('.');
+    trimmed.replace('.', ",")
+}
+
+/// The channel holding the diagonal (reflectance) at `nm`: `T.<λ>nm`.
+pub fn diagonal_channel(nm: f64) -> String {
+    format!("T.{}nm", wavelength_text(nm))
+}
+
+/// The channel holding the reradiation from `excitation_nm` to `emission_nm` (which the
+/// layout requires to be longer): `T.<λi>nm.<λo>nm`.
+pub fn reradiation_channel(excitation_nm: f64, emission_nm: f64) -> String {
+    format!(
+        "T.{}nm.{}nm",
+        wavelength_text(excitation_nm),
+        wavelength_text(emission_nm)
+    )
+}
+
+/// What a channel name means in the layout.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Channel {
+    /// `T.<λ>`: the diagonal at λ (nm).
+    Diagonal(f64),
+    /// `T.<λi>.<λo>`: the reradiation from λi to λo (nm).
+    Reradiation(f64, f64),
+    /// `S<k>.<λ>`: an emissive Stokes component (polarisation component k) at λ (nm).
+    Emissive(u8, f64),
+}
+
+/// Parses a channel name by the reference implementation's grammar
+/// (`EXRBiSpectralImage::channelType`); `None` for channels outside the layout (`R`, `G`,
+/// `B`, …).
+pub fn parse_channel(name: &str) -> Option<Channel> {
+    let (prefix, rest) = name.split_once('.')?;
+    let parts: Vec<&str> = rest.split('.').collect();
+    match (prefix, parts.as_slice()) {
+        ("T", [l]) => Some(Channel::Diagonal(quantity_nm(l)?)),
+        ("T", [i, o]) => Some(Channel::Reradiation(quantity_nm(i)?, quantity_nm(o)?)),
+        (s, [l]) if s.len() == 2 && s.starts_with('S') => {
+            let k = s[1..].parse::<u8>().ok().filter(|k| *k <= 3)?;
+            Some(Channel::Emissive(k, quantity_nm(l)?))
+        }
+        _ => None,
+    }
+}
+
+/// `<value><SI prefix><m|Hz>` in nm: the value's digits with at most one comma and an
+/// optional exponent, as the reference's `(\d*,?\d*([Ee][+-]?\d+)?)` reads it.
+fn quantity_nm(text: &str) -> Option<f64> {
+    let bytes = text.as_bytes();
+    let mut end = 0;
+    let mut commas = 0;
+    while end < bytes.len() && (bytes[end].is_ascii_digit() || bytes[end] == b',') {
+        commas += usize::from(bytes[end] == b',');
+        end += 1;
+    }
+    if commas > 1 || !bytes[..end].iter().any(u8::is_ascii_digit) {
+        return None;
+    }
+    // An exponent only when digits follow: `5Em` is 5 exametres, `5E1m` is 50 m.
+    if end < bytes.len() && matches!(bytes[end], b'e' | b'E') {
+        let mut k = end + 1;
+        if k < bytes.len() && matches!(bytes[k], b'+' | b'-') {
+            k += 1;
+        }
+        let digits = bytes[k..].iter().take_while(|b| b.is_ascii_digit()).count();
+        if digits > 0 {
+            end = k + digits;
+        }
+    }
+    let value: f64 = text[..end].replace(',', ".").parse().ok()?;
+    let units = &text[end..];
+    let (prefix, hertz) = if let Some(p) = units.strip_suffix("Hz") {
+        (p, true)
+    } else {
+        (units.strip_suffix('m')?, false)
+    };
+    let scale = match prefix {
+        "" => 1.0,
+        "Y" => 1e24,
+        "Z" => 1e21,
+        "E" => 1e18,
+        "P" => 1e15,
+        "T" => 1e12,
+        "G" => 1e9,
+        "M" => 1e6,
+        "k" => 1e3,
+        "h" => 1e2,
+        "da" => 1e1,
+        "d" => 1e-1,
+        "c" => 1e-2,
+        "m" => 1e-3,
+        "u" => 1e-6,
+        "n" => 1e-9,
+        "p" => 1e-12,
+        _ => return None,
+    };
+    let nm = if hertz {
+        299_792_458.0 / (value * scale) * 1e9
+    } else if prefix == "n" {
+        value
+    } else {
+        value * scale * 1e9
+    };
+    (nm.is_finite() && nm > 0.0).then_some(nm)
+}
+
+/// Reads a bispectral EXR into an excitation-major matrix on its wavelength grid.
+pub(super) fn read(path: &Path, bytes: &[u8]) -> Result<Parsed> {
+    use exr::prelude::{ReadChannels, ReadLayers, read};
+    let fail = |message: String| Error::parse(path, 0, 0, message);
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| fail(format!("not a readable OpenEXR file: {e}")))?;
+    // The layout is one part; take the first layer holding reflective channels.
+    let mut layers = image.layer_data.iter().map(named_channels);
+    let channels = loop {
+        match layers.next() {
+            Some(channels)
+                if channels
+                    .iter()
+                    .any(|(c, _)| !matches!(c, Channel::Emissive(..))) =>
+            {
+                break channels;
+            }
+            Some(_) => continue,
+            None => {
+                return Err(fail(
+                    "no reflective spectral channel (T.<λ>nm or T.<λi>nm.<λo>nm): this is an RGB or emissive-only EXR, not a bispectral measurement; export one with `fluorite export MAT --to exr` or the spectral-exr tools".into(),
+                ));
+            }
+        }
+    };
+    let mut grid: Vec<f64> = Vec::new();
+    for (c, _) in &channels {
+        match *c {
+            Channel::Diagonal(l) => grid.push(l),
+            Channel::Reradiation(i, o) => grid.extend([i, o]),
+            Channel::Emissive(..) => {}
+        }
+    }
+    grid.sort_by(f64::total_cmp);
+    grid.dedup_by(|a, b| (*a - *b).abs() <= 1e-6);
+    let n = grid.len();
+    let index = |nm: f64| crate::spectrum::find_wavelength(&grid, nm).unwrap_or(0);
+    let mut values = vec![f64::NAN; n * n];
+    let mut seen = vec![false; n * n];
+    let mut notes = Vec::new();
+    let mut spread: f64 = 0.0;
+    let mut pixels = 0;
+    for (channel, samples) in &channels {
+        let (i, j) = match *channel {
+            Channel::Diagonal(l) => (index(l), index(l)),
+            Channel::Reradiation(ex, em) if em > ex => (index(ex), index(em)),
+            Channel::Reradiation(ex, em) => {
+                return Err(fail(format!(
+                    "channel {}: the layout's reradiation channels go from a shorter to a longer wavelength (λo > λi), here {ex} nm → {em} nm; name it T.<λi>nm.<λo>nm with λi < λo",
+                    reradiation_channel(ex, em)
+                )));
+            }
+            Channel::Emissive(..) => continue,
+        };
+        if std::mem::replace(&mut seen[i * n + j], true) {
+            return Err(fail(format!(
+                "two channels name the cell {} nm → {} nm (e.g. `500nm` and `500,0nm`); keep one",
+                grid[i], grid[j]
+            )));
+        }
+        let (mut sum, mut count, mut lo, mut hi) = (0.0, 0usize, f64::INFINITY, f64::NEG_INFINITY);
+        for v in samples
+            .values_as_f32()
+            .map(f64::from)
+            .filter(|v| v.is_finite())
+        {
+            sum += v;
+            count += 1;
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        pixels = pixels.max(samples.len());
+        if count > 0 {
+            values[i * n + j] = sum / count as f64;
+            spread = spread.max(hi - lo);
+        }
+    }
+    if channels
+        .iter()
+        .any(|(c, _)| matches!(c, Channel::Emissive(..)))
+    {
+        notes.push(
+            "emissive channels (S0…S3) ignored: the measurement is the reflective (bispectral) part"
+                .into(),
+        );
+    }
+    if spread > 0.0 && pixels > 1 {
+        notes.push(format!(
+            "the image is not uniform (a cell varies by up to {spread:.3e} across its {pixels} pixels): the matrix read is the mean over the pixels"
+        ));
+    }
+    if n > 1 {
+        notes.push(format!(
+            "the spectral EXR layout has no channel for anti-Stokes cells (λo < λi): those {} cells read as missing",
+            n * (n - 1) / 2
+        ));
+    }
+    Ok(Parsed::surface(grid.clone(), grid, values, notes))
+}
+
+type Layer = exr::image::Layer<exr::image::AnyChannels<exr::image::FlatSamples>>;
+
+/// The channels of `layer` the layout names, with their samples.
+fn named_channels(layer: &Layer) -> Vec<(Channel, &exr::image::FlatSamples)> {
+    layer
+        .channel_data
+        .list
+        .iter()
+        .filter_map(|c| Some((parse_channel(&c.name.to_string())?, &c.sample_data)))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn channel_names_follow_the_reference_grammar() {
+        assert_eq!(diagonal_channel(432.5), "T.432,5nm");
+        assert_eq!(reradiation_channel(300.0, 310.0), "T.300nm.310nm");
+        assert_eq!(diagonal_channel(300.0 + 0.1 + 0.1), "T.300,2nm");
+        assert_eq!(diagonal_channel(1000.0), "T.1000nm");
+        assert_eq!(parse_channel("T.432,5nm"), Some(Channel::Diagonal(432.5)));
+        // The reference writer's std::to_string form.
+        assert_eq!(
+            parse_channel("T.300,000000nm.310,000000nm"),
+            Some(Channel::Reradiation(300.0, 310.0))
+        );
+        assert_eq!(parse_channel("S0.550nm"), Some(Channel::Emissive(0, 550.0)));
+        let Some(Channel::Diagonal(um)) = parse_channel("T.0,5um") else {
+            panic!("micrometres")
+        };
+        assert!((um - 500.0).abs() < 1e-9);
+        let Some(Channel::Diagonal(hz)) = parse_channel("T.599,584916THz") else {
+            panic!("terahertz")
+        };
+        assert!((hz - 500.0).abs() < 1e-6, "{hz}");
+        let Some(Channel::Diagonal(e)) = parse_channel("T.5E2nm") else {
+            panic!("exponent")
+        };
+        assert!((e - 500.0).abs() < 1e-9);
+        for other in [
+            "R",
+            "G",
+            "B",
+            "T.nm",
+            "T.5,0,0nm",
+            "T.500",
+            "S4.500nm",
+            "X.500nm",
+        ] {
+            assert_eq!(parse_channel(other), None, "{other}");
+        }
+    }
+}
