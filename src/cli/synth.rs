@@ -37,6 +37,12 @@ pub struct SynthArgs {
     /// Suffix appended to each file stem (e.g. `-noisefree`).
     #[arg(long, default_value = "")]
     pub suffix: String,
+    /// Write a concentration series instead of one matrix per preset: one matrix per
+    /// concentration (comma-separated, e.g. 0.2,0.5,1.0), named `<preset>-c<c>`, with the
+    /// preset's spectra, reflectance and yield shared and a noise draw each (seed, seed + 1,
+    /// …). Input for the joint series fit, which separates c from Q.
+    #[arg(long, value_delimiter = ',')]
+    pub concentrations: Vec<f64>,
 }
 
 /// Runs `fluorite synth`.
@@ -73,8 +79,12 @@ pub fn run(args: SynthArgs) -> anyhow::Result<ExitCode> {
         if let Some(v) = args.missing {
             spec.missing_fraction = v;
         }
-        let (m, truth) = spec.generate()?;
-        outputs.push((spec, m, truth));
+        if args.concentrations.is_empty() {
+            let (m, truth) = spec.generate()?;
+            outputs.push((spec, m, truth));
+        } else {
+            outputs.extend(spec.concentration_series(&args.concentrations)?);
+        }
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
