@@ -89,15 +89,13 @@ pub fn run(args: SynthArgs) -> anyhow::Result<ExitCode> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     for (spec, m, truth) in outputs {
-        let stem = args.out.join(&spec.name);
-        let csv = stem.with_extension("csv");
+        // Appended, not `with_extension`: series names hold a dot (`green-dye-c0.5`).
+        let file = |extension: &str| args.out.join(format!("{}.{extension}", spec.name));
+        let csv = file("csv");
         write_atomic(&csv, write_wide_csv(&m, RowsAre::Excitation).as_bytes())?;
-        write_atomic(
-            &stem.with_extension("truth.json"),
-            truth.to_json().as_bytes(),
-        )?;
+        write_atomic(&file("truth.json"), truth.to_json().as_bytes())?;
         let spec_json = serde_json::to_string_pretty(&spec)? + "\n";
-        write_atomic(&stem.with_extension("synth.json"), spec_json.as_bytes())?;
+        write_atomic(&file("synth.json"), spec_json.as_bytes())?;
         println!(
             "{}: {} × {} cells, noise σ = {}, crosstalk {}, missing {:.0} %, seed {}",
             csv.display(),
