@@ -299,3 +299,51 @@ fn series_with_crosstalk_and_missing_cells() {
         }
     }
 }
+
+/// What spread of concentrations a user needs: the propagated error of Q (and of c at
+/// 0.5) for two files ever further apart, and for more files, on green-dye with the
+/// measured noise. Wider spreads separate c from Q better; every estimate stays within
+/// 3 propagated errors of the truth.
+#[test]
+fn wider_spread_separates_c_from_q_better() {
+    let sigma = fluorite::synth::MEASURED_NOISE_SIGMA;
+    let designs: [&[f64]; 6] = [
+        &[0.45, 0.55],
+        &[0.3, 0.7],
+        &[0.1, 0.9],
+        &[0.1, 0.5, 0.9],
+        &[0.1, 0.3, 0.5, 0.7, 0.9],
+        &[0.05, 0.1, 0.2],
+    ];
+    let mut two_file_errors = Vec::new();
+    println!("| concentrations | Q (truth) | σ(Q) | σ(c)/c, median |");
+    for design in designs {
+        let (measurements, truths) = series("green-dye", YieldForm::Energy, sigma, 7, design);
+        let fit = fit_concentration_series(&measurements, &options(YieldForm::Energy)).unwrap();
+        let q = truths[0].fluorophores[0].quantum_yield;
+        let mut relative: Vec<f64> = fit
+            .files
+            .iter()
+            .map(|f| f.concentration_std_error / f.concentration)
+            .collect();
+        relative.sort_by(f64::total_cmp);
+        println!(
+            "| {design:?} | {:.4} ({q:.4}) | {:.4} | {:.2} % |",
+            fit.quantum_yield,
+            fit.quantum_yield_std_error,
+            100.0 * relative[relative.len() / 2]
+        );
+        assert!((fit.quantum_yield - q).abs() <= 3.0 * fit.quantum_yield_std_error);
+        for (f, t) in fit.files.iter().zip(&truths) {
+            let c = t.fluorophores[0].concentration;
+            assert!((f.concentration - c).abs() <= 3.0 * f.concentration_std_error);
+        }
+        if design.len() == 2 {
+            two_file_errors.push(fit.quantum_yield_std_error);
+        }
+    }
+    assert!(
+        two_file_errors.windows(2).all(|w| w[1] < w[0]),
+        "{two_file_errors:?}"
+    );
+}
