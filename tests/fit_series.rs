@@ -241,6 +241,8 @@ fn run_reads_a_written_series() {
         paths.push(path);
     }
     let fit = fluorite::fit::series::run(&paths, &SeriesOptions::default()).unwrap();
+    print!("{}", fit.summary());
+    assert!(fit.summary().contains("green-dye-c0.3: c = 0.3000 ±"));
     for (f, t) in fit.files.iter().zip(&truths) {
         let c = t.fluorophores[0].concentration;
         // The CSV holds the values to its printed precision.
