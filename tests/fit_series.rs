@@ -40,6 +40,34 @@ fn options(form: YieldForm) -> SeriesOptions {
     }
 }
 
+/// Asserts every c_j within `relative` of its truth.
+fn assert_concentrations(fit: &SeriesFit, truths: &[Material], relative: f64) {
+    for (f, t) in fit.files.iter().zip(truths) {
+        let c = t.fluorophores[0].concentration;
+        assert!(
+            (f.concentration - c).abs() <= relative * c,
+            "{}: c {} against {c}",
+            f.name,
+            f.concentration
+        );
+    }
+}
+
+/// Asserts the yield and every c_j within 3 propagated errors of the truth and returns
+/// the normalised errors (estimate − truth)/σ̂, yield first.
+fn within_three_errors(fit: &SeriesFit, truths: &[Material]) -> Vec<f64> {
+    let q = truths[0].fluorophores[0].quantum_yield;
+    let mut z = vec![(fit.quantum_yield - q) / fit.quantum_yield_std_error];
+    for (f, t) in fit.files.iter().zip(truths) {
+        z.push((f.concentration - t.fluorophores[0].concentration) / f.concentration_std_error);
+    }
+    assert!(
+        z.iter().all(|z| z.abs() <= 3.0),
+        "normalised errors {z:?} (yield first)"
+    );
+    z
+}
+
 fn largest_difference(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
         .zip(b)
@@ -94,15 +122,7 @@ fn noise_free_series_recovers_the_truth_in_both_yield_forms() {
             fit.quantum_yield,
             truth.quantum_yield
         );
-        for (f, t) in fit.files.iter().zip(&truths) {
-            let c = t.fluorophores[0].concentration;
-            assert!(
-                (f.concentration - c).abs() <= 1e-6 * c,
-                "{preset} {form:?} {}: c {} against {c}",
-                f.name,
-                f.concentration
-            );
-        }
+        assert_concentrations(&fit, &truths, 1e-6);
         assert!(largest_difference(&fit.absorption.value, &truth.absorption.value) <= 1e-6);
         let e_peak = truth.emission.max();
         assert!(largest_difference(&fit.emission.value, &truth.emission.value) <= 1e-6 * e_peak);
@@ -137,24 +157,14 @@ fn noisy_series_recovers_c_and_q_within_their_propagated_errors() {
             let q = truths[0].fluorophores[0].quantum_yield;
             let dq = fit.quantum_yield_std_error;
             assert!(dq > 0.0 && dq < 0.05 * q, "{form:?} seed {seed}: σ(Q) {dq}");
-            assert!(
-                (fit.quantum_yield - q).abs() <= 3.0 * dq,
-                "{form:?} seed {seed}: Q {} ± {dq} against {q}",
-                fit.quantum_yield
-            );
-            z.push((fit.quantum_yield - q) / dq);
-            for (f, t) in fit.files.iter().zip(&truths) {
-                let c = t.fluorophores[0].concentration;
+            for f in &fit.files {
                 let dc = f.concentration_std_error;
-                assert!(dc > 0.0 && dc < 0.05 * c, "{form:?} seed {seed}: σ(c) {dc}");
                 assert!(
-                    (f.concentration - c).abs() <= 3.0 * dc,
-                    "{form:?} seed {seed} {}: c {} ± {dc} against {c}",
-                    f.name,
-                    f.concentration
+                    dc > 0.0 && dc < 0.05 * f.concentration,
+                    "{form:?} seed {seed}: σ(c) {dc}"
                 );
-                z.push((f.concentration - c) / dc);
             }
+            z.extend(within_three_errors(&fit, &truths));
             // Noise σ estimated as the single fits estimate it, close to the truth.
             assert!(
                 (fit.noise_sigma / sigma - 1.0).abs() < 0.2,
@@ -243,15 +253,8 @@ fn run_reads_a_written_series() {
     let fit = fluorite::fit::series::run(&paths, &SeriesOptions::default()).unwrap();
     print!("{}", fit.summary());
     assert!(fit.summary().contains("green-dye-c0.3: c = 0.3000 ±"));
-    for (f, t) in fit.files.iter().zip(&truths) {
-        let c = t.fluorophores[0].concentration;
-        // The CSV holds the values to its printed precision.
-        assert!(
-            (f.concentration - c).abs() <= 1e-4 * c,
-            "{}: {}",
-            f.name,
-            f.concentration
-        );
+    assert_concentrations(&fit, &truths, 1e-4);
+    for f in &fit.files {
         assert!(f.source.ends_with(&format!("{}.csv", f.name)));
     }
     let mut other = measurements[1].clone();
@@ -287,18 +290,7 @@ fn series_with_crosstalk_and_missing_cells() {
         let fit = fit_concentration_series(&measurements, &options(YieldForm::Energy)).unwrap();
         println!("{preset}, crosstalk {}, 5 % missing", spec.crosstalk);
         print(&fit, &truths);
-        let q = truths[0].fluorophores[0].quantum_yield;
-        assert!((fit.quantum_yield - q).abs() <= 3.0 * fit.quantum_yield_std_error);
-        for (f, t) in fit.files.iter().zip(&truths) {
-            let c = t.fluorophores[0].concentration;
-            assert!(
-                (f.concentration - c).abs() <= 3.0 * f.concentration_std_error,
-                "{preset} {}: c {} ± {} against {c}",
-                f.name,
-                f.concentration,
-                f.concentration_std_error
-            );
-        }
+        within_three_errors(&fit, &truths);
     }
 }
 
@@ -335,11 +327,7 @@ fn wider_spread_separates_c_from_q_better() {
             fit.quantum_yield_std_error,
             100.0 * relative[relative.len() / 2]
         );
-        assert!((fit.quantum_yield - q).abs() <= 3.0 * fit.quantum_yield_std_error);
-        for (f, t) in fit.files.iter().zip(&truths) {
-            let c = t.fluorophores[0].concentration;
-            assert!((f.concentration - c).abs() <= 3.0 * f.concentration_std_error);
-        }
+        within_three_errors(&fit, &truths);
         if design.len() == 2 {
             two_file_errors.push(fit.quantum_yield_std_error);
         }
