@@ -257,6 +257,17 @@ fn run_reads_a_written_series() {
     for f in &fit.files {
         assert!(f.source.ends_with(&format!("{}.csv", f.name)));
     }
+    // Written: the series and one material per file, which load back.
+    let written = fit.write(&dir.join("fits"), "series").unwrap();
+    assert_eq!(written.len(), 3);
+    let loaded = Material::load(&written[2]).unwrap();
+    assert_eq!(
+        loaded.fluorophores[0].concentration,
+        fit.files[1].concentration
+    );
+    let series_json: SeriesFit =
+        serde_json::from_str(&std::fs::read_to_string(&written[0]).unwrap()).unwrap();
+    assert_eq!(series_json, fit);
     let mut other = measurements[1].clone();
     other.emission_nm.iter_mut().for_each(|l| *l += 1.0);
     other.name = "shifted".into();

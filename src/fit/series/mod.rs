@@ -237,6 +237,33 @@ impl SeriesFit {
         out
     }
 
+    /// Writes the series into folder `dir` (created if missing), all files or none:
+    /// `<stem>.json` (this fit, `fluorite-series/1`) and one material per file,
+    /// `<file name>.json` (`fluorite-material/1`, for check, plot, export and render).
+    /// Returns the paths written.
+    pub fn write(&self, dir: &Path, stem: &str) -> Result<Vec<PathBuf>> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let mut files = vec![(
+            dir.join(format!("{stem}.json")),
+            self.to_json().into_bytes(),
+        )];
+        for (j, f) in self.files.iter().enumerate() {
+            let path = dir.join(format!("{}.json", f.name));
+            if files.iter().any(|(p, _)| *p == path) {
+                return Err(Error::invalid(
+                    "FILES",
+                    format!(
+                        "two outputs would be {}; give the files distinct names, or the series another stem",
+                        path.display()
+                    ),
+                ));
+            }
+            files.push((path, self.material_for(j).to_json().into_bytes()));
+        }
+        crate::files::write_files(&files)?;
+        Ok(files.into_iter().map(|(p, _)| p).collect())
+    }
+
     /// Pretty JSON.
     pub fn to_json(&self) -> String {
         let mut s = serde_json::to_string_pretty(self).expect("a series fit serialises");

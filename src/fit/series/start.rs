@@ -123,7 +123,7 @@ pub fn closed_form(
     let inverse_yield = num / den;
     if !(den > 0.0 && inverse_yield.is_finite() && inverse_yield > 0.0) {
         return Err(Error::Fit(format!(
-            "{}: the diagonals do not fall where the material absorbs as the fluorescence rises, so c cannot be separated from Q; measure concentrations that differ more (e.g. by a factor of 3 or more) on a diagonal that includes the absorption band",
+            "{}: the diagonals do not fall where the material absorbs as the fluorescence rises, so c cannot be separated from Q; check that the files hold one material at different concentrations, and measure concentrations that differ more (e.g. by a factor of 3 or more) on a diagonal that includes the absorption band",
             names.join(", ")
         )));
     }
