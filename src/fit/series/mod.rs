@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use crate::colour::Light;
 use crate::error::{Error, Result};
 use crate::fit::data::{FitData, fill_missing, provenance};
-use crate::fit::{assess, solve};
+use crate::fit::{YieldChoice, assess, solve};
 use crate::formats::{ReadOptions, read};
 use crate::material::{FitReport, Fluorophore, Material, YieldForm};
 use crate::measurement::Measurement;
@@ -49,8 +49,10 @@ const PSEUDO_INVERSE_RTOL: f64 = 1e-14;
 /// How to fit a series.
 #[derive(Debug, Clone)]
 pub struct SeriesOptions {
-    /// The yield form: constant energy yield Q (the paper's) or photon yield Φ.
-    pub yield_form: YieldForm,
+    /// The yield form: constant energy yield Q (the paper's), constant photon yield Φ,
+    /// or `Auto`: both fitted, the photon form taken only when it fits clearly better
+    /// (a series can tell them apart: the diagonal sees a, the fluorescence a·Q(λ)).
+    pub yield_choice: YieldChoice,
     /// Cells within this many nm of the diagonal are set aside (default: none).
     pub guard_nm: Option<f64>,
     /// Gauss-Newton iteration limit.
@@ -67,7 +69,7 @@ pub struct SeriesOptions {
 impl Default for SeriesOptions {
     fn default() -> Self {
         SeriesOptions {
-            yield_form: YieldForm::Energy,
+            yield_choice: YieldChoice::Auto,
             guard_nm: None,
             max_iterations: 100,
             tolerance: 1e-9,
@@ -119,6 +121,8 @@ pub struct SeriesFit {
     pub emission: Spectrum,
     /// Which yield is constant over the excitation wavelength.
     pub yield_form: YieldForm,
+    /// Why that form, in words.
+    pub yield_choice: String,
     /// The yield of that form: energy Q or photon Φ.
     pub quantum_yield: f64,
     /// Its propagated standard error.
@@ -179,7 +183,7 @@ impl SeriesFit {
             warnings: self.warnings.clone(),
             noise_sigma: f.noise_sigma,
             model: "tabulated series".into(),
-            yield_choice: format!("{} form, as asked", self.yield_form.name()),
+            yield_choice: self.yield_choice.clone(),
             cost_history: self.cost_history.clone(),
             ..FitReport::default()
         });
@@ -359,9 +363,77 @@ pub fn fit_concentration_series(
         .map(|m| FitData::new(m, guard_nm))
         .collect();
     let names: Vec<String> = measurements.iter().map(label).collect();
-    let shapes = start::shapes(&files, options.yield_form, &names)?;
-    let model = SeriesModel::new(&files, options.yield_form, shapes.peak);
-    let theta0 = model.encode(&start::closed_form(&model, &shapes, &names)?);
+    let fit_in = |form| fit_form(measurements, &files, &names, form, options);
+    let mut fit = match options.yield_choice {
+        YieldChoice::Energy | YieldChoice::Photon => {
+            let form = match options.yield_choice {
+                YieldChoice::Photon => YieldForm::Photon,
+                _ => YieldForm::Energy,
+            };
+            let (mut fit, _) = fit_in(form)?;
+            fit.yield_choice = format!("{} form, as asked (--yield {})", form.name(), form.name());
+            fit
+        }
+        YieldChoice::Auto => {
+            let (energy, photon) =
+                rayon::join(|| fit_in(YieldForm::Energy), || fit_in(YieldForm::Photon));
+            choose_form(energy, photon)?
+        }
+    };
+    fit.seconds = started.elapsed().as_secs_f64();
+    Ok(fit)
+}
+
+/// `--yield auto`: the photon form when its objective ½·RSS is lower than the energy
+/// form's by more than this fraction (plus ½σ²), as single fits choose; forms that fit
+/// equally keep the paper's.
+const YIELD_FORM_MARGIN: f64 = 1e-3;
+
+/// The better of the two forms' fits (each with its residual sum of squares), with the
+/// reason; either alone when the other failed.
+fn choose_form(
+    energy: Result<(SeriesFit, f64)>,
+    photon: Result<(SeriesFit, f64)>,
+) -> Result<SeriesFit> {
+    let (mut fit, reason) = match (energy, photon) {
+        (Ok((energy, e)), Ok((photon, p))) => {
+            let margin = YIELD_FORM_MARGIN * 0.5 * e + 0.5 * energy.error_sigma.powi(2);
+            let objectives = format!("objective ½·RSS {:.4e} against {:.4e}", 0.5 * p, 0.5 * e);
+            if 0.5 * p < 0.5 * e - margin {
+                let reason = format!("photon form (constant Φ): it fits better ({objectives})");
+                (photon, reason)
+            } else {
+                let reason = format!(
+                    "energy form (constant Q): the photon form fits no better ({objectives})"
+                );
+                (energy, reason)
+            }
+        }
+        (Ok((energy, _)), Err(e)) => (
+            energy,
+            format!("energy form (constant Q): the photon form failed ({e})"),
+        ),
+        (Err(e), Ok((photon, _))) => (
+            photon,
+            format!("photon form (constant Φ): the energy form failed ({e})"),
+        ),
+        (Err(e), Err(_)) => return Err(e),
+    };
+    fit.yield_choice = reason;
+    Ok(fit)
+}
+
+/// The series fitted in yield form `form`, with its residual sum of squares.
+fn fit_form(
+    measurements: &[Measurement],
+    files: &[FitData],
+    names: &[String],
+    form: YieldForm,
+    options: &SeriesOptions,
+) -> Result<(SeriesFit, f64)> {
+    let shapes = start::shapes(files, form, names)?;
+    let model = SeriesModel::new(files, form, shapes.peak);
+    let theta0 = model.encode(&start::closed_form(&model, &shapes, names)?);
     let start_norm = norm(&model.residuals_of(&model.decode(&theta0)));
     // The tolerance is relative to the data's scale: exact data end at a residual of
     // rounding error, which no relative change of it would reach.
@@ -433,7 +505,7 @@ pub fn fit_concentration_series(
 
     let mut offset = 0;
     let mut series_files = Vec::new();
-    for (j, (m, data)) in measurements.iter().zip(&files).enumerate() {
+    for (j, (m, data)) in measurements.iter().zip(files).enumerate() {
         let c = params.concentrations[j];
         let mut c_gradient = vec![0.0; model.n_params()];
         c_gradient[model.c_index(j)] = 1.0;
@@ -466,7 +538,8 @@ pub fn fit_concentration_series(
         reflectance,
         absorption,
         emission,
-        yield_form: options.yield_form,
+        yield_form: form,
+        yield_choice: String::new(),
         quantum_yield,
         quantum_yield_std_error: variance(&yield_gradient).sqrt(),
         files: series_files,
@@ -480,7 +553,7 @@ pub fn fit_concentration_series(
         warnings: Vec::new(),
     };
     // Per-file accuracy of the shared material with that file's c, as single fits report it.
-    for (j, (m, data)) in measurements.iter().zip(&files).enumerate() {
+    for (j, (m, data)) in measurements.iter().zip(files).enumerate() {
         let material = fit.material_for(j);
         if let Err(e) = material.validate() {
             fit.warnings.push(format!(
@@ -494,9 +567,8 @@ pub fn fit_concentration_series(
         file.rmse_diagonal = accuracy.rmse_diagonal;
         file.delta_e2000 = accuracy.delta_e2000;
     }
-    fit.warnings.extend(warnings(&fit, &refined, &names));
-    fit.seconds = started.elapsed().as_secs_f64();
-    Ok(fit)
+    fit.warnings.extend(warnings(&fit, &refined, names));
+    Ok((fit, rss))
 }
 
 /// The warnings of a finished series fit.
