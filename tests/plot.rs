@@ -99,17 +99,6 @@ fn missing_cells() -> Vec<(usize, usize)> {
     vec![(40, 2), (41, 2)]
 }
 
-fn decode_png(bytes: &[u8]) -> (u32, u32, Vec<u8>) {
-    let decoder = png::Decoder::new(std::io::Cursor::new(bytes));
-    let mut reader = decoder.read_info().expect("figure decodes as PNG");
-    let mut buffer = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buffer).expect("PNG frame decodes");
-    assert_eq!(info.color_type, png::ColorType::Rgb);
-    assert_eq!(info.bit_depth, png::BitDepth::Eight);
-    buffer.truncate(info.buffer_size());
-    (info.width, info.height, buffer)
-}
-
 fn pixel(rgb: &[u8], width: u32, (x, y): (i32, i32)) -> [u8; 3] {
     let k = 3 * (y as usize * width as usize + x as usize);
     [rgb[k], rgb[k + 1], rgb[k + 2]]
@@ -734,6 +723,7 @@ use fluorite::parametric::{
 use fluorite::synth::{Band, SynthSpec};
 
 mod common;
+use common::decode_png;
 
 /// The `two-dyes` preset's truth: a UV brightener (a at 365 nm, e at 440 nm) and an
 /// orange-red dye (a at 545 nm, e at 610 nm), on the BFC-450 grids.

@@ -37,6 +37,12 @@ pub struct SynthArgs {
     /// Suffix appended to each file stem (e.g. `-noisefree`).
     #[arg(long, default_value = "")]
     pub suffix: String,
+    /// Write a concentration series instead of one matrix per preset: one matrix per
+    /// concentration (comma-separated, e.g. 0.2,0.5,1.0), named `<preset>-c<c>`, with the
+    /// preset's spectra, reflectance and yield shared and a noise draw each (seed, seed + 1,
+    /// …). Input for the joint series fit, which separates c from Q.
+    #[arg(long, value_delimiter = ',')]
+    pub concentrations: Vec<f64>,
 }
 
 /// Runs `fluorite synth`.
@@ -73,21 +79,23 @@ pub fn run(args: SynthArgs) -> anyhow::Result<ExitCode> {
         if let Some(v) = args.missing {
             spec.missing_fraction = v;
         }
-        let (m, truth) = spec.generate()?;
-        outputs.push((spec, m, truth));
+        if args.concentrations.is_empty() {
+            let (m, truth) = spec.generate()?;
+            outputs.push((spec, m, truth));
+        } else {
+            outputs.extend(spec.concentration_series(&args.concentrations)?);
+        }
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     for (spec, m, truth) in outputs {
-        let stem = args.out.join(&spec.name);
-        let csv = stem.with_extension("csv");
+        // Appended, not `with_extension`: series names hold a dot (`green-dye-c0.5`).
+        let file = |extension: &str| args.out.join(format!("{}.{extension}", spec.name));
+        let csv = file("csv");
         write_atomic(&csv, write_wide_csv(&m, RowsAre::Excitation).as_bytes())?;
-        write_atomic(
-            &stem.with_extension("truth.json"),
-            truth.to_json().as_bytes(),
-        )?;
+        write_atomic(&file("truth.json"), truth.to_json().as_bytes())?;
         let spec_json = serde_json::to_string_pretty(&spec)? + "\n";
-        write_atomic(&stem.with_extension("synth.json"), spec_json.as_bytes())?;
+        write_atomic(&file("synth.json"), spec_json.as_bytes())?;
         println!(
             "{}: {} × {} cells, noise σ = {}, crosstalk {}, missing {:.0} %, seed {}",
             csv.display(),

@@ -66,9 +66,22 @@ pub struct Preprocessing {
     /// Masked scatter bands (empty when scatter was kept).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub scatter: Vec<MaskedBand>,
+    /// The Raman shift (cm⁻¹) that placed the Raman bands; absent: water's
+    /// [`scatter::WATER_RAMAN_SHIFT_CM`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub raman_shift_cm: Option<f64>,
 }
 
 impl Preprocessing {
+    /// Whether the cell at excitation `ex_nm`, emission `em_nm` lies in a masked scatter
+    /// band (plots draw such cells as masked, not as unrecorded).
+    pub fn masks(&self, ex_nm: f64, em_nm: f64) -> bool {
+        let shift = self.raman_shift_cm.unwrap_or(scatter::WATER_RAMAN_SHIFT_CM);
+        self.scatter
+            .iter()
+            .any(|band| band.contains(ex_nm, em_nm, shift))
+    }
+
     /// One line per step, for the command line.
     pub fn lines(&self) -> Vec<String> {
         let mut out = vec![format!(
@@ -208,6 +221,7 @@ pub fn prepare(
     if let Some(bands) = bands.as_mut() {
         scatter::apply(&mut m, bands, options.scatter.raman_shift_cm);
         report.scatter = std::mem::take(bands);
+        report.raman_shift_cm = options.scatter.raman_shift_cm;
     }
     if m.values.iter().all(|v| v.is_nan()) {
         return Err(Error::invalid(

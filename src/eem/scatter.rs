@@ -111,6 +111,16 @@ pub struct MaskedBand {
     pub signal_share: f64,
 }
 
+impl MaskedBand {
+    /// Whether emission `em_nm` under excitation `ex_nm` lies in this band, with the
+    /// Raman shift `shift_cm` (cm⁻¹).
+    pub fn contains(&self, ex_nm: f64, em_nm: f64, shift_cm: f64) -> bool {
+        self.line
+            .centre_nm(ex_nm, shift_cm)
+            .is_some_and(|c| em_nm >= c - self.below_nm - 1e-9 && em_nm <= c + self.above_nm + 1e-9)
+    }
+}
+
 /// How to mask: a width per line (`None`: measured, else bandwidth, else default).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ScatterOptions {
@@ -274,12 +284,8 @@ pub fn apply(m: &mut Measurement, bands: &mut [MaskedBand], raman_shift_cm: Opti
     for band in bands.iter_mut() {
         let (mut cells, mut removed) = (0, 0.0);
         for i in 0..m.n_excitation() {
-            let Some(c) = band.line.centre_nm(m.excitation_nm[i], shift) else {
-                continue;
-            };
             for j in 0..m.n_emission() {
-                let l = m.emission_nm[j];
-                if l >= c - band.below_nm - 1e-9 && l <= c + band.above_nm + 1e-9 {
+                if band.contains(m.excitation_nm[i], m.emission_nm[j], shift) {
                     let v = m.get_mut(i, j);
                     if v.is_finite() {
                         removed += v.abs();

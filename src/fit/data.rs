@@ -98,6 +98,27 @@ impl FitData {
         self.emission_nm.len()
     }
 
+    /// The emission density e (1/nm, ∫e = 1) of emission column values `v` whose
+    /// normaliser Σ v·w is `normaliser`: e_j = v_j·w_j/(Δλ_j·normaliser).
+    pub fn emission_density(&self, v: &[f64], normaliser: f64) -> Vec<f64> {
+        v.iter()
+            .zip(&self.emission_weight)
+            .zip(&self.emission_bin_widths)
+            .map(|((v, ew), w)| v * ew / (w * normaliser))
+            .collect()
+    }
+
+    /// S = Σ v_j·w_j and M = Σ v_j·w_j·λ_j of emission column values `v`: the emission
+    /// normaliser and its first moment (M/S = λ̄e).
+    pub fn emission_sum_moment(&self, v: &[f64]) -> (f64, f64) {
+        let (mut sum, mut moment) = (0.0, 0.0);
+        for ((v, w), l) in v.iter().zip(&self.emission_weight).zip(&self.emission_nm) {
+            sum += v * w;
+            moment += v * w * l;
+        }
+        (sum, moment)
+    }
+
     /// Robust noise level: 1.4826 × the median absolute deviation of the anti-Stokes
     /// cells, which hold only noise on real surfaces. With fewer than ten anti-Stokes cells
     /// (a layout without them, such as the spectral EXR) it is the roughness of the Stokes

@@ -222,13 +222,7 @@ pub(super) fn normalised(
         .max(f64::MIN_POSITIVE);
     Normalised {
         absorption: sp.absorption.iter().map(|a| a / peak).collect(),
-        emission: sp
-            .emission
-            .iter()
-            .zip(&data.emission_weight)
-            .zip(&data.emission_bin_widths)
-            .map(|((v, ew), w)| v * ew / (w * derived.normaliser))
-            .collect(),
+        emission: data.emission_density(&sp.emission, derived.normaliser),
         // Energy form: F = s·a·v, so k = c·Q = s·peak·S. Photon form: F = s·a·λ·v and
         // c·Φ·a·(λ/λ̄e)·e = s·a·λ·v gives k = c·Φ = s·peak·λ̄e·S = s·peak·M.
         k: derived.scale

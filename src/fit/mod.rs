@@ -17,6 +17,8 @@
 //!   smallest one meeting a ΔE2000 bound (it starts from the grid fit).
 //! - [`assess`] and [`checks`]: accuracy against the measurement as measured, BIC, and the
 //!   warnings of the failure regimes.
+//! - [`series`]: the joint fit of a surface concentration series (shared r, a, e and
+//!   yield, one c per file), which separates c from Q.
 
 pub mod assess;
 pub mod checks;
@@ -29,6 +31,7 @@ mod options;
 pub mod parametric;
 pub mod representation;
 pub mod search;
+pub mod series;
 pub mod solve;
 mod tabulated;
 

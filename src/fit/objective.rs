@@ -28,7 +28,7 @@ use crate::numeric::dot;
 
 /// Weight of the term that fixes the free scale of the emission samples (S = 1). The
 /// model does not depend on that scale, so the term changes no fitted material.
-const SCALE_GAUGE_WEIGHT: f64 = 1e-4;
+pub(crate) const SCALE_GAUGE_WEIGHT: f64 = 1e-4;
 
 /// Quantities derived from the grid spectra that the model needs.
 #[derive(Debug, Clone, Copy)]
@@ -175,17 +175,7 @@ impl<'a> Objective<'a> {
     /// Derived quantities for the spectra `sp`.
     pub fn derived(&self, sp: &GridSpectra) -> Derived {
         let data = self.data;
-        let mut normaliser = 0.0;
-        let mut moment = 0.0;
-        for ((v, w), l) in sp
-            .emission
-            .iter()
-            .zip(&data.emission_weight)
-            .zip(&data.emission_nm)
-        {
-            normaliser += v * w;
-            moment += v * w * l;
-        }
+        let (normaliser, moment) = data.emission_sum_moment(&sp.emission);
         let emission_mean_nm = if normaliser > 0.0 {
             moment / normaliser
         } else {

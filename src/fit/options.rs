@@ -149,8 +149,14 @@ impl FitOutcome {
     }
 }
 
-pub(super) fn validate_options(options: &FitOptions) -> Result<()> {
-    if let Some(g) = options.guard_nm
+/// Checks the options every refinement shares: the guard band, the iteration limit and
+/// the tolerance.
+pub(super) fn validate_refinement(
+    guard_nm: Option<f64>,
+    max_iterations: u64,
+    tolerance: f64,
+) -> Result<()> {
+    if let Some(g) = guard_nm
         && (!g.is_finite() || g < 0.0)
     {
         return Err(Error::invalid(
@@ -158,6 +164,20 @@ pub(super) fn validate_options(options: &FitOptions) -> Result<()> {
             format!("is {g}; give a distance in nm ≥ 0"),
         ));
     }
+    if max_iterations == 0 {
+        return Err(Error::invalid("--max-iterations", "is 0; give at least 1"));
+    }
+    if !(tolerance > 0.0 && tolerance < 1.0) {
+        return Err(Error::invalid(
+            "--tolerance",
+            format!("is {tolerance}; give a value in (0, 1)"),
+        ));
+    }
+    Ok(())
+}
+
+pub(super) fn validate_options(options: &FitOptions) -> Result<()> {
+    validate_refinement(options.guard_nm, options.max_iterations, options.tolerance)?;
     for (value, name) in [
         (options.quantum_yield, "--quantum-yield"),
         (options.concentration, "--concentration"),
@@ -175,15 +195,6 @@ pub(super) fn validate_options(options: &FitOptions) -> Result<()> {
         return Err(Error::invalid(
             "--quantum-yield/--concentration",
             "both given; k = c·Q is fixed by the data, so pin only one of them",
-        ));
-    }
-    if options.max_iterations == 0 {
-        return Err(Error::invalid("--max-iterations", "is 0; give at least 1"));
-    }
-    if !(options.tolerance > 0.0 && options.tolerance < 1.0) {
-        return Err(Error::invalid(
-            "--tolerance",
-            format!("is {}; give a value in (0, 1)", options.tolerance),
         ));
     }
     if let Some(bound) = options.max_delta_e

@@ -50,25 +50,49 @@ pub struct Stopping {
 /// A point θ with its cost and θ-gradient.
 type Evaluation = (Vec<f64>, f64, Vec<f64>);
 
-/// The tabulated fit as residuals and their Jacobian (Gauss-Newton).
-struct ResidualProblem<'a> {
+/// Residuals r(θ) and their Jacobian ∂r/∂θ: what Gauss-Newton needs of a problem (the
+/// tabulated fit of one matrix, the joint fit of a concentration series).
+pub trait ResidualModel {
+    /// The residual vector at `theta`; the objective is ½‖r‖².
+    fn residuals(&self, theta: &[f64]) -> Vec<f64>;
+    /// ∂r/∂θ at `theta`, one row per residual.
+    fn jacobian(&self, theta: &[f64]) -> DMatrix<f64>;
+}
+
+/// The tabulated fit as residuals and their Jacobian.
+struct TabulatedResiduals<'a> {
     objective: Objective<'a>,
     representation: &'a dyn Representation,
+}
+
+impl ResidualModel for TabulatedResiduals<'_> {
+    fn residuals(&self, theta: &[f64]) -> Vec<f64> {
+        let sp = self.representation.spectra(theta);
+        self.objective.residuals(&sp)
+    }
+
+    fn jacobian(&self, theta: &[f64]) -> DMatrix<f64> {
+        let sp = self.representation.spectra(theta);
+        self.objective.jacobian(&sp) * self.representation.jacobian(theta)
+    }
+}
+
+/// A residual model with Gauss-Newton's prior, as argmin sees it.
+struct ResidualProblem<'a> {
+    model: &'a dyn ResidualModel,
     /// Prior rows √μ·(θ − θ₀) for Gauss-Newton: they make JᵀJ invertible along the
     /// model's flat directions (the κ·a scale, samples at a bound) without moving the
     /// optimum more than μ/curvature.
-    prior: Option<(f64, Vec<f64>)>,
+    prior: (f64, Vec<f64>),
 }
 
 impl Operator for ResidualProblem<'_> {
     type Param = DVector<f64>;
     type Output = DVector<f64>;
     fn apply(&self, theta: &Self::Param) -> Result<Self::Output, argmin::core::Error> {
-        let sp = self.representation.spectra(theta.as_slice());
-        let mut r = self.objective.residuals(&sp);
-        if let Some((mu, theta0)) = &self.prior {
-            r.extend(theta.iter().zip(theta0).map(|(t, t0)| mu.sqrt() * (t - t0)));
-        }
+        let mut r = self.model.residuals(theta.as_slice());
+        let (mu, theta0) = &self.prior;
+        r.extend(theta.iter().zip(theta0).map(|(t, t0)| mu.sqrt() * (t - t0)));
         Ok(DVector::from_vec(r))
     }
 }
@@ -77,15 +101,11 @@ impl Jacobian for ResidualProblem<'_> {
     type Param = DVector<f64>;
     type Jacobian = DMatrix<f64>;
     fn jacobian(&self, theta: &Self::Param) -> Result<Self::Jacobian, argmin::core::Error> {
-        let sp = self.representation.spectra(theta.as_slice());
-        let jz = self.objective.jacobian(&sp);
-        let mut j = jz * self.representation.jacobian(theta.as_slice());
-        if let Some((mu, _)) = &self.prior {
-            let (rows, n) = (j.nrows(), j.ncols());
-            j = j.resize_vertically(rows + n, 0.0);
-            for k in 0..n {
-                j[(rows + k, k)] = mu.sqrt();
-            }
+        let mut j = self.model.jacobian(theta.as_slice());
+        let (rows, n) = (j.nrows(), j.ncols());
+        j = j.resize_vertically(rows + n, 0.0);
+        for k in 0..n {
+            j[(rows + k, k)] = self.prior.0.sqrt();
         }
         Ok(j)
     }
@@ -188,24 +208,30 @@ pub fn gauss_newton(
     theta0: &[f64],
     stopping: Stopping,
 ) -> Result<Refined, String> {
-    // μ relative to the curvature scale at the start.
-    let probe = ResidualProblem {
-        objective: objective.clone(),
+    let model = TabulatedResiduals {
+        objective,
         representation,
-        prior: None,
     };
-    let j0 = probe
-        .jacobian(&DVector::from_column_slice(theta0))
-        .map_err(|e| e.to_string())?;
+    gauss_newton_model(&model, theta0, stopping)
+}
+
+/// Minimises ½‖r(θ)‖² of `model` from `theta0` with Gauss-Newton and a backtracking
+/// (Armijo) line search; the cost history is in the same units as L-BFGS's (½‖r‖²).
+pub fn gauss_newton_model(
+    model: &dyn ResidualModel,
+    theta0: &[f64],
+    stopping: Stopping,
+) -> Result<Refined, String> {
+    // μ relative to the curvature scale at the start.
+    let j0 = model.jacobian(theta0);
     let curvature = j0
         .column_iter()
         .map(|c| c.norm_squared())
         .fold(0.0, f64::max)
         .max(1e-300);
     let problem = ResidualProblem {
-        objective,
-        representation,
-        prior: Some((1e-10 * curvature, theta0.to_vec())),
+        model,
+        prior: (1e-10 * curvature, theta0.to_vec()),
     };
     let linesearch =
         BacktrackingLineSearch::new(ArmijoCondition::new(1e-4).map_err(|e| e.to_string())?);

@@ -16,7 +16,7 @@ const OBSERVABILITY_THRESHOLD: f64 = 0.05;
 /// Sweep limit of the rank-1 start. Fluorescent surfaces converge in about ten sweeps;
 /// pure noise (σ₁ ≈ σ₂) converges slowly, and the significance test needs only the
 /// explained energy, which is near its limit long before.
-const MAX_SWEEPS: usize = 200;
+pub(super) const MAX_SWEEPS: usize = 200;
 
 /// How much costlier than the closed-form estimate a refined result may end before the
 /// start is blamed (absorbs round-off of costs that agree).

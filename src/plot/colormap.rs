@@ -42,6 +42,10 @@ const DIVERGING_STOPS: [(u8, u8, u8); 11] = [
 pub const DIAGONAL: RGBColor = RGBColor(0, 0, 0);
 /// Colour of a missing (unmeasured) cell.
 pub const MISSING: RGBColor = RGBColor(160, 160, 160);
+/// Background of a cell removed by scatter masking…
+pub const MASKED: RGBColor = RGBColor(228, 228, 228);
+/// …and its hatch lines.
+pub const HATCH: RGBColor = RGBColor(96, 96, 96);
 
 fn interpolate(stops: &[(u8, u8, u8)], t: f64) -> RGBColor {
     // NaN maps to the low end rather than panicking on a bad index.

@@ -4,7 +4,10 @@
 //! Cells are drawn as pixel rectangles computed by [`HeatmapPanel`], the same mapping the
 //! figure reports, so a pixel probe at [`HeatmapPanel::cell_centre_px`] shows exactly
 //! [`HeatmapPanel::scale`]`.colour(value)` for a Stokes or anti-Stokes cell.
-//! Diagonal cells are black, missing cells grey, guard-band cells faded towards white.
+//! Diagonal cells are black, guard-band cells faded towards white, cells the fit's scatter
+//! masking removed hatched on light grey ([`CellClass::Masked`], also hatched over the
+//! fitted panel, where the model still has a value), cells the file does not hold plain
+//! grey; the legend lists each kind present.
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -129,14 +132,84 @@ pub fn residual_scale(c: &Comparison) -> ColourScale {
     ColourScale::diverging(limit)
 }
 
+/// How the residual figure draws a cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CellClass {
+    /// A fitted off-diagonal cell (Stokes or anti-Stokes): its value's colour.
+    Fitted,
+    /// The diagonal λo = λi: black.
+    Diagonal,
+    /// In the guard band: its value's colour faded towards white.
+    Guard,
+    /// Removed by scatter masking (Rayleigh, Raman): hatched on light grey.
+    Masked,
+    /// Not recorded in the file: plain grey.
+    Missing,
+}
+
+impl CellClass {
+    /// The class of a cell of `kind`; `masked` says a missing cell was masked as scatter.
+    pub fn of(kind: CellKind, masked: bool) -> Self {
+        match kind {
+            CellKind::Missing if masked => CellClass::Masked,
+            CellKind::Missing => CellClass::Missing,
+            CellKind::Diagonal => CellClass::Diagonal,
+            CellKind::Guard => CellClass::Guard,
+            CellKind::Stokes | CellKind::AntiStokes => CellClass::Fitted,
+        }
+    }
+}
+
+/// The class of every cell of the measured and residual panels, row-major (excitation
+/// × emission): what the drawing uses.
+pub fn cell_classes(c: &Comparison) -> Vec<CellClass> {
+    let (n_ex, n_em) = (c.measured.n_excitation(), c.measured.n_emission());
+    (0..n_ex * n_em)
+        .map(|k| {
+            let (i, j) = (k / n_em, k % n_em);
+            CellClass::of(c.kind(i, j), c.is_masked(i, j))
+        })
+        .collect()
+}
+
 /// The colour a panel gives a cell of `kind` with `value`.
 pub fn cell_colour(kind: CellKind, value: f64, scale: &ColourScale) -> RGBColor {
-    match kind {
-        CellKind::Missing => colormap::MISSING,
-        CellKind::Diagonal => colormap::DIAGONAL,
-        CellKind::Guard => colormap::mix(scale.colour(value), WHITE, GUARD_FADE),
-        CellKind::Stokes | CellKind::AntiStokes => scale.colour(value),
+    class_colour(CellClass::of(kind, false), value, scale)
+}
+
+/// The colour a panel fills a cell of `class` with `value` (masked cells also get hatch
+/// lines of [`colormap::HATCH`], see [`hatch_segments`]).
+pub fn class_colour(class: CellClass, value: f64, scale: &ColourScale) -> RGBColor {
+    match class {
+        CellClass::Missing => colormap::MISSING,
+        CellClass::Masked => colormap::MASKED,
+        CellClass::Diagonal => colormap::DIAGONAL,
+        CellClass::Guard => colormap::mix(scale.colour(value), WHITE, GUARD_FADE),
+        CellClass::Fitted => scale.colour(value),
     }
+}
+
+/// Spacing (pixels) of the hatch lines on masked cells.
+pub const HATCH_SPACING: i32 = 5;
+
+/// The hatch lines of a pixel rectangle (left, top, right, bottom; right and bottom
+/// exclusive): the diagonals x + y = a multiple of [`HATCH_SPACING`], clipped to it, so
+/// neighbouring masked cells continue each other's lines.
+pub fn hatch_segments([left, top, right, bottom]: [i32; 4]) -> Vec<[(i32, i32); 2]> {
+    let (first, last) = (left + top, right - 1 + bottom - 1);
+    let mut sum = first.div_euclid(HATCH_SPACING) * HATCH_SPACING;
+    if sum < first {
+        sum += HATCH_SPACING;
+    }
+    let mut segments = Vec::new();
+    while sum <= last {
+        let (x0, x1) = (left.max(sum - (bottom - 1)), (right - 1).min(sum - top));
+        if x0 <= x1 {
+            segments.push([(x0, sum - x0), (x1, sum - x1)]);
+        }
+        sum += HATCH_SPACING;
+    }
+    segments
 }
 
 fn units_label(m: &Measurement) -> &'static str {
@@ -186,7 +259,7 @@ struct PanelSpec<'a> {
     title: String,
     x: i32,
     scale: ColourScale,
-    kind: &'a dyn Fn(usize, usize) -> CellKind,
+    class: &'a dyn Fn(usize, usize) -> CellClass,
     value: &'a dyn Fn(usize, usize) -> f64,
 }
 
@@ -208,8 +281,14 @@ impl Draw for ResidualFigure<'_> {
 
         let values = value_scale(c);
         let residuals = residual_scale(c);
-        let measured_kind = |i: usize, j: usize| c.kind(i, j);
-        let fitted_kind = |i: usize, j: usize| c.fitted.cell_kind(i, j, c.guard_nm);
+        let classes = cell_classes(c);
+        let n_em = m.n_emission();
+        let measured_class = |i: usize, j: usize| classes[i * n_em + j];
+        // The model has a value on masked cells: drawn plain, hatched over below.
+        let fitted_class = |i: usize, j: usize| match c.is_masked(i, j) {
+            true => CellClass::Fitted,
+            false => CellClass::of(c.fitted.cell_kind(i, j, c.guard_nm), false),
+        };
         let measured_value = |i: usize, j: usize| m.get(i, j);
         let fitted_value = |i: usize, j: usize| c.fitted.get(i, j);
         let residual_value = |i: usize, j: usize| c.residual(i, j);
@@ -227,21 +306,21 @@ impl Draw for ResidualFigure<'_> {
                 title: "measured".to_string(),
                 x: 0,
                 scale: values,
-                kind: &measured_kind,
+                class: &measured_class,
                 value: &measured_value,
             },
             PanelSpec {
                 title: fitted_title(self.material, c),
                 x: PANEL_WIDTH,
                 scale: values,
-                kind: &fitted_kind,
+                class: &fitted_class,
                 value: &fitted_value,
             },
             PanelSpec {
                 title: residual_title,
                 x: 2 * PANEL_WIDTH + BAR_WIDTH,
                 scale: residuals,
-                kind: &measured_kind,
+                class: &measured_class,
                 value: &residual_value,
             },
         ];
@@ -258,12 +337,16 @@ impl Draw for ResidualFigure<'_> {
             &residuals,
             &format!("residual, {unit}"),
         )?;
-        let any_missing = m.values.iter().any(|v| v.is_nan());
+        let present = |class: CellClass| classes.contains(&class);
         draw_legend(
             root,
             c.guard_nm,
             m.has_diagonal,
-            any_missing,
+            [
+                present(CellClass::Guard),
+                present(CellClass::Masked),
+                present(CellClass::Missing),
+            ],
             height as i32 - LEGEND_HEIGHT / 2,
         )?;
         Ok(Layout {
@@ -307,9 +390,19 @@ fn draw_panel<DB: DrawingBackend>(
     };
     for i in 0..m.n_excitation() {
         for j in 0..m.n_emission() {
-            let colour = cell_colour((spec.kind)(i, j), (spec.value)(i, j), &spec.scale);
+            let colour = class_colour((spec.class)(i, j), (spec.value)(i, j), &spec.scale);
             let [l, t, r, b] = panel.cell_rect_px(i, j);
             root.draw(&Rectangle::new([(l, t), (r, b)], colour.filled()))?;
+        }
+    }
+    // Hatch every masked cell, over the model's value on the fitted panel.
+    for i in 0..m.n_excitation() {
+        for j in 0..m.n_emission() {
+            if c.is_masked(i, j) {
+                for segment in hatch_segments(panel.cell_rect_px(i, j)) {
+                    root.draw(&PathElement::new(segment.to_vec(), colormap::HATCH))?;
+                }
+            }
         }
     }
     let step_x = tick_step(x_range.start, x_range.end, 5);
@@ -375,7 +468,7 @@ fn draw_legend<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     guard_nm: f64,
     has_diagonal: bool,
-    any_missing: bool,
+    [any_guard, any_masked, any_missing]: [bool; 3],
     y: i32,
 ) -> DrawResult<(), DB> {
     let guard_sample = colormap::mix(colormap::viridis(0.5), WHITE, GUARD_FADE);
@@ -397,9 +490,14 @@ fn draw_legend<DB: DrawingBackend>(
             format_significant(guard_nm, 3)
         )
     };
-    items.push((guard_sample, guard_text));
+    if any_guard {
+        items.push((guard_sample, guard_text));
+    }
+    if any_masked {
+        items.push((colormap::MASKED, "scatter masked (not fitted)".to_string()));
+    }
     if any_missing {
-        items.push((colormap::MISSING, "missing cell".to_string()));
+        items.push((colormap::MISSING, "not recorded".to_string()));
     }
     let mut x = 70;
     for (colour, text) in items {
@@ -407,6 +505,11 @@ fn draw_legend<DB: DrawingBackend>(
             [(x, y - 8), (x + 16, y + 8)],
             colour.filled(),
         ))?;
+        if colour == colormap::MASKED {
+            for segment in hatch_segments([x, y - 8, x + 16, y + 8]) {
+                root.draw(&PathElement::new(segment.to_vec(), colormap::HATCH))?;
+            }
+        }
         root.draw(&Rectangle::new(
             [(x, y - 8), (x + 16, y + 8)],
             RGBColor(90, 90, 90).stroke_width(1),

@@ -19,6 +19,7 @@ pub mod convergence;
 pub mod evaluation;
 pub mod font;
 pub mod heatmap;
+mod parameters;
 pub mod spectra;
 pub mod swatches;
 mod text;
@@ -26,9 +27,10 @@ mod text;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::material::Material;
+use crate::material::{Fluorophore, FluorophoreShapes, Material, YieldForm};
 use crate::measurement::{CellKind, Measurement};
 use crate::model;
+use crate::spectrum::Spectrum;
 
 /// Image file format of the figures.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -152,6 +154,9 @@ pub struct Comparison {
     /// where the least-squares factor over the Stokes cells brings the model to the data's
     /// units.
     pub fitted_scale: f64,
+    /// Row-major, one per cell: true where the measurement is missing because a scatter
+    /// band of the fit's preprocessing masked it (drawn as masked, not as unrecorded).
+    pub masked: Vec<bool>,
 }
 
 impl Comparison {
@@ -182,12 +187,26 @@ impl Comparison {
                 fitted.values.iter_mut().for_each(|v| *v *= fitted_scale);
             }
         }
+        let preprocessing = material.fit.as_ref().and_then(|f| f.preprocessing.as_ref());
+        let masked = measured
+            .excitation_nm
+            .iter()
+            .flat_map(|&ex| measured.emission_nm.iter().map(move |&em| (ex, em)))
+            .zip(&measured.values)
+            .map(|((ex, em), v)| v.is_nan() && preprocessing.is_some_and(|p| p.masks(ex, em)))
+            .collect();
         Comparison {
             measured: measured.clone(),
             fitted,
             guard_nm,
             fitted_scale,
+            masked,
         }
+    }
+
+    /// Whether cell (`i`, `j`) is missing because scatter masking removed it.
+    pub fn is_masked(&self, i: usize, j: usize) -> bool {
+        self.masked[i * self.measured.n_emission() + j]
     }
 
     /// Kind of cell (`i`, `j`) in the measurement.
@@ -358,6 +377,52 @@ pub fn plot(
         ),
     }
     Ok(Plots { figures, skipped })
+}
+
+/// The material a shapes-only fit (an EEM without a diagonal) stands for in figures: its
+/// absorption and emission with c = 1 and Q = k (1 on an arbitrary scale, where the
+/// residual map scales the model to the data), no reflectance, and its fit report (which
+/// holds the scatter bands masked before the fit).
+pub fn shapes_material(shapes: &FluorophoreShapes) -> Material {
+    let grid = shapes.emission.wavelength_nm.clone();
+    let none = Spectrum {
+        value: vec![0.0; grid.len()],
+        wavelength_nm: grid,
+    };
+    let fluorophore = Fluorophore {
+        concentration: 1.0,
+        quantum_yield: shapes.k.unwrap_or(1.0),
+        yield_form: YieldForm::Energy,
+        concentration_range: None,
+        absorption: shapes.absorption.clone(),
+        emission: shapes.emission.clone(),
+    };
+    let mut material = Material::new(shapes.name.clone(), none, vec![fluorophore]);
+    material.fit = Some(shapes.fit.clone());
+    material
+}
+
+/// Renders the figures of a shapes-only fit against the (prepared) matrix it was fitted
+/// to: the residual map with masked scatter hatched, the shapes and the convergence.
+pub fn plot_shapes(
+    shapes: &FluorophoreShapes,
+    data: &Measurement,
+    options: &PlotOptions,
+) -> Result<Plots> {
+    plot(&shapes_material(shapes), Some(data), options)
+}
+
+/// Renders the figures of either fit outcome against the matrix it was fitted to (as
+/// prepared: an EEM's masked scatter is drawn as masked): what `fit --plot` draws.
+pub fn plot_outcome(
+    outcome: &crate::fit::FitOutcome,
+    data: &Measurement,
+    options: &PlotOptions,
+) -> Result<Plots> {
+    match outcome {
+        crate::fit::FitOutcome::Material(material) => plot(material, Some(data), options),
+        crate::fit::FitOutcome::Shapes(shapes) => plot_shapes(shapes, data, options),
+    }
 }
 
 /// Writes the figures into `dir` as `<stem>-<kind>.<ext>` and returns the paths. All files

@@ -24,7 +24,7 @@ use super::common::{
 };
 use super::{Comparison, FigureKind, ImageFormat, Layout};
 use crate::error::Result;
-use crate::material::{Fluorophore, Material, YieldForm};
+use crate::material::{Material, YieldForm};
 use crate::measurement::CellKind;
 use crate::parametric::{FluorophoreForms, MaterialForms, SpectralForm};
 use crate::spectrum::Spectrum;
@@ -622,7 +622,7 @@ impl Draw for SpectraFigure<'_> {
 
         // Legend and parameters to the right of the chart; lines close up when many
         // fluorophores would otherwise run off the figure.
-        let parameters = parameter_lines(material, self.comparison);
+        let parameters = super::parameters::parameter_lines(material, self.comparison);
         let x0 = CHART_WIDTH + 10;
         let top = TITLE_HEIGHT + 30;
         let needed = 26 * legend.len() as i32 + 18 + 23 * parameters.len() as i32;
@@ -690,111 +690,4 @@ fn draw_glyph<DB: DrawingBackend>(
         Glyph::Ring(c) => root.draw(&Circle::new((x + 15, y), 4, c.stroke_width(2))),
         Glyph::Triangle(c) => root.draw(&TriangleMarker::new((x + 15, y), 5, c.filled())),
     }
-}
-
-/// The yield line of a fluorophore: `Q = …, mean emission … nm` in the energy form;
-/// `Φ = …, Q(λ) = … to …` (the energy yield Φ·λ/λ̄e over the absorbed wavelengths) in
-/// the photon form.
-fn yield_line(f: &Fluorophore, tag: &str) -> String {
-    let mean = f.emission_mean_nm();
-    match f.yield_form {
-        YieldForm::Energy => format!(
-            "{tag}Q = {}, mean emission {} nm",
-            format_significant(f.quantum_yield, 3),
-            format_significant(mean, 3)
-        ),
-        YieldForm::Photon => {
-            let a = &f.absorption;
-            let first = a.value.iter().position(|&v| v > 0.0);
-            let last = a.value.iter().rposition(|&v| v > 0.0);
-            let range = match (first, last) {
-                (Some(first), Some(last)) if mean.is_finite() => {
-                    // The zero samples beside the absorbed ones bound the interval.
-                    let lo = a.wavelength_nm[first.saturating_sub(1)];
-                    let hi = a.wavelength_nm[(last + 1).min(a.len() - 1)];
-                    format!(
-                        ", Q(λ) {}–{}",
-                        format_significant(f.energy_yield_with_mean(lo, mean), 2),
-                        format_significant(f.energy_yield_with_mean(hi, mean), 2)
-                    )
-                }
-                _ => String::new(),
-            };
-            format!(
-                "{tag}Φ = {} (photon yield){range}",
-                format_significant(f.quantum_yield, 3)
-            )
-        }
-    }
-}
-
-/// Text lines with the fitted parameters.
-fn parameter_lines(material: &Material, comparison: Option<&Comparison>) -> Vec<String> {
-    let mut lines = Vec::new();
-    let several = material.fluorophores.len() > 1;
-    // Three lines per fluorophore fit beside the legend for up to two of them.
-    let compact = material.fluorophores.len() > 2;
-    for (n, f) in material.fluorophores.iter().enumerate() {
-        let tag = if several {
-            format!("[{}] ", n + 1)
-        } else {
-            String::new()
-        };
-        let symbol = match f.yield_form {
-            YieldForm::Energy => "Q",
-            YieldForm::Photon => "Φ",
-        };
-        if compact {
-            lines.push(format!(
-                "{tag}k = {}, c = {}, {symbol} = {}",
-                format_significant(f.k(), 3),
-                format_significant(f.concentration, 3),
-                format_significant(f.quantum_yield, 3)
-            ));
-            continue;
-        }
-        lines.push(format!(
-            "{tag}k = c·{symbol} = {}",
-            format_significant(f.k(), 3)
-        ));
-        let range = f
-            .concentration_range
-            .map(|[lo, hi]| {
-                format!(
-                    " (feasible {}–{})",
-                    format_significant(lo, 2),
-                    format_significant(hi, 2)
-                )
-            })
-            .unwrap_or_default();
-        lines.push(format!(
-            "{tag}c = {}{range}",
-            format_significant(f.concentration, 3)
-        ));
-        lines.push(yield_line(f, &tag));
-    }
-    if let Some(forms) = &material.forms
-        && forms.fluorophores.len() == material.fluorophores.len()
-    {
-        lines.push(format!("model {}", forms.model));
-        lines.push("(forms drawn every 1 nm)".to_string());
-    }
-    if let Some(fit) = &material.fit
-        && !fit.gauge.is_empty()
-    {
-        // Its first clause: the rest (the numbers, how to pin) is in the fit summary and
-        // would run off the figure.
-        let clause = fit.gauge.split(['(', ';']).next().unwrap_or("").trim();
-        lines.push(format!("gauge: {clause}"));
-    }
-    if let Some(c) = comparison {
-        lines.push(format!(
-            "profiles from Stokes cells, guard {} nm",
-            format_significant(c.guard_nm, 3)
-        ));
-        if !c.measured.has_diagonal {
-            lines.push("no diagonal in the data: r, d unknown".to_string());
-        }
-    }
-    lines
 }

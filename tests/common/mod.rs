@@ -73,3 +73,15 @@ pub fn named<'a>(files: &'a [(String, String)], name: &str) -> &'a str {
         })
         .1
 }
+
+/// A PNG figure's width, height and RGB bytes (fluorite writes 8-bit RGB).
+pub fn decode_png(bytes: &[u8]) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+    let mut reader = decoder.read_info().expect("figure decodes as PNG");
+    let mut buffer = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buffer).expect("PNG frame decodes");
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    assert_eq!(info.bit_depth, png::BitDepth::Eight);
+    buffer.truncate(info.buffer_size());
+    (info.width, info.height, buffer)
+}
