@@ -38,7 +38,8 @@ pub struct JointArgs {
     #[arg(long, value_delimiter = ',', requires = "joint")]
     pub exclude: Vec<String>,
     /// Known concentrations (CSV: sample name, then one column per analyte): print each
-    /// analyte's best-matching component and its R² (squared Pearson correlation).
+    /// analyte's best-matching component and its R² (squared Pearson correlation). The
+    /// file is left out of the inputs if a glob brought it in.
     #[arg(long, requires = "joint")]
     pub reference: Option<PathBuf>,
     /// Skip split-half validation in a joint fit.
@@ -114,6 +115,9 @@ pub fn run(args: &FitArgs, read_options: &ReadOptions) -> anyhow::Result<ExitCod
             );
         }
     }
+    // `fit dir/*.csv --reference dir/concentrations.csv` must not read the reference as
+    // a sample.
+    let reference = joint.reference.as_ref().and_then(|r| r.canonicalize().ok());
     let inputs: Vec<&PathBuf> = args
         .inputs
         .iter()
@@ -123,6 +127,7 @@ pub fn run(args: &FitArgs, read_options: &ReadOptions) -> anyhow::Result<ExitCod
                 .iter()
                 .any(|n| stem(p).eq_ignore_ascii_case(n))
         })
+        .filter(|p| reference.is_none() || p.canonicalize().ok() != reference)
         .collect();
     let mut eems = Vec::new();
     let mut surfaces = Vec::new();
@@ -231,7 +236,8 @@ fn run_eem_set(args: &FitArgs, eems: &[Measurement]) -> anyhow::Result<ExitCode>
         write_files(&files)?;
         let matches = reference.as_ref().map(|r| match_reference(&fit, r));
         if !args.quiet {
-            print!("{}", summary(&fit, &dir, matches.as_deref()));
+            let names = reference.as_ref().map(|r| r.analytes.as_slice());
+            print!("{}", summary(&fit, &dir, matches.as_deref(), names));
         }
         rows.push(sweep_row(&fit, matches.as_deref()));
     }
@@ -331,11 +337,16 @@ fn split_text(fit: &JointFit) -> String {
     }
 }
 
-fn summary(fit: &JointFit, dir: &Path, matches: Option<&[(usize, f64)]>) -> String {
+fn summary(
+    fit: &JointFit,
+    dir: &Path,
+    matches: Option<&[(usize, f64)]>,
+    analytes: Option<&[String]>,
+) -> String {
     let k = fit.components.len();
     let mut out = format!(
         "K = {k} → {}/ (model.json, scores.csv, component-*.json, components.png)\n  explained variance {:.4} %, core consistency {:.1} %, split-half {}\n  {} sweeps ({}), fit {:.1} ms (+ {:.1} ms diagnostics); {} cells fitted, {} missing or masked\n",
-        dir.display(),
+        dir.display().to_string().trim_end_matches('/'),
         100.0 * fit.explained_variance,
         fit.core_consistency,
         split_text(fit),
@@ -371,11 +382,10 @@ fn summary(fit: &JointFit, dir: &Path, matches: Option<&[(usize, f64)]>) -> Stri
             100.0 * fluorite::numeric::median(&fit.residual_per_sample)
         ));
     }
-    if let Some(m) = matches {
-        for (a, (c, r2)) in m.iter().enumerate() {
+    if let (Some(m), Some(names)) = (matches, analytes) {
+        for ((c, r2), name) in m.iter().zip(names) {
             out.push_str(&format!(
-                "  reference column {}: component {c}, R² {r2:.4}\n",
-                a + 1
+                "  {name}: best component {c}, R² {r2:.4} (squared Pearson correlation of scores and reference)\n"
             ));
         }
     }

@@ -175,6 +175,8 @@ struct Work<'a> {
     present: Vec<f64>,
     /// Cells imputed from the model (missing in their sample, measured in another).
     imputed: Vec<(usize, usize, usize)>,
+    /// Σ X² over the measured cells.
+    measured_square: f64,
 }
 
 /// Fits `options.components` non-negative components to `t`. `em_weights` are the
@@ -209,10 +211,13 @@ pub fn fit(t: &Tensor, em_weights: &[f64], options: &ParafacOptions) -> Result<P
     let (mut iterations, mut converged, mut extrapolations, mut reseeded) = (0, false, 0, 0);
     while iterations < options.max_iterations {
         iterations += 1;
-        work.sweep(&mut factors);
-        reseeded += work.reseed_dead(&mut factors);
+        let mut new_loss = work.sweep(&mut factors);
+        let dead = work.reseed_dead(&mut factors);
+        if dead > 0 {
+            reseeded += dead;
+            new_loss = work.loss(&factors);
+        }
         factors.normalise(t.n_ex, t.n_em, em_weights);
-        let mut new_loss = work.loss(&factors);
         if iterations > 1 {
             let step = (iterations as f64).sqrt();
             let trial = extrapolate(&factors, &previous, step, t, em_weights);
@@ -237,8 +242,9 @@ pub fn fit(t: &Tensor, em_weights: &[f64], options: &ParafacOptions) -> Result<P
         }
     }
     Ok(Parafac {
+        // Exact, free of the cancellation in the sweeps' running figure.
+        loss: work.loss(&factors),
         factors,
-        loss,
         iterations,
         converged,
         extrapolations,
@@ -430,11 +436,18 @@ impl<'a> Work<'a> {
                 }
             }
         }
+        let measured_square = t
+            .values
+            .iter()
+            .filter(|v| v.is_finite())
+            .map(|v| v * v)
+            .sum();
         Work {
             t,
             filled,
             present,
             imputed,
+            measured_square,
         }
     }
 
@@ -533,8 +546,8 @@ impl<'a> Work<'a> {
     }
 
     /// One ALS sweep: scores, excitation, emission (this order reuses the emission
-    /// projection for the first two).
-    fn sweep(&self, f: &mut Factors) {
+    /// projection for the first two). Returns the loss over the measured cells.
+    fn sweep(&self, f: &mut Factors) -> f64 {
         let t = self.t;
         let (k, n_ex, n_em, samples) = (f.k, t.n_ex, t.n_em, t.samples);
         let x = &self.filled;
@@ -628,9 +641,8 @@ impl<'a> Work<'a> {
                 }
             }
         }
-        let mut rows = transpose(&f.emission, k, n_em);
-        hals_rows(&mut rows, k, &rhs, |em| {
-            let mut g = vec![0.0; k * k];
+        let mut grams = vec![0.0; n_em * k * k];
+        for (em, g) in grams.chunks_mut(k * k).enumerate() {
             for ex in 0..n_ex {
                 if self.present[ex * n_em + em] > 0.0 {
                     for (o, v) in g.iter_mut().zip(&outer[ex * k * k..(ex + 1) * k * k]) {
@@ -638,9 +650,32 @@ impl<'a> Work<'a> {
                     }
                 }
             }
-            g
+        }
+        let mut rows = transpose(&f.emission, k, n_em);
+        hals_rows(&mut rows, k, &rhs, |em| {
+            grams[em * k * k..(em + 1) * k * k].to_vec()
         });
+        // The loss over the cells the model is fitted to, without another pass over the
+        // data: Σ X² − 2⟨X, M⟩ + ‖M‖², with ⟨X, M⟩ from the emission right-hand side
+        // and ‖M‖² from the emission Gram matrices.
+        let cross: f64 = rhs.iter().zip(&rows).map(|(r, e)| r * e).sum();
+        let model_square: f64 = rows
+            .chunks(k)
+            .zip(grams.chunks(k * k))
+            .map(|(e, g)| {
+                (0..k)
+                    .map(|a| e[a] * (0..k).map(|b| g[a * k + b] * e[b]).sum::<f64>())
+                    .sum::<f64>()
+            })
+            .sum();
         f.emission = transpose(&rows, n_em, k);
+        let mut filled_loss = self.measured_square - 2.0 * cross + model_square;
+        // The imputed cells are not data: take their share out.
+        for &(s, ex, em) in &self.imputed {
+            let v = self.filled[t.index(s, ex, em)];
+            filled_loss += v * v - (v - f.model(t, s, ex, em)).powi(2);
+        }
+        filled_loss.max(0.0)
     }
 }
 

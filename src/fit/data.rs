@@ -99,15 +99,31 @@ impl FitData {
     }
 
     /// Robust noise level: 1.4826 × the median absolute deviation of the anti-Stokes
-    /// cells, which hold only noise on real surfaces. Falls back to all off-diagonal cells
-    /// when fewer than ten anti-Stokes cells were measured.
+    /// cells, which hold only noise on real surfaces. With fewer than ten of them (solution
+    /// EEMs record nothing below the excitation, or it is masked as scatter) the spread of
+    /// the other cells would measure the fluorescence itself, not its noise: the noise is
+    /// then read from the roughness along emission, the robust spread of second
+    /// differences (√6·σ for white noise), falling back to all off-diagonal cells only
+    /// when too few runs of three measured cells exist.
     pub fn noise_sigma(&self) -> f64 {
-        let cells = if self.anti_stokes.len() >= 10 {
-            &self.anti_stokes
+        if self.anti_stokes.len() >= 10 {
+            return robust_sigma(self.anti_stokes.iter().map(|c| c.value));
+        }
+        let n_em = self.n_emission();
+        let mut grid = vec![f64::NAN; self.n_excitation() * n_em];
+        for c in &self.off_diagonal {
+            grid[c.row * n_em + c.column] = c.value;
+        }
+        let second_differences: Vec<f64> = grid
+            .chunks(n_em)
+            .flat_map(|row| row.windows(3).map(|w| w[0] - 2.0 * w[1] + w[2]))
+            .filter(|d| d.is_finite())
+            .collect();
+        if second_differences.len() >= 10 {
+            robust_sigma(second_differences.into_iter()) / 6f64.sqrt()
         } else {
-            &self.off_diagonal
-        };
-        robust_sigma(cells.iter().map(|c| c.value))
+            robust_sigma(self.off_diagonal.iter().map(|c| c.value))
+        }
     }
 }
 

@@ -36,7 +36,7 @@ impl Draw for Components<'_> {
         draw_text(
             root,
             &format!(
-                "Joint fit of {} samples, {} components: explained {:.2} %, core consistency {:.0} %",
+                "Joint fit of {} samples, {} components: explained {:.2} %, core consistency {:.1} %",
                 fit.samples.len(),
                 fit.components.len(),
                 100.0 * fit.explained_variance,
@@ -126,7 +126,7 @@ impl Draw for Components<'_> {
             .configure_mesh()
             .light_line_style(RGBColor(235, 235, 235))
             .bold_line_style(RGBColor(215, 215, 215))
-            .x_labels(n.min(30))
+            .x_labels(n.min(12))
             .x_label_formatter(&|v| {
                 let i = v.round();
                 if (v - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < names.len() {
