@@ -106,9 +106,13 @@ fn dorrit_four_analytes() {
     assert!(fit.explained_variance > 0.99, "{}", fit.explained_variance);
 }
 
+/// The synthetic set: matrices, per component [excitation, emission] shapes, and per
+/// sample the true scores.
+type Synthetic = (Vec<Measurement>, Vec<[Vec<f64>; 2]>, Vec<Vec<f64>>);
+
 /// Three Gaussian fluorophores of known shapes and scores, 2 % noise, a scatter-like
 /// masked band and a few cells missing in single samples.
-fn synthetic(samples: usize) -> (Vec<Measurement>, Vec<[Vec<f64>; 2]>, Vec<Vec<f64>>) {
+fn synthetic(samples: usize) -> Synthetic {
     let ex: Vec<f64> = (0..20).map(|i| 240.0 + 5.0 * i as f64).collect();
     let em: Vec<f64> = (0..120).map(|i| 280.0 + 2.5 * i as f64).collect();
     let gauss = |x: f64, mu: f64, sigma: f64| (-(x - mu).powi(2) / (2.0 * sigma * sigma)).exp();

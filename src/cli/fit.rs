@@ -105,7 +105,7 @@ pub struct FitArgs {
     pub eem: crate::cli::eem::EemArgs,
     /// Joint fits of sample sets (--joint).
     #[command(flatten)]
-    pub joint: crate::cli::joint::JointArgs,
+    pub joint: Box<crate::cli::joint::JointArgs>,
 }
 
 fn parse_model(text: &str) -> Result<ModelChoice, String> {

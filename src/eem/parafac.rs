@@ -1,5 +1,5 @@
 //! Non-negative PARAFAC (CP) of a stack of EEMs with missing cells:
-//! X[s, ex, em] ≈ Σ_k A[s,k]·Ex[k,ex]·Em[k,em], every factor ≥ 0.
+//! `X[s, ex, em] ≈ Σ_k A[s,k]·Ex[k,ex]·Em[k,em]`, every factor ≥ 0.
 //!
 //! Start (closed form, one start): the leading singular vectors of the excitation and
 //! emission unfoldings (missing cells read as 0; a sequentially truncated HOSVD, so the
@@ -517,8 +517,8 @@ impl<'a> Work<'a> {
             if cross <= 0.0 || square <= 0.0 {
                 continue;
             }
-            for s in 0..t.samples {
-                f.scores[s * k + c] = a[s] * cross / square;
+            for (s, a) in a.iter().enumerate() {
+                f.scores[s * k + c] = a * cross / square;
             }
             f.excitation[c * n_ex..(c + 1) * n_ex].copy_from_slice(&x);
             f.emission[c * n_em..(c + 1) * n_em].copy_from_slice(&e);
@@ -729,7 +729,6 @@ mod tests {
             components: 2,
             tolerance: 1e-12,
             max_iterations: 5000,
-            ..ParafacOptions::default()
         };
         let fit = fit(&t, &weights, &options).unwrap();
         let total: f64 = values.iter().filter(|v| v.is_finite()).map(|v| v * v).sum();
