@@ -212,3 +212,68 @@ fn synthetic_shapes_scores_and_core_consistency() {
     let over = fit_joint(&measurements, &options(5)).unwrap();
     assert!(over.core_consistency < 50.0, "{}", over.core_consistency);
 }
+
+/// The command a spectroscopist types: outputs written, the reference read, the outliers
+/// left out; surface matrices get the not-yet message, not a PARAFAC.
+#[test]
+fn cli_joint_fit_and_surface_placeholder() {
+    let bin = env!("CARGO_BIN_EXE_fluorite");
+    let out = tempfile::tempdir().unwrap();
+    if let Some(dir) = common::shared("eem-instrument/dorrit") {
+        // Every CSV of the folder, concentrations.csv included: --reference keeps it out.
+        let inputs: Vec<PathBuf> = common::files_in(&dir, &["csv"]);
+        let o = std::process::Command::new(bin)
+            .arg("fit")
+            .args(&inputs)
+            .args(["--joint", "--components", "2,4", "--em-range", "250:681"])
+            .args([
+                "--ex-range",
+                "230:315",
+                "--exclude",
+                "QAB,QAC,QAE,QAA",
+                "--no-split-half",
+            ])
+            .arg("--reference")
+            .arg(dir.join("concentrations.csv"))
+            .arg("-o")
+            .arg(out.path())
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            o.status.success(),
+            "{stdout}{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(stdout.contains("joint fit of 23 EEMs"), "{stdout}");
+        assert!(
+            stdout.contains("| 4 |") && stdout.contains("R² tryptophan"),
+            "{stdout}"
+        );
+        let scores = std::fs::read_to_string(out.path().join("k4/scores.csv")).unwrap();
+        assert_eq!(scores.lines().count(), 24, "{scores}");
+        assert!(!scores.contains("QAB,"));
+        for f in ["model.json", "component-4.json", "components.png"] {
+            assert!(out.path().join("k4").join(f).exists(), "{f}");
+        }
+        let component: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.path().join("k4/component-1.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(component["schema"], "fluorite-fluorophore/1");
+    }
+    let surfaces = [
+        concat!(env!("CARGO_MANIFEST_DIR"), "/data/green-dye.csv"),
+        concat!(env!("CARGO_MANIFEST_DIR"), "/data/red-pigment.csv"),
+    ];
+    let o = std::process::Command::new(bin)
+        .arg("fit")
+        .args(surfaces)
+        .args(["--joint", "-o"])
+        .arg(out.path().join("surfaces"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("joint surface fits: not yet"), "{stderr}");
+}

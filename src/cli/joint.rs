@@ -333,7 +333,8 @@ fn split_text(fit: &JointFit) -> String {
                 "NOT validated, < 0.95"
             }
         ),
-        None => "not run".into(),
+        None if fit.samples.len() < 4 => "not run (it needs at least 4 samples)".into(),
+        None => "skipped (--no-split-half)".into(),
     }
 }
 
