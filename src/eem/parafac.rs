@@ -14,7 +14,10 @@
 //! samples and each sweep at two passes over the data. After each sweep the factors are
 //! extrapolated along their last step (Bro's line search, step √iteration) and the
 //! extrapolation kept when it lowers the loss over the measured cells. The whole scheme
-//! is deterministic.
+//! is deterministic: the passes over the data run on the samples in parallel, their
+//! partial sums added in sample order.
+
+use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 
@@ -177,6 +180,10 @@ struct Work<'a> {
     imputed: Vec<(usize, usize, usize)>,
     /// Σ X² over the measured cells.
     measured_square: f64,
+    /// The cells with 0 where not measured, and 1 (measured) or 0 per cell: the loss
+    /// without a branch per cell.
+    data: Vec<f64>,
+    weight: Vec<f64>,
 }
 
 /// Fits `options.components` non-negative components to `t`. `em_weights` are the
@@ -448,6 +455,16 @@ impl<'a> Work<'a> {
             present,
             imputed,
             measured_square,
+            data: t
+                .values
+                .iter()
+                .map(|v| if v.is_finite() { *v } else { 0.0 })
+                .collect(),
+            weight: t
+                .values
+                .iter()
+                .map(|v| if v.is_finite() { 1.0 } else { 0.0 })
+                .collect(),
         }
     }
 
@@ -529,20 +546,27 @@ impl<'a> Work<'a> {
     /// Sum of squared residuals over the measured cells.
     fn loss(&self, f: &Factors) -> f64 {
         let t = self.t;
-        let mut row = vec![0.0; t.n_em];
-        let mut total = 0.0;
-        for s in 0..t.samples {
-            for ex in 0..t.n_ex {
-                f.model_row(t, s, ex, &mut row);
-                let start = t.index(s, ex, 0);
-                for (v, m) in t.values[start..start + t.n_em].iter().zip(&row) {
-                    if v.is_finite() {
-                        total += (v - m) * (v - m);
+        let per_sample: Vec<f64> = (0..t.samples)
+            .into_par_iter()
+            .map(|s| {
+                let mut row = vec![0.0; t.n_em];
+                let mut total = 0.0;
+                for ex in 0..t.n_ex {
+                    f.model_row(t, s, ex, &mut row);
+                    let start = t.index(s, ex, 0);
+                    let cells = start..start + t.n_em;
+                    for ((v, w), m) in self.data[cells.clone()]
+                        .iter()
+                        .zip(&self.weight[cells])
+                        .zip(&row)
+                    {
+                        total += w * (v - m) * (v - m);
                     }
                 }
-            }
-        }
-        total
+                total
+            })
+            .collect();
+        per_sample.iter().sum()
     }
 
     /// One ALS sweep: scores, excitation, emission (this order reuses the emission
@@ -553,15 +577,15 @@ impl<'a> Work<'a> {
         let x = &self.filled;
         // p[(s·n_ex + ex)·K + c] = Σ_em X[s,ex,em]·Em[c,em].
         let mut p = vec![0.0; samples * n_ex * k];
-        for s in 0..samples {
+        p.par_chunks_mut(n_ex * k).enumerate().for_each(|(s, ps)| {
             for ex in 0..n_ex {
                 let row = &x[t.index(s, ex, 0)..t.index(s, ex, 0) + n_em];
                 for c in 0..k {
-                    p[(s * n_ex + ex) * k + c] =
+                    ps[ex * k + c] =
                         crate::numeric::dot(row, &f.emission[c * n_em..(c + 1) * n_em]);
                 }
             }
-        }
+        });
         // h[ex] = Σ_em present·Em Emᵀ (K×K).
         let mut h = vec![0.0; n_ex * k * k];
         for ex in 0..n_ex {
@@ -617,18 +641,30 @@ impl<'a> Work<'a> {
         f.excitation = transpose(&rows, n_ex, k);
         // Emission: RHS[c, em] = Σ_s,ex A[s,c]·Ex[c,ex]·X[s,ex,em]; Gram (AᵀA) ⊙
         // Σ_ex present·Ex Exᵀ per emission row.
-        let mut rhs_t = vec![0.0; k * n_em];
-        for s in 0..samples {
-            for ex in 0..n_ex {
-                let row = &x[t.index(s, ex, 0)..t.index(s, ex, 0) + n_em];
-                for c in 0..k {
-                    let w = f.scores[s * k + c] * f.excitation[c * n_ex + ex];
-                    if w != 0.0 {
-                        for (o, r) in rhs_t[c * n_em..(c + 1) * n_em].iter_mut().zip(row) {
-                            *o += w * r;
+        // Per-sample partial sums, added in sample order: the same result on any number
+        // of threads.
+        let partials: Vec<Vec<f64>> = (0..samples)
+            .into_par_iter()
+            .map(|s| {
+                let mut part = vec![0.0; k * n_em];
+                for ex in 0..n_ex {
+                    let row = &x[t.index(s, ex, 0)..t.index(s, ex, 0) + n_em];
+                    for c in 0..k {
+                        let w = f.scores[s * k + c] * f.excitation[c * n_ex + ex];
+                        if w != 0.0 {
+                            for (o, r) in part[c * n_em..(c + 1) * n_em].iter_mut().zip(row) {
+                                *o += w * r;
+                            }
                         }
                     }
                 }
+                part
+            })
+            .collect();
+        let mut rhs_t = vec![0.0; k * n_em];
+        for part in &partials {
+            for (o, v) in rhs_t.iter_mut().zip(part) {
+                *o += v;
             }
         }
         let rhs = transpose(&rhs_t, k, n_em);
