@@ -69,5 +69,9 @@ fn bench_joint(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_joint);
+criterion_group! {
+    name = benches;
+    config = Criterion::default().without_plots();
+    targets = bench_joint
+}
 criterion_main!(benches);
