@@ -24,8 +24,8 @@ pub struct JointArgs {
     /// component (EEMs: non-negative PARAFAC). Writes a folder (-o, default fits/joint/).
     #[arg(long)]
     pub joint: bool,
-    /// Components of a joint fit: `4`, a list `2,3,4,5` or a range `1..6` (a sweep
-    /// reports explained variance, core consistency and split-half per K).
+    /// Components of a joint fit: `4` (the default), a list `2,3,4,5` or a range `1..6`
+    /// (a sweep reports explained variance, core consistency and split-half per K).
     #[arg(long, value_parser = parse_components, requires = "joint")]
     pub components: Option<ComponentList>,
     /// Emission range of a joint fit, `LO:HI` nm (inclusive).
@@ -133,7 +133,14 @@ pub fn run(args: &FitArgs, read_options: &ReadOptions) -> anyhow::Result<ExitCod
     let mut surfaces = Vec::new();
     for (index, input) in inputs.iter().enumerate() {
         let eem = args.eem.options(index, inputs.len(), read_options)?;
-        let (m, preprocessing) = crate::cli::eem::read_prepared(input, &eem, read_options)?;
+        let (m, preprocessing) = crate::cli::eem::read_prepared(input, &eem, read_options)
+            .with_context(|| {
+                format!(
+                    "joint fit: sample {} (a file that is not a sample can be left out with --exclude {})",
+                    input.display(),
+                    stem(input)
+                )
+            })?;
         match preprocessing {
             Some(_) => eems.push(m),
             None => surfaces.push(m),

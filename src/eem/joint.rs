@@ -342,8 +342,9 @@ impl JointFit {
         out
     }
 
-    /// Component `c` as a `fluorite-fluorophore/1` file (shapes only; the per-sample
-    /// scale is in the score table), readable by `fluorite check` and `plot`.
+    /// Component `c` (< the number of components) as a `fluorite-fluorophore/1` file,
+    /// as single EEM fits write (shapes only; the per-sample scale is in the score
+    /// table).
     pub fn fluorophore(&self, c: usize) -> FluorophoreShapes {
         let component = &self.components[c];
         let mean_score =
