@@ -45,3 +45,21 @@ if [ -d "$shared" ]; then
 else
   echo "skipped the measured materials: $shared is absent" >&2
 fi
+
+# Joint PARAFAC of the Dorrit EEM set (README "Joint fits of sample sets"): the classic
+# preparation, four components, R² of the scores against the known concentrations; then
+# the sweep K = 1..6 (only its table is kept).
+dorrit=../shared/data/eem-instrument/dorrit
+if [ -d "$dorrit" ]; then
+  mkdir -p fits/eem/dorrit
+  $fluorite fit "$dorrit"/*.csv --joint --components 4 --em-range 250:681 --ex-range 230:315 \
+    --exclude QAB,QAC,QAE,QAA --reference "$dorrit"/concentrations.csv -o fits/eem/dorrit/ \
+    --timing-runs 21 | tee fits/eem/dorrit/summary.txt
+  sweep=$(mktemp -d)
+  $fluorite fit "$dorrit"/*.csv --joint --components 1..6 --em-range 250:681 --ex-range 230:315 \
+    --exclude QAB,QAC,QAE,QAA --reference "$dorrit"/concentrations.csv -o "$sweep"/ -q \
+    --max-iterations 2000 --timing-runs 5 | tee fits/eem/dorrit-sweep.md
+  rm -r "$sweep"
+else
+  echo "skipped the Dorrit joint fit: $dorrit is absent" >&2
+fi

@@ -103,6 +103,9 @@ pub struct FitArgs {
     /// Raw instrument EEMs: units, blank, inner filter, scatter.
     #[command(flatten)]
     pub eem: crate::cli::eem::EemArgs,
+    /// Joint fits of sample sets (--joint).
+    #[command(flatten)]
+    pub joint: Box<crate::cli::joint::JointArgs>,
 }
 
 fn parse_model(text: &str) -> Result<ModelChoice, String> {
@@ -183,6 +186,9 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         zero_is_missing: args.zero_is_missing,
         per_nm: args.per_nm,
     };
+    if args.joint.joint {
+        return crate::cli::joint::run(&args, &read_options);
+    }
     let outputs = output_paths(&args)?;
     for out in &outputs {
         if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -235,11 +241,11 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                 } else {
                     printer::model_table_row(&m, &outcome)
                 });
+                if args.plot {
+                    crate::cli::plot::plot_fit(&outcome, &m, out)
+                        .with_context(|| format!("plotting {}", out.display()))?;
+                }
                 if let FitOutcome::Material(material) = &outcome {
-                    if args.plot {
-                        crate::cli::plot::plot_fit(material, &m, out)
-                            .with_context(|| format!("plotting {}", out.display()))?;
-                    }
                     if args.render {
                         crate::cli::render::preview(material, out)
                             .with_context(|| format!("rendering {}", out.display()))?;

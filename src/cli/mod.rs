@@ -8,6 +8,7 @@ mod eem;
 mod export;
 mod fit;
 mod import_spectra;
+mod joint;
 mod plot;
 mod printer;
 mod render;

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 
 use fluorite::Material;
+use fluorite::fit::FitOutcome;
 use fluorite::formats::{self, Format, ReadOptions, RowsAre};
 use fluorite::plot::{self, ImageFormat, PlotOptions};
 
@@ -59,13 +60,22 @@ pub fn run(args: PlotArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Plots a fit just made, handed over in memory (`fit --plot`): the material beside the
-/// JSON it was written to, named after it, against the measurement it was fitted to.
+/// Plots a fit just made, handed over in memory (`fit --plot`): the material, or an EEM's
+/// shapes, beside the JSON it was written to, named after it, against the measurement it
+/// was fitted to (as prepared: masked scatter is drawn as masked).
 pub fn plot_fit(
-    material: &Material,
+    outcome: &FitOutcome,
     measurement: &fluorite::Measurement,
     material_path: &Path,
 ) -> anyhow::Result<()> {
+    let shapes_material;
+    let material = match outcome {
+        FitOutcome::Material(material) => material.as_ref(),
+        FitOutcome::Shapes(shapes) => {
+            shapes_material = plot::shapes_material(shapes);
+            &shapes_material
+        }
+    };
     write_figures(
         material,
         Some(measurement),

@@ -19,7 +19,7 @@ pub const SPEED_ACCURACY_SIZE: (u32, u32) = (1400, 640);
 /// Size of the stability chart in pixels.
 pub const STABILITY_SIZE: (u32, u32) = (1400, 900);
 
-const PALETTE: [RGBColor; 10] = [
+pub(crate) const PALETTE: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),

@@ -19,6 +19,7 @@ pub mod convergence;
 pub mod evaluation;
 pub mod font;
 pub mod heatmap;
+pub mod joint;
 mod parameters;
 pub mod spectra;
 pub mod swatches;
