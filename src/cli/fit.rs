@@ -245,11 +245,11 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                     crate::cli::plot::plot_fit(&outcome, &m, out)
                         .with_context(|| format!("plotting {}", out.display()))?;
                 }
-                if let FitOutcome::Material(material) = &outcome {
-                    if args.render {
-                        crate::cli::render::preview(material, out)
-                            .with_context(|| format!("rendering {}", out.display()))?;
-                    }
+                if let FitOutcome::Material(material) = &outcome
+                    && args.render
+                {
+                    crate::cli::render::preview(material, out)
+                        .with_context(|| format!("rendering {}", out.display()))?;
                 }
             }
         }
