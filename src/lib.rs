@@ -20,6 +20,7 @@ pub mod material;
 pub mod measurement;
 pub mod model;
 pub mod numeric;
+pub mod optimise;
 pub mod parametric;
 pub mod plot;
 pub mod render;

@@ -1,6 +1,7 @@
 //! Levenberg-Marquardt for the small least-squares problems of the band and sigmoid
 //! fits (a handful of parameters, tens of samples: a dense solve per step).
 
+use argmin::core::{IterState, KV, Problem, Solver, State, TerminationReason, TerminationStatus};
 use nalgebra::{DMatrix, DVector};
 
 use crate::numeric::dot;
@@ -23,6 +24,22 @@ pub(super) trait LeastSquares {
             // NaN stays NaN and is rejected by the solver's cost comparison.
             *p = p.clamp(lower, upper);
         }
+    }
+}
+
+/// A borrowed problem is the same problem (the runner takes its problem by value).
+impl<T: LeastSquares> LeastSquares for &T {
+    fn residual_count(&self) -> usize {
+        (**self).residual_count()
+    }
+    fn evaluate(&self, params: &[f64], residuals: &mut [f64], jacobian: Option<&mut [f64]>) {
+        (**self).evaluate(params, residuals, jacobian)
+    }
+    fn bounds(&self, j: usize) -> (f64, f64) {
+        (**self).bounds(j)
+    }
+    fn project(&self, params: &mut [f64]) {
+        (**self).project(params)
     }
 }
 
@@ -82,30 +99,47 @@ impl Workspace {
     }
 }
 
-/// Minimises Σ r² from `params` (updated in place) by Levenberg–Marquardt with
-/// Marquardt's diagonal scaling and Nielsen's damping update; returns the final Σ r².
-/// Stops when a step gains less than `stop_gain` times the cost, when the damping shows
-/// no step can gain, or after `max_iterations` linear solves.
-pub(super) fn levenberg_marquardt(
-    problem: &impl LeastSquares,
-    params: &mut [f64],
+/// The state argmin keeps for [`LevenbergMarquardt`]: parameters and Σ r².
+type LmState = IterState<DVector<f64>, (), (), (), (), f64>;
+
+/// Levenberg–Marquardt with Marquardt's diagonal scaling and Nielsen's damping update, as
+/// an argmin [`Solver`] on a [`LeastSquares`] problem. One argmin iteration is one linear
+/// solve (accepted or not). It converges when an accepted step gains less than
+/// `stop_gain` times the cost, and stops when the damping shows no step can gain.
+struct LevenbergMarquardt {
     stop_gain: f64,
-    max_iterations: usize,
-) -> f64 {
-    let n = params.len();
-    let mut work = Workspace::new(problem.residual_count(), n);
-    let mut current = work.evaluate_trial(problem, params);
-    if n == 0 {
-        return current;
-    }
-    work.accept_trial();
-    let mut trial = params.to_vec();
-    let mut damping = 1e-3;
-    let mut growth = 2.0;
-    for _ in 0..max_iterations {
-        if current.is_nan() || current <= 0.0 {
-            break;
+    work: Workspace,
+    trial: Vec<f64>,
+    /// Σ r² at the current parameters.
+    current: f64,
+    damping: f64,
+    growth: f64,
+    stopped: Option<TerminationReason>,
+}
+
+impl LevenbergMarquardt {
+    fn new(residual_count: usize, parameter_count: usize, stop_gain: f64) -> Self {
+        LevenbergMarquardt {
+            stop_gain,
+            work: Workspace::new(residual_count, parameter_count),
+            trial: vec![0.0; parameter_count],
+            current: f64::NAN,
+            damping: 1e-3,
+            growth: 2.0,
+            stopped: None,
         }
+    }
+
+    /// One linear solve from `params` (updated when the step is accepted).
+    fn step(&mut self, problem: &impl LeastSquares, params: &mut [f64]) {
+        let n = params.len();
+        if self.current.is_nan() || self.current <= 0.0 {
+            self.stopped = Some(TerminationReason::SolverExit(
+                "the cost is zero or not a number".into(),
+            ));
+            return;
+        }
+        let work = &mut self.work;
         let jtj = &work.jtj;
         // A parameter on a bound that the gradient pushes outwards stays there: solving
         // for it anyway would have every step clipped and the solver crawl along the
@@ -120,6 +154,7 @@ pub(super) fn levenberg_marquardt(
         let largest = (0..n).map(|j| jtj[j * n + j]).fold(0.0, f64::max);
         let floor = 1e-12 * largest + f64::MIN_POSITIVE;
         let scale: Vec<f64> = (0..n).map(|j| jtj[j * n + j].max(floor)).collect();
+        let damping = self.damping;
         let system = DMatrix::from_fn(n, n, |j, k| {
             if frozen[j] || frozen[k] {
                 return if j == k { 1.0 } else { 0.0 };
@@ -128,9 +163,9 @@ pub(super) fn levenberg_marquardt(
             if j == k { v + damping * scale[j] } else { v }
         });
         let Some(cholesky) = system.cholesky() else {
-            damping *= growth;
-            growth *= 2.0;
-            continue;
+            self.damping *= self.growth;
+            self.growth *= 2.0;
+            return;
         };
         let gradient = (0..n).map(|j| if frozen[j] { 0.0 } else { -work.jtr[j] });
         let step = cholesky.solve(&DVector::from_iterator(n, gradient));
@@ -139,35 +174,118 @@ pub(super) fn levenberg_marquardt(
             .filter(|&j| !frozen[j])
             .map(|j| step[j] * (damping * scale[j] * step[j] - work.jtr[j]))
             .sum();
-        for ((t, p), s) in trial.iter_mut().zip(params.iter()).zip(step.iter()) {
+        for ((t, p), s) in self.trial.iter_mut().zip(params.iter()).zip(step.iter()) {
             *t = p + s;
         }
-        problem.project(&mut trial);
-        let next = work.evaluate_trial(problem, &trial);
-        if next < current {
-            let gain = current - next;
-            params.copy_from_slice(&trial);
+        problem.project(&mut self.trial);
+        let next = work.evaluate_trial(problem, &self.trial);
+        if next < self.current {
+            let gain = self.current - next;
+            params.copy_from_slice(&self.trial);
             work.accept_trial();
-            current = next;
+            self.current = next;
             let ratio = if predicted > 0.0 {
                 gain / predicted
             } else {
                 1.0
             };
-            damping *= (1.0 - (2.0 * ratio - 1.0).powi(3)).max(1.0 / 3.0);
-            growth = 2.0;
-            if gain <= stop_gain * next {
-                break;
+            self.damping *= (1.0 - (2.0 * ratio - 1.0).powi(3)).max(1.0 / 3.0);
+            self.growth = 2.0;
+            if gain <= self.stop_gain * next {
+                self.stopped = Some(TerminationReason::SolverConverged);
             }
         } else {
-            damping *= growth;
-            growth *= 2.0;
-            if damping > 1e16 {
-                break;
+            self.damping *= self.growth;
+            self.growth *= 2.0;
+            if self.damping > 1e16 {
+                self.stopped = Some(TerminationReason::SolverExit(
+                    "no step lowers the cost".into(),
+                ));
             }
         }
     }
-    current
+}
+
+impl<P: LeastSquares> Solver<P, LmState> for LevenbergMarquardt {
+    fn name(&self) -> &str {
+        "Levenberg-Marquardt"
+    }
+
+    fn init(
+        &mut self,
+        problem: &mut Problem<P>,
+        state: LmState,
+    ) -> Result<(LmState, Option<KV>), argmin::core::Error> {
+        let params = state
+            .get_param()
+            .cloned()
+            .ok_or_else(|| argmin::core::Error::msg("Levenberg-Marquardt needs a start"))?;
+        let work = &mut self.work;
+        self.current = problem.problem("residuals", |p| {
+            Ok(work.evaluate_trial(p, params.as_slice()))
+        })?;
+        work.accept_trial();
+        if params.is_empty() {
+            self.stopped = Some(TerminationReason::SolverConverged);
+        }
+        Ok((state.param(params).cost(self.current), None))
+    }
+
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<P>,
+        mut state: LmState,
+    ) -> Result<(LmState, Option<KV>), argmin::core::Error> {
+        let mut params = state
+            .take_param()
+            .ok_or_else(|| argmin::core::Error::msg("Levenberg-Marquardt lost its parameters"))?;
+        problem.problem("residuals", |p| {
+            self.step(p, params.as_mut_slice());
+            Ok(())
+        })?;
+        Ok((state.param(params).cost(self.current), None))
+    }
+
+    fn terminate(&mut self, _state: &LmState) -> TerminationStatus {
+        match &self.stopped {
+            Some(reason) => TerminationStatus::Terminated(reason.clone()),
+            None => TerminationStatus::NotTerminated,
+        }
+    }
+}
+
+/// Minimises Σ r² from `params` (updated in place) by [`LevenbergMarquardt`] through the
+/// one optimiser runner ([`crate::optimise::run`]); returns the final Σ r². Stops when a
+/// step gains less than `stop_gain` times the cost, when the damping shows no step can
+/// gain, or after `max_iterations` linear solves.
+pub(super) fn levenberg_marquardt(
+    problem: &impl LeastSquares,
+    params: &mut [f64],
+    stop_gain: f64,
+    max_iterations: usize,
+) -> f64 {
+    let solver = LevenbergMarquardt::new(problem.residual_count(), params.len(), stop_gain);
+    let start = DVector::from_column_slice(params);
+    // The solver reports a bad start (NaN cost) as its own stop, so the runner fails only
+    // on argmin's internal errors; the start is then kept.
+    let refined = crate::optimise::run(
+        problem,
+        solver,
+        |state: LmState| state.param(start).max_iters(max_iterations as u64),
+        params,
+        "Levenberg-Marquardt",
+    );
+    if let Ok(refined) = &refined {
+        params.copy_from_slice(&refined.theta);
+        // The cost recorded after the last iteration is the current point's: the solver
+        // moves only to lower costs.
+        if let Some(&cost) = refined.cost_history.last() {
+            return cost;
+        }
+    }
+    let mut residuals = vec![0.0; problem.residual_count()];
+    problem.evaluate(params, &mut residuals, None);
+    residuals.iter().map(|r| r * r).sum()
 }
 
 /// The relative cost gain below which a fit stops: parameters are then settled far below
