@@ -5,37 +5,12 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+use common::{files_in, shared};
+
 use fluorite::eem::{EemOptions, UnitsChoice, prepare, units::classify};
 use fluorite::fit::{FitOptions, FitOutcome, fit};
 use fluorite::formats::{ReadOptions, read};
-
-fn shared(sub: &str) -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(sub);
-    if dir.exists() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "skipped: {} is absent (CI always has ../shared)",
-            dir.display()
-        );
-        None
-    }
-}
-
-fn files(dir: &Path, ext: &str) -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| {
-            p.extension()
-                .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case(ext))
-        })
-        .collect();
-    v.sort();
-    v
-}
 
 fn grid(first: f64, last: f64, step: f64) -> Vec<f64> {
     let n = ((last - first) / step).round() as usize;
@@ -48,7 +23,7 @@ fn raman_nm(ex: f64) -> f64 {
 }
 
 fn dorrit_samples(dir: &Path) -> Vec<PathBuf> {
-    files(dir, "csv")
+    files_in(dir, &["csv"])
         .into_iter()
         .filter(|p| !p.ends_with("concentrations.csv"))
         .collect()
@@ -59,8 +34,8 @@ fn units_tell_surfaces_from_instrument_eems() {
     let (Some(measured), Some(eem)) = (shared("measured"), shared("eem-instrument")) else {
         return;
     };
-    let mut surfaces = files(&measured, "bfc");
-    surfaces.extend(files(&measured, "csv"));
+    let mut surfaces = files_in(&measured, &["bfc"]);
+    surfaces.extend(files_in(&measured, &["csv"]));
     assert!(surfaces.len() >= 6, "{surfaces:?}");
     for p in &surfaces {
         let m = read(p, &ReadOptions::default()).unwrap();
@@ -290,4 +265,30 @@ fn cli_fits_a_stardom_sample_to_shapes_and_says_why() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     assert_ne!(json["schema"], "fluorite-fluorophore/1");
+}
+
+/// `fit EEM --plot` draws the shapes fit against the prepared matrix: the figures are
+/// written beside the JSON and decode as pictures (which cells they draw as masked is
+/// tested in tests/plot_masked.rs).
+#[test]
+fn cli_plots_an_eem_fit_with_its_masked_scatter() {
+    let Some(eem) = shared("eem-instrument") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("d433.json");
+    let o = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .arg("fit")
+        .arg(eem.join("stardom_d433sf.csv"))
+        .args(["--plot", "-q", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for figure in ["d433-residuals.png", "d433-spectra.png"] {
+        let bytes = std::fs::read(dir.path().join(figure))
+            .unwrap_or_else(|e| panic!("{figure} missing: {e}"));
+        let (width, height, _) = common::decode_png(&bytes);
+        assert!(width > 200 && height > 200, "{figure}: {width}×{height}");
+    }
 }

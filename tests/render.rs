@@ -11,6 +11,8 @@
 //! asserts that its standard errors are small against the effect it tests, so that a
 //! noisy render cannot pass by having wide error bars.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -94,10 +96,6 @@ fn plain(reflectance: Spectrum) -> Material {
     Material::new("plain", reflectance, Vec::new())
 }
 
-fn shared_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared")
-}
-
 /// A fluorophore from a McNamara–Boswell spectrum file (`wavelength_nm,excitation,
 /// emission`), its yield set to 90 % of the photon limit.
 fn dye(path: &Path, concentration: f64) -> Fluorophore {
@@ -133,10 +131,7 @@ fn dye(path: &Path, concentration: f64) -> Fluorophore {
 /// Quinine sulfate (UV → blue) and rhodamine 6G (green → orange) on a pale reflector,
 /// built from published dye spectra.
 fn dye_material() -> Option<Material> {
-    let dir = shared_dir().join("data/spectra");
-    if !dir.is_dir() {
-        return None;
-    }
+    let dir = common::shared("spectra")?;
     let m = Material::new(
         "quinine + rhodamine 6G",
         ramp_reflectance(0.75, 0.85),
