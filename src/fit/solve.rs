@@ -18,6 +18,7 @@ use argmin::solver::neldermead::NelderMead;
 use argmin::solver::quasinewton::LBFGS;
 use nalgebra::{DMatrix, DVector};
 
+use super::Solver;
 use super::objective::Objective;
 use super::representation::Representation;
 
@@ -158,15 +159,23 @@ where
 /// Correction pairs L-BFGS keeps.
 const LBFGS_MEMORY: usize = 10;
 
-/// Refines `theta0` with L-BFGS and a More-Thuente line search.
-pub fn lbfgs(
+/// Refines the tabulated fit's `theta0` with an iterative `solver`: L-BFGS and
+/// Nelder-Mead on its cost (and gradient), Gauss-Newton on its residuals. The closed-form
+/// estimate ([`Solver::Init`]) has nothing to refine here.
+pub fn refine_tabulated(
+    solver: Solver,
     objective: Objective<'_>,
     representation: &dyn Representation,
     theta0: &[f64],
     stopping: Stopping,
 ) -> Result<Refined, String> {
-    let function = tabulated_cost_gradient(&objective, representation);
-    lbfgs_function(&function, theta0, stopping)
+    let function = || tabulated_cost_gradient(&objective, representation);
+    match solver {
+        Solver::Init => Err("the closed-form estimate is not refined iteratively".into()),
+        Solver::Lbfgs => lbfgs_function(&function(), theta0, stopping),
+        Solver::NelderMead => nelder_mead(&function(), theta0, stopping),
+        Solver::GaussNewton => gauss_newton(objective, representation, theta0, stopping),
+    }
 }
 
 /// The tabulated fit's cost and θ-gradient as a function of θ.
@@ -182,7 +191,7 @@ fn tabulated_cost_gradient<'a>(
 }
 
 /// Refines `theta0` with Gauss-Newton and a backtracking (Armijo) line search.
-pub fn gauss_newton(
+fn gauss_newton(
     objective: Objective<'_>,
     representation: &dyn Representation,
     theta0: &[f64],
@@ -238,17 +247,12 @@ const NELDER_MEAD_STEP: f64 = 0.05;
 
 /// Refines `theta0` with Nelder-Mead, which uses cost values only. It stops when the
 /// standard deviation of the simplex's costs falls below the cost tolerance.
-pub fn nelder_mead(
-    objective: Objective<'_>,
-    representation: &dyn Representation,
+fn nelder_mead(
+    function: CostGradient<'_>,
     theta0: &[f64],
     stopping: Stopping,
 ) -> Result<Refined, String> {
-    let function = tabulated_cost_gradient(&objective, representation);
-    let problem = FunctionProblem {
-        function: &function,
-        cache: RefCell::new(None),
-    };
+    let problem = FunctionProblem::new(function);
     let start = DVector::from_column_slice(theta0);
     let mut simplex = vec![start.clone()];
     for k in 0..theta0.len() {
@@ -280,7 +284,14 @@ struct FunctionProblem<'a> {
     cache: RefCell<Option<Evaluation>>,
 }
 
-impl FunctionProblem<'_> {
+impl<'a> FunctionProblem<'a> {
+    fn new(function: CostGradient<'a>) -> Self {
+        FunctionProblem {
+            function,
+            cache: RefCell::new(None),
+        }
+    }
+
     fn evaluate(&self, theta: &[f64]) -> (f64, Vec<f64>) {
         if let Some((t, c, g)) = self.cache.borrow().as_ref()
             && t.as_slice() == theta
@@ -315,10 +326,7 @@ pub fn lbfgs_function(
     theta0: &[f64],
     stopping: Stopping,
 ) -> Result<Refined, String> {
-    let problem = FunctionProblem {
-        function,
-        cache: RefCell::new(None),
-    };
+    let problem = FunctionProblem::new(function);
     let solver = LBFGS::new(MoreThuenteLineSearch::new(), LBFGS_MEMORY)
         .with_tolerance_grad(stopping.gradient_tolerance)
         .and_then(|s| s.with_tolerance_cost(stopping.cost_tolerance))

@@ -82,16 +82,14 @@ fn refine_form<'a>(
             },
             cost_history: start.cost_history.clone(),
         },
-        Solver::Lbfgs => solve::lbfgs(objective.clone(), representation, &theta0, stopping)
-            .map_err(Error::Fit)?,
-        Solver::GaussNewton => {
-            solve::gauss_newton(objective.clone(), representation, &theta0, stopping)
-                .map_err(Error::Fit)?
-        }
-        Solver::NelderMead => {
-            solve::nelder_mead(objective.clone(), representation, &theta0, stopping)
-                .map_err(Error::Fit)?
-        }
+        iterative => solve::refine_tabulated(
+            iterative,
+            objective.clone(),
+            representation,
+            &theta0,
+            stopping,
+        )
+        .map_err(Error::Fit)?,
     };
     let mut cost_history = if options.solver == Solver::Init {
         refined.cost_history.clone()
