@@ -7,7 +7,7 @@ use std::sync::{Arc, Mutex};
 
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{
-    CostFunction, Executor, Gradient, Jacobian, KV, Operator, State, TerminationReason,
+    CostFunction, Executor, Gradient, IterState, Jacobian, KV, Operator, State, TerminationReason,
     TerminationStatus,
 };
 use argmin::solver::gaussnewton::GaussNewtonLS;
@@ -156,6 +156,22 @@ where
     Ok(finish(&result.state, recorder, theta0))
 }
 
+/// The state setup of a solver that starts at `theta0` (all but Nelder-Mead, which
+/// starts from its simplex).
+fn start_at<G, J, H, R>(
+    theta0: &[f64],
+    stopping: Stopping,
+) -> impl FnOnce(IterState<DVector<f64>, G, J, H, R, f64>) -> IterState<DVector<f64>, G, J, H, R, f64>
+where
+    IterState<DVector<f64>, G, J, H, R, f64>: State<Float = f64>,
+{
+    move |state| {
+        state
+            .param(DVector::from_column_slice(theta0))
+            .max_iters(stopping.max_iterations)
+    }
+}
+
 /// Correction pairs L-BFGS keeps.
 const LBFGS_MEMORY: usize = 10;
 
@@ -224,11 +240,7 @@ fn gauss_newton(
     let mut refined = run(
         problem,
         solver,
-        |state| {
-            state
-                .param(DVector::from_column_slice(theta0))
-                .max_iters(stopping.max_iterations)
-        },
+        start_at(theta0, stopping),
         theta0,
         "Gauss-Newton",
     )?;
@@ -334,11 +346,7 @@ pub fn lbfgs_function(
     run(
         problem,
         solver,
-        |state| {
-            state
-                .param(DVector::from_column_slice(theta0))
-                .max_iters(stopping.max_iterations)
-        },
+        start_at(theta0, stopping),
         theta0,
         "L-BFGS",
     )
