@@ -526,30 +526,8 @@ pub(super) fn weighted_rank_one(
     }
     let mut row = vec![0.0; n_ex];
     for _ in 0..sweeps {
-        let (mut num, mut den) = (vec![0.0; n_ex], vec![0.0; n_ex]);
-        for (c, w) in data.off_diagonal.iter().zip(weights) {
-            num[c.row] += w * c.value * column[c.column];
-            den[c.row] += w * column[c.column] * column[c.column];
-        }
-        for i in 0..n_ex {
-            row[i] = if den[i] > 0.0 {
-                (num[i] / den[i]).max(0.0)
-            } else {
-                0.0
-            };
-        }
-        let (mut num, mut den) = (vec![0.0; n_em], vec![0.0; n_em]);
-        for (c, w) in data.off_diagonal.iter().zip(weights) {
-            num[c.column] += w * c.value * row[c.row];
-            den[c.column] += w * row[c.row] * row[c.row];
-        }
-        for j in 0..n_em {
-            column[j] = if den[j] > 0.0 {
-                (num[j] / den[j]).max(0.0)
-            } else {
-                0.0
-            };
-        }
+        row = fit_factor(&data.off_diagonal, Some(weights), &column, n_ex, by_row);
+        column = fit_factor(&data.off_diagonal, Some(weights), &row, n_em, by_column);
     }
     (row, column)
 }
