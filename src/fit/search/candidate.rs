@@ -224,8 +224,10 @@ pub(super) fn fit_candidate(
         forms.reflectance = None;
     }
     material.conservation = Some(material.conservation_margins());
+    // The samples were just tabulated from the forms: the search validates the chosen
+    // candidate's forms against them once, not every candidate's.
     material
-        .validate()
+        .validate_except_forms()
         .map_err(|e| Error::Fit(format!("{}: candidate {}: {e}", m.name, spec.name())))?;
     let accuracy = assess::accuracy(&material, m, data, &options.lights);
     let delta_e = accuracy.delta_e2000.clone();

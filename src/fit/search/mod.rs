@@ -408,7 +408,14 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         None => "lowest BIC on the matrix residual".to_string(),
     };
     let mut material = match index {
-        Some(i) => fitted.swap_remove(i).material,
+        Some(i) => {
+            let chosen = fitted.swap_remove(i);
+            // Every law again, now with the forms compared with their samples.
+            chosen.material.validate().map_err(|e| {
+                Error::Fit(format!("{}: model {}: {e}", m.name, chosen.spec.name()))
+            })?;
+            chosen.material
+        }
         None => {
             let mut material = base;
             if let Some(fit) = material.fit.as_mut() {
@@ -441,7 +448,8 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         seconds: started.elapsed().as_secs_f64(),
     });
     fit.seconds = started.elapsed().as_secs_f64();
-    material.conservation = Some(material.conservation_margins());
+    // The conservation margins came with the candidate (or the grid fit), whose spectra
+    // have not changed since.
     Ok(FitOutcome::Material(Box::new(material)))
 }
 
