@@ -205,16 +205,26 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
     s
 }
 
+/// The table cells of the worst ΔE2000 under d65, A, F11 and UV ("–" where the fit did
+/// not report one).
+fn delta_e_cells(report: &fluorite::material::FitReport) -> String {
+    ["d65", "a", "f11", "uv"]
+        .iter()
+        .map(|l| {
+            report
+                .delta_e2000
+                .get(*l)
+                .map(|v| format!("{v:.2}"))
+                .unwrap_or_else(|| "–".into())
+        })
+        .collect::<Vec<_>>()
+        .join(" | ")
+}
+
 /// One Markdown table row for `--table` with a parametric model or the search.
 pub fn model_table_row(m: &Measurement, outcome: &FitOutcome) -> String {
     let report = outcome.report();
-    let de = |l: &str| {
-        report
-            .delta_e2000
-            .get(l)
-            .map(|v| format!("{v:.2}"))
-            .unwrap_or_else(|| "–".into())
-    };
+    let delta_e = delta_e_cells(report);
     let laws = match outcome {
         FitOutcome::Material(material) => {
             let failed = fluorite::check::check_material(material).failed();
@@ -234,14 +244,10 @@ pub fn model_table_row(m: &Measurement, outcome: &FitOutcome) -> String {
         None => ("–", 1),
     };
     format!(
-        "| {} | {} | {} | {} | {} | {} | {} | {met} | {laws} | {tried} | {:.1} |",
+        "| {} | {} | {} | {delta_e} | {met} | {laws} | {tried} | {:.1} |",
         m.name,
         report.model,
         report.parameter_count,
-        de("d65"),
-        de("a"),
-        de("f11"),
-        de("uv"),
         1e3 * report.seconds
     )
 }
@@ -261,13 +267,7 @@ fn absorbed_nm(f: &fluorite::Fluorophore) -> Option<[f64; 2]> {
 /// One Markdown table row for `--table`.
 pub fn table_row(m: &Measurement, outcome: &FitOutcome) -> String {
     let report = outcome.report();
-    let de = |l: &str| {
-        report
-            .delta_e2000
-            .get(l)
-            .map(|v| format!("{v:.2}"))
-            .unwrap_or_else(|| "–".into())
-    };
+    let delta_e = delta_e_cells(report);
     let (k, c) = match outcome {
         FitOutcome::Material(material) => match material.fluorophores.first() {
             Some(f) => {
@@ -286,14 +286,10 @@ pub fn table_row(m: &Measurement, outcome: &FitOutcome) -> String {
         ),
     };
     format!(
-        "| {} | {k} | {c} | {:.1} % | {:.4} | {} | {} | {} | {} | {} | {:.2} |",
+        "| {} | {k} | {c} | {:.1} % | {:.4} | {delta_e} | {} | {:.2} |",
         m.name,
         100.0 * report.rel_residual_fluorescence,
         report.rmse_diagonal,
-        de("d65"),
-        de("a"),
-        de("f11"),
-        de("uv"),
         report.iterations,
         1e3 * report.seconds
     )

@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 
 use crate::colour::{Light, PatchColorimeter, delta_e2000, xyz_to_lab};
-use crate::material::Material;
+use crate::material::{FitReport, Material};
 use crate::measurement::Measurement;
 use crate::model::predict_like;
 
@@ -22,6 +22,18 @@ pub struct Accuracy {
     pub delta_e2000: BTreeMap<String, f64>,
     /// What of the colour reference was filled from the model (missing cells).
     pub filled: FilledReference,
+}
+
+impl Accuracy {
+    /// Records the residuals, the ΔE2000 and the filled share of the colour reference in
+    /// a fit report.
+    pub fn record_in(&self, fit: &mut FitReport) {
+        fit.rel_residual_fluorescence = self.rel_residual_fluorescence;
+        fit.rmse_diagonal = self.rmse_diagonal;
+        fit.delta_e2000 = self.delta_e2000.clone();
+        fit.reference_filled_cells = self.filled.cells;
+        fit.reference_filled_share = self.filled.light_share;
+    }
 }
 
 /// Residual figures and ΔE2000 for `material` against measurement `m`.

@@ -316,11 +316,7 @@ pub(super) fn plain_reflector(
     material.fit = Some(report);
     let accuracy = assess::accuracy(&material, m, data, &options.lights);
     let fit = material.fit.as_mut().expect("set above");
-    fit.rel_residual_fluorescence = accuracy.rel_residual_fluorescence;
-    fit.rmse_diagonal = accuracy.rmse_diagonal;
-    fit.delta_e2000 = accuracy.delta_e2000;
-    fit.reference_filled_cells = accuracy.filled.cells;
-    fit.reference_filled_share = accuracy.filled.light_share;
+    accuracy.record_in(fit);
     fit.warnings = warnings;
     fit.seconds = started.elapsed().as_secs_f64();
     FitOutcome::Material(Box::new(material))

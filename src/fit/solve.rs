@@ -156,14 +156,18 @@ where
     Ok(finish(&result.state, recorder, theta0))
 }
 
+/// An argmin state over θ, whatever else the solver keeps (gradient, Jacobian, Hessian,
+/// residuals).
+type ThetaState<G, J, H, R> = IterState<DVector<f64>, G, J, H, R, f64>;
+
 /// The state setup of a solver that starts at `theta0` (all but Nelder-Mead, which
 /// starts from its simplex).
 fn start_at<G, J, H, R>(
     theta0: &[f64],
     stopping: Stopping,
-) -> impl FnOnce(IterState<DVector<f64>, G, J, H, R, f64>) -> IterState<DVector<f64>, G, J, H, R, f64>
+) -> impl FnOnce(ThetaState<G, J, H, R>) -> ThetaState<G, J, H, R>
 where
-    IterState<DVector<f64>, G, J, H, R, f64>: State<Float = f64>,
+    ThetaState<G, J, H, R>: State<Float = f64>,
 {
     move |state| {
         state

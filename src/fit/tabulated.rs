@@ -403,11 +403,7 @@ pub(super) fn fit_checked(
         ));
     }
     let fit = material.fit.as_mut().expect("report set above");
-    fit.rel_residual_fluorescence = accuracy.rel_residual_fluorescence;
-    fit.rmse_diagonal = accuracy.rmse_diagonal;
-    fit.delta_e2000 = accuracy.delta_e2000;
-    fit.reference_filled_cells = accuracy.filled.cells;
-    fit.reference_filled_share = accuracy.filled.light_share;
+    accuracy.record_in(fit);
     let rss = accuracy.rms_off_diagonal.powi(2) * data.off_diagonal.len() as f64
         + accuracy.rmse_diagonal.powi(2) * data.diagonal.len() as f64;
     fit.bic = Some(assess::bic(

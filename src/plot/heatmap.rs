@@ -12,7 +12,7 @@ use plotters::style::text_anchor::{HPos, VPos};
 
 use super::colormap::{self, ColourScale};
 use super::common::{
-    Draw, DrawResult, anchored, bold, draw_text, font, format_significant, format_tick,
+    Draw, DrawResult, anchored, draw_text, draw_title, font, format_significant, format_tick,
     render as render_figure, tick_step, ticks,
 };
 use super::{Comparison, FigureKind, ImageFormat, Layout};
@@ -195,7 +195,7 @@ impl Draw for ResidualFigure<'_> {
         let c = self.comparison;
         let m = &c.measured;
         let (width, height) = SIZE;
-        draw_text(
+        draw_title(
             root,
             &format!(
                 "{}: reradiation matrix, measured vs fitted ({})",
@@ -203,7 +203,6 @@ impl Draw for ResidualFigure<'_> {
                 units_label(m)
             ),
             (width as i32 / 2, TITLE_HEIGHT / 2 + 2),
-            &anchored(bold(21.0), HPos::Center, VPos::Center),
         )?;
 
         let values = value_scale(c);

@@ -12,7 +12,8 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
 use super::common::{
-    Draw, DrawResult, anchored, bold, draw_text, font, format_significant, render as render_figure,
+    Draw, DrawResult, anchored, bold, draw_text, draw_title, font, format_significant,
+    render as render_figure,
 };
 use super::{Comparison, FigureKind, ImageFormat, Layout};
 use crate::colour::{
@@ -144,14 +145,13 @@ impl Draw for ColourFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<Layout, DB> {
         let (width, height) = SIZE;
         let width = width as i32;
-        draw_text(
+        draw_title(
             root,
             &format!(
                 "{}: patch colour under each light, measured | fitted",
                 self.material.name
             ),
             (width / 2, TITLE_HEIGHT / 2 + 2),
-            &anchored(bold(21.0), HPos::Center, VPos::Center),
         )?;
         let pairs = swatch_pairs(self.comparison);
         let column = width / pairs.len().max(1) as i32;
