@@ -325,32 +325,27 @@ impl SynthSpec {
                 .map(|&l| bands.iter().map(|b| b.eval(l)).sum())
                 .collect()
         };
-        let mut a = sample(&component.absorption, &self.excitation_nm);
+        // Bands sampled on a grid, divided by their `scale` (peak or area), which must be
+        // positive; `scale_is` says what it is, on which grid, for the error.
+        let normalised =
+            |samples: Vec<f64>, scale: f64, what: &str, scale_is: String| -> Result<Vec<f64>> {
+                if !(scale.is_finite() && scale > 0.0) {
+                    return Err(Error::invalid(
+                        format!("{place}.{what}"),
+                        format!("{scale_is}; give bands with positive weight inside it"),
+                    ));
+                }
+                Ok(samples.iter().map(|x| x / scale).collect())
+            };
+        let a = sample(&component.absorption, &self.excitation_nm);
         let peak = a.iter().cloned().fold(0.0, f64::max);
-        if !(peak.is_finite() && peak > 0.0) {
-            return Err(Error::invalid(
-                format!("{place}.absorption"),
-                format!(
-                    "peaks at {peak} on the excitation grid; give bands with positive weight inside it"
-                ),
-            ));
-        }
-        a.iter_mut().for_each(|x| *x /= peak);
-        let mut e = sample(&component.emission, &self.emission_nm);
-        let area: f64 = e
-            .iter()
-            .zip(bin_widths(&self.emission_nm))
-            .map(|(x, w)| x * w)
-            .sum();
-        if !(area.is_finite() && area > 0.0) {
-            return Err(Error::invalid(
-                format!("{place}.emission"),
-                format!(
-                    "integrates to {area} on the emission grid; give bands with positive weight inside it"
-                ),
-            ));
-        }
-        e.iter_mut().for_each(|x| *x /= area);
+        let on_grid = format!("peaks at {peak} on the excitation grid");
+        let a = normalised(a, peak, "absorption", on_grid)?;
+        let e = sample(&component.emission, &self.emission_nm);
+        let widths = bin_widths(&self.emission_nm);
+        let area: f64 = e.iter().zip(&widths).map(|(x, w)| x * w).sum();
+        let on_grid = format!("integrates to {area} on the emission grid");
+        let e = normalised(e, area, "emission", on_grid)?;
         let absorption = Spectrum::new(self.excitation_nm.clone(), a, "absorption")?;
         let emission = Spectrum::new(self.emission_nm.clone(), e, "emission")?;
         let shortest = absorption

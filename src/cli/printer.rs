@@ -102,24 +102,27 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
                 // the longest to the shortest (energy form), Q(λ) from the shortest to the
                 // longest (photon form).
                 let [lo, hi] = absorbed_nm(f).unwrap_or([f64::NAN; 2]);
-                let (symbol, varying) = match f.yield_form {
+                let (symbol, varying, range, note) = match f.yield_form {
                     YieldForm::Energy => (
                         "Q",
-                        format!(
-                            "photon yield Φ(λ) = {:.3}–{:.3} (Φ(λmin) = Q·λ̄e/λmin)",
+                        "photon yield Φ(λ)",
+                        [
                             f.photon_yield_with_mean(hi, mean),
-                            f.photon_yield_with_mean(lo, mean)
-                        ),
+                            f.photon_yield_with_mean(lo, mean),
+                        ],
+                        " (Φ(λmin) = Q·λ̄e/λmin)",
                     ),
                     YieldForm::Photon => (
                         "Φ",
-                        format!(
-                            "energy yield Q(λ) = Φ·λ/λ̄e = {:.3}–{:.3}",
+                        "energy yield Q(λ) = Φ·λ/λ̄e",
+                        [
                             f.energy_yield_with_mean(lo, mean),
-                            f.energy_yield_with_mean(hi, mean)
-                        ),
+                            f.energy_yield_with_mean(hi, mean),
+                        ],
+                        "",
                     ),
                 };
+                let varying = format!("{varying} = {:.3}–{:.3}{note}", range[0], range[1]);
                 let _ = writeln!(
                     s,
                     "{label}k = c·{symbol} = {:.4}   c = {:.4} (feasible {:.4}–{:.4})   {symbol} = {:.4} ({} form)   λ̄e = {:.1} nm   {varying}",

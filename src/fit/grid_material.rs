@@ -246,25 +246,25 @@ pub(super) fn flag_clamped(
     wavelengths: &[f64],
     warnings: &mut Vec<String>,
 ) {
-    let at_cap: Vec<bool> = regimes
-        .iter()
-        .map(|r| *r == DiagonalRegime::AtCap)
-        .collect();
-    if at_cap.iter().any(|&x| x) {
-        warnings.push(format!(
-            "reflectance at its conservation cap at {}: the measured diagonal plus the fluorescence would need r > 1 or more photons out than in",
-            assess::ranges(wavelengths, &at_cap)
-        ));
-    }
-    let at_zero: Vec<bool> = regimes
-        .iter()
-        .map(|r| *r == DiagonalRegime::AtZero)
-        .collect();
-    if at_zero.iter().any(|&x| x) {
-        warnings.push(format!(
-            "reflectance at zero at {}: the measured diagonal is below the fitted fluorescence there (or negative noise)",
-            assess::ranges(wavelengths, &at_zero)
-        ));
+    // Where the reflectance sits on a bound, and why.
+    let bounds = [
+        (
+            DiagonalRegime::AtCap,
+            "at its conservation cap",
+            "the measured diagonal plus the fluorescence would need r > 1 or more photons out than in",
+        ),
+        (
+            DiagonalRegime::AtZero,
+            "at zero",
+            "the measured diagonal is below the fitted fluorescence there (or negative noise)",
+        ),
+    ];
+    for (regime, bound, why) in bounds {
+        let here: Vec<bool> = regimes.iter().map(|r| *r == regime).collect();
+        if here.iter().any(|&x| x) {
+            let ranges = assess::ranges(wavelengths, &here);
+            warnings.push(format!("reflectance {bound} at {ranges}: {why}"));
+        }
     }
 }
 

@@ -240,44 +240,45 @@ impl Draw for SpeedAccuracy<'_> {
             .clone()
             .shrink(((width - legend_w) as i32, 60), (legend_w, height - 60));
         let mut y = 10;
-        draw_text(
-            &legend,
-            "method",
-            (10, y),
-            &anchored(bold(15.0), HPos::Left, VPos::Center),
-        )?;
+        legend_text(&legend, "method", true, y)?;
         for (k, m) in methods.iter().enumerate() {
             y += 24;
             marker(&legend, (20, y), k, RGBColor(60, 60, 60))?;
-            draw_text(
-                &legend,
-                m,
-                (38, y),
-                &anchored(font(14.0), HPos::Left, VPos::Center),
-            )?;
+            legend_text(&legend, m, false, y)?;
         }
         y += 36;
-        draw_text(
-            &legend,
-            "input",
-            (10, y),
-            &anchored(bold(15.0), HPos::Left, VPos::Center),
-        )?;
+        legend_text(&legend, "input", true, y)?;
         for (k, input) in inputs.iter().enumerate() {
             y += 22;
             legend.draw(&Rectangle::new(
                 [(12, y - 7), (28, y + 7)],
                 colour(k).filled(),
             ))?;
-            draw_text(
-                &legend,
-                input,
-                (38, y),
-                &anchored(font(14.0), HPos::Left, VPos::Center),
-            )?;
+            legend_text(&legend, input, false, y)?;
         }
         Ok(Layout::default())
     }
+}
+
+/// A legend's text at height `y`: a heading (bold, from the left edge) or an entry
+/// (beside its marker).
+fn legend_text<DB: DrawingBackend>(
+    legend: &DrawingArea<DB, Shift>,
+    text: &str,
+    heading: bool,
+    y: i32,
+) -> DrawResult<(), DB> {
+    let (style, x) = if heading {
+        (bold(15.0), 10)
+    } else {
+        (font(14.0), 38)
+    };
+    draw_text(
+        legend,
+        text,
+        (x, y),
+        &anchored(style, HPos::Left, VPos::Center),
+    )
 }
 
 struct Stability<'a> {

@@ -2,6 +2,8 @@
 //! (300–780 nm) in f32, with the sampling tables a path needs at a fluorescent event
 //! (model.md §6) and for choosing the wavelengths a camera path carries.
 
+use std::ops::{Add, Mul, Sub};
+
 use glam::Vec4;
 
 use crate::colour::{Light, cie1931};
@@ -54,6 +56,20 @@ impl Lookup {
     }
 }
 
+/// The entry of a 1 nm `table` (from [`LAMBDA_MIN_NM`]) at `nm`, linear between entries
+/// and clamped to the table's range: for scalar tables and the colour-matching functions.
+#[inline]
+fn interpolate<T>(table: &[T], nm: f32) -> T
+where
+    T: Copy + Add<Output = T> + Sub<Output = T>,
+    f32: Mul<T, Output = T>,
+{
+    let x = (nm - LAMBDA_MIN_NM).clamp(0.0, (TABLE_LEN - 1) as f32);
+    let i = (x as i32 as usize).min(LAST_INTERVAL);
+    let t = x - i as f32;
+    table[i] + t * (table[i + 1] - table[i])
+}
+
 impl Table {
     /// Tabulates `f` at 300, 301, …, 780 nm.
     pub fn from_fn(f: impl Fn(f64) -> f64) -> Table {
@@ -80,12 +96,7 @@ impl Table {
     /// Value at `nm`, linear between entries (clamped to the table's range).
     #[inline]
     pub fn eval(&self, nm: f32) -> f32 {
-        let x = (nm - LAMBDA_MIN_NM).clamp(0.0, (TABLE_LEN - 1) as f32);
-        let i = (x as i32 as usize).min(LAST_INTERVAL);
-        let t = x - i as f32;
-        let v0 = self.values[i];
-        let v1 = self.values[i + 1];
-        v0 + t * (v1 - v0)
+        interpolate(&self.values, nm)
     }
 
     /// Values at four wavelengths at once.
@@ -636,12 +647,7 @@ impl Observer {
     /// (x̄, ȳ, z̄, 0) at `nm`.
     #[inline]
     pub fn cmf4(&self, nm: f32) -> Vec4 {
-        let x = (nm - LAMBDA_MIN_NM).clamp(0.0, (TABLE_LEN - 1) as f32);
-        let i = (x as i32 as usize).min(LAST_INTERVAL);
-        let t = x - i as f32;
-        let lo = self.cmf[i];
-        let hi = self.cmf[i + 1];
-        lo + t * (hi - lo)
+        interpolate(&self.cmf, nm)
     }
 }
 
