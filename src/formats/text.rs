@@ -196,6 +196,16 @@ impl CellReader<'_> {
         Error::parse(self.path, line, column, message)
     }
 
+    /// A ragged row at `line`: it has `cells` cells where `width` are due; `why` says what
+    /// sets the width and how to mend the row.
+    pub fn ragged_row(&self, line: usize, cells: usize, width: usize, why: &str) -> Error {
+        self.error(
+            line,
+            cells.min(width) + 1,
+            format!("ragged row: it has {cells} cells, but {why}"),
+        )
+    }
+
     /// A measured value; missing cells become NaN.
     pub fn value(&self, cell: &str, line: usize, column: usize) -> Result<f64> {
         match parse_number(cell, self.decimal_comma) {

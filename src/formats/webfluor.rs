@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 use super::table::TableLayout;
 use super::text::{Delimiter, Line, check_increasing, check_unique};
@@ -21,14 +21,10 @@ pub(super) fn read(path: &Path, lines: &[Line], options: &ReadOptions) -> Result
         skip_comments: true,
     };
     let mut table = layout.read(lines)?;
-    if table.rows.is_empty() {
-        return Err(Error::parse(
-            path,
-            table.header_line,
-            0,
-            "has a line of emission wavelengths but no excitation rows; the file seems truncated",
-        ));
-    }
+    table.require_rows(
+        path,
+        "has a line of emission wavelengths but no excitation rows",
+    )?;
     check_increasing(path, &table.columns, "emission wavelength", false)?;
     check_unique(path, &table.rows, "excitation wavelength", true)?;
     table.sort_rows();

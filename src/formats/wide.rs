@@ -30,14 +30,10 @@ pub(super) fn read(path: &Path, lines: &[Line], options: &ReadOptions) -> Result
         skip_comments: true,
     };
     let table = layout.read(lines)?;
-    if table.rows.is_empty() {
-        return Err(Error::parse(
-            path,
-            table.header_line,
-            0,
-            "has a header line of column wavelengths but no data rows; the file seems truncated",
-        ));
-    }
+    table.require_rows(
+        path,
+        "has a header line of column wavelengths but no data rows",
+    )?;
     check_increasing(path, &table.columns, "column wavelength", false)?;
     check_increasing(path, &table.rows, "row wavelength", true)?;
 

@@ -34,14 +34,13 @@ pub(crate) trait Draw {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<Layout, DB>;
 }
 
-/// Renders `figure` at `size` into PNG or SVG bytes, with the layout it drew.
+/// Renders `figure` of `kind` at its size into PNG or SVG bytes, with the layout it drew.
 pub(crate) fn render<D: Draw>(
     figure: &D,
     kind: FigureKind,
-    size: (u32, u32),
     format: ImageFormat,
 ) -> Result<(Vec<u8>, Layout)> {
-    render_named(figure, kind.suffix(), size, format)
+    render_named(figure, kind.suffix(), kind.size(), format)
 }
 
 /// Renders `figure`, named `name` in errors, at `size` into PNG or SVG bytes: for figures

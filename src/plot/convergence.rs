@@ -35,7 +35,6 @@ pub(crate) fn render(
     render_figure(
         &ConvergenceFigure { material, fit },
         FigureKind::Convergence,
-        SIZE,
         format,
     )
 }

@@ -13,10 +13,9 @@ use plotters::style::text_anchor::{HPos, VPos};
 use super::colormap::{self, ColourScale};
 use super::common::{
     Draw, DrawResult, anchored, draw_text, draw_title, font, format_significant, format_tick,
-    render as render_figure, tick_step, ticks,
+    tick_step, ticks,
 };
-use super::{Comparison, FigureKind, ImageFormat, Layout};
-use crate::error::Result;
+use super::{Comparison, Layout};
 use crate::material::Material;
 use crate::measurement::{CellKind, Measurement, Units};
 
@@ -160,26 +159,10 @@ fn fitted_title(material: &Material, c: &Comparison) -> String {
     }
 }
 
-struct ResidualFigure<'a> {
-    material: &'a Material,
-    comparison: &'a Comparison,
-}
-
-/// Renders the residual figure.
-pub(crate) fn render(
-    material: &Material,
-    comparison: &Comparison,
-    format: ImageFormat,
-) -> Result<(Vec<u8>, Layout)> {
-    render_figure(
-        &ResidualFigure {
-            material,
-            comparison,
-        },
-        FigureKind::Residuals,
-        SIZE,
-        format,
-    )
+/// The residual figure: measured, fitted and their difference.
+pub(crate) struct ResidualFigure<'a> {
+    pub(crate) material: &'a Material,
+    pub(crate) comparison: &'a Comparison,
 }
 
 struct PanelSpec<'a> {

@@ -73,18 +73,9 @@ fn excitation_reference(material: &Material, grid: &[f64]) -> Option<Vec<f64>> {
         .iter()
         .map(|f| f.emission_mean_nm())
         .collect();
-    let v: Vec<f64> = grid
-        .iter()
-        .map(|&l| {
-            material
-                .fluorophores
-                .iter()
-                .zip(&means)
-                .map(|(f, &mean)| f.reradiated_with_mean(l, mean))
-                .sum()
-        })
-        .collect();
-    normalise(v)
+    normalised_sum(material, grid, |n, f, l| {
+        f.reradiated_with_mean(l, means[n])
+    })
 }
 
 /// The combined emission shape Σ (Σλ c·Q(λ)·a(λ))·e(λ), scaled to peak 1 on the emission
@@ -101,18 +92,30 @@ fn emission_reference(material: &Material, ex_grid: &[f64], em_grid: &[f64]) -> 
                 .sum::<f64>()
         })
         .collect();
-    let v: Vec<f64> = em_grid
-        .iter()
-        .map(|&l| {
-            material
-                .fluorophores
-                .iter()
-                .zip(&weights)
-                .map(|(f, w)| w * f.emission.eval_zero_outside(l))
-                .sum()
-        })
-        .collect();
-    normalise(v)
+    normalised_sum(material, em_grid, |n, f, l| {
+        weights[n] * f.emission.eval_zero_outside(l)
+    })
+}
+
+/// Σ over the fluorophores of `term(n, fluorophore, λ)` at every λ of `grid`, scaled to
+/// peak 1 (None when it has no positive peak).
+fn normalised_sum(
+    material: &Material,
+    grid: &[f64],
+    term: impl Fn(usize, &Fluorophore, f64) -> f64,
+) -> Option<Vec<f64>> {
+    let fluorophores = &material.fluorophores;
+    normalise(
+        grid.iter()
+            .map(|&l| {
+                fluorophores
+                    .iter()
+                    .enumerate()
+                    .map(|(n, f)| term(n, f, l))
+                    .sum()
+            })
+            .collect(),
+    )
 }
 
 fn normalise(v: Vec<f64>) -> Option<Vec<f64>> {
@@ -176,7 +179,6 @@ pub(crate) fn render(
             comparison,
         },
         FigureKind::Spectra,
-        SIZE,
         format,
     )
 }

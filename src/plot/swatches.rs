@@ -13,14 +13,12 @@ use plotters::style::text_anchor::{HPos, VPos};
 
 use super::common::{
     Draw, DrawResult, anchored, bold, draw_text, draw_title, font, format_significant,
-    render as render_figure,
 };
-use super::{Comparison, FigureKind, ImageFormat, Layout};
+use super::{Comparison, Layout};
 use crate::colour::{
     D65_WHITE, Lab, Light, PatchColorimeter, Xyz, adapt_bradford, delta_e2000, srgb_encode,
     xyz_to_lab, xyz_to_linear_srgb,
 };
-use crate::error::Result;
 use crate::material::Material;
 
 /// Size of the colour figure in pixels.
@@ -119,26 +117,10 @@ fn describe_light(name: &str) -> (&str, &str) {
     }
 }
 
-struct ColourFigure<'a> {
-    material: &'a Material,
-    comparison: &'a Comparison,
-}
-
-/// Renders the colour figure.
-pub(crate) fn render(
-    material: &Material,
-    comparison: &Comparison,
-    format: ImageFormat,
-) -> Result<(Vec<u8>, Layout)> {
-    render_figure(
-        &ColourFigure {
-            material,
-            comparison,
-        },
-        FigureKind::Colour,
-        SIZE,
-        format,
-    )
+/// The colour figure: measured and fitted patch colours under each light.
+pub(crate) struct ColourFigure<'a> {
+    pub(crate) material: &'a Material,
+    pub(crate) comparison: &'a Comparison,
 }
 
 impl Draw for ColourFigure<'_> {

@@ -176,10 +176,10 @@ pub(super) fn fit_candidate(
                 .map(|t| Ok(convert_yield_form(&problem, &t.spec, &t.theta)))
                 .unwrap_or_else(|| Err(Error::Fit("no energy-form optimum".into()))),
             Start::Nested => match nested {
-                Some(n) => nested_start(&problem, ctx.base, n, ctx.sigma, ctx.focus),
+                Some(n) => nested_start(&problem, ctx, n),
                 None => Err(Error::Fit("no nested model".into())),
             },
-            _ => start(&problem, ctx.base, parent, ctx.sigma, kind, ctx.focus),
+            _ => start(&problem, ctx, parent, kind),
         };
         match theta0.and_then(|t| refine(&problem, &t, options, ctx.tolerance)) {
             Ok((theta, refined)) => {
