@@ -252,6 +252,12 @@ impl CheckReport {
             .collect()
     }
 
+    /// The names of the laws that fail, comma-separated.
+    pub fn failed_names(&self) -> String {
+        let names: Vec<&str> = self.failed().iter().map(|l| l.name()).collect();
+        names.join(", ")
+    }
+
     /// The result of one law.
     pub fn law(&self, law: Law) -> &LawResult {
         self.laws

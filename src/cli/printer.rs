@@ -9,6 +9,9 @@ use fluorite::check::{CheckReport, FORM_TOLERANCE, Law, Status};
 use fluorite::fit::FitOutcome;
 use fluorite::measurement::Measurement;
 
+/// How the energy form's photon yield peaks, after its range.
+const PHOTON_LIMIT: &str = " (Φ(λmin) = Q·λ̄e/λmin)";
+
 /// The Markdown table of accuracy and speed over all inputs (`fit --table`): the model
 /// table for parametric fits, the grid table otherwise.
 pub fn fit_table(parametric: bool, rows: &[String]) -> String {
@@ -104,25 +107,11 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
                 // the longest to the shortest (energy form), Q(λ) from the shortest to the
                 // longest (photon form).
                 let [lo, hi] = absorbed_nm(f).unwrap_or([f64::NAN; 2]);
+                let photon = [hi, lo].map(|l| f.photon_yield_with_mean(l, mean));
+                let energy = [lo, hi].map(|l| f.energy_yield_with_mean(l, mean));
                 let (symbol, varying, range, note) = match f.yield_form {
-                    YieldForm::Energy => (
-                        "Q",
-                        "photon yield Φ(λ)",
-                        [
-                            f.photon_yield_with_mean(hi, mean),
-                            f.photon_yield_with_mean(lo, mean),
-                        ],
-                        " (Φ(λmin) = Q·λ̄e/λmin)",
-                    ),
-                    YieldForm::Photon => (
-                        "Φ",
-                        "energy yield Q(λ) = Φ·λ/λ̄e",
-                        [
-                            f.energy_yield_with_mean(lo, mean),
-                            f.energy_yield_with_mean(hi, mean),
-                        ],
-                        "",
-                    ),
+                    YieldForm::Energy => ("Q", "photon yield Φ(λ)", photon, PHOTON_LIMIT),
+                    YieldForm::Photon => ("Φ", "energy yield Q(λ) = Φ·λ/λ̄e", energy, ""),
                 };
                 let varying = format!("{varying} = {:.3}–{:.3}{note}", range[0], range[1]);
                 let _ = writeln!(
@@ -313,15 +302,7 @@ pub fn check_report(report: &CheckReport) -> String {
         if report.valid {
             "valid".to_string()
         } else {
-            format!(
-                "VIOLATES {}",
-                report
-                    .failed()
-                    .iter()
-                    .map(|l| l.name())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
+            format!("VIOLATES {}", report.failed_names())
         }
     );
     for l in &report.laws {
