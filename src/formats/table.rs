@@ -42,7 +42,18 @@ pub(crate) struct TableLayout<'a> {
     pub skip_comments: bool,
 }
 
-impl TableLayout<'_> {
+impl<'a> TableLayout<'a> {
+    /// A table of `path` that runs to the end of the file, `#` lines being comments (the
+    /// wide CSV and WebFluor layouts).
+    pub fn commented(path: &'a Path, delimiter: Delimiter) -> Self {
+        TableLayout {
+            path,
+            delimiter,
+            terminator: None,
+            skip_comments: true,
+        }
+    }
+
     fn skipped(&self, line: &Line) -> bool {
         line.is_blank() || (self.skip_comments && line.text.trim_start().starts_with('#'))
     }

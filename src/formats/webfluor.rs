@@ -14,12 +14,7 @@ use super::text::{Delimiter, Line, check_increasing, check_unique};
 use super::{Parsed, ReadOptions, RowsAre};
 
 pub(super) fn read(path: &Path, lines: &[Line], options: &ReadOptions) -> Result<Parsed> {
-    let layout = TableLayout {
-        path,
-        delimiter: Delimiter::Whitespace,
-        terminator: None,
-        skip_comments: true,
-    };
+    let layout = TableLayout::commented(path, Delimiter::Whitespace);
     let mut table = layout.read(lines)?;
     table.require_rows(
         path,

@@ -23,12 +23,7 @@ pub(super) fn read(path: &Path, lines: &[Line], options: &ReadOptions) -> Result
         .iter()
         .find(|l| !l.is_blank() && !l.text.trim_start().starts_with('#'))
         .ok_or_else(|| Error::parse(path, 0, 0, "holds no header line"))?;
-    let layout = TableLayout {
-        path,
-        delimiter: Delimiter::detect(header.text),
-        terminator: None,
-        skip_comments: true,
-    };
+    let layout = TableLayout::commented(path, Delimiter::detect(header.text));
     let table = layout.read(lines)?;
     table.require_rows(
         path,
