@@ -655,15 +655,10 @@ impl Observer {
 mod tests {
     use super::*;
 
-    /// A triangle 400–500 nm peaking at 1 at 430 nm (area 50).
+    /// A triangle 400–500 nm peaking at 1 at 430 nm (area 50): the lower of its rising
+    /// and falling edges, zero outside.
     fn triangle(nm: f64) -> f64 {
-        if (400.0..=430.0).contains(&nm) {
-            (nm - 400.0) / 30.0
-        } else if (430.0..=500.0).contains(&nm) {
-            (500.0 - nm) / 70.0
-        } else {
-            0.0
-        }
+        ((nm - 400.0) / 30.0).min((500.0 - nm) / 70.0).max(0.0)
     }
 
     /// Draws 200 000 stratified excitation wavelengths from `f` (`next` for its second
