@@ -778,3 +778,20 @@ fn a_yield_given_wrongly_for_its_form_is_reported_not_fatal() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn validate_compares_forms_with_samples_but_not_the_notes() {
+    // The two-dye truth with its forms: valid, though both absorption forms rise above 1
+    // between samples (notes of the report, which break no law).
+    let m = two_dyes().truth_with_forms().unwrap();
+    assert_eq!(check_material(&m).forms.unwrap().notes.len(), 2);
+    m.validate().unwrap();
+    // One absorption sample 1 % of the peak below its form: the forms law breaks.
+    let mut off = m.clone();
+    let a = &mut off.fluorophores[0].absorption;
+    let i = a.value.iter().position(|&v| v > 0.3 && v < 0.9).unwrap();
+    a.value[i] -= 0.01;
+    let err = off.validate().unwrap_err().to_string();
+    assert!(err.contains("forms"), "{err}");
+    assert_eq!(check_material(&off).failed(), vec![Law::Forms]);
+}
