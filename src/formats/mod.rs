@@ -22,6 +22,8 @@ mod detect;
 mod long;
 mod table;
 mod text;
+
+pub(crate) use text::delimited_fields;
 mod webfluor;
 mod wide;
 

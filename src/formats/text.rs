@@ -48,6 +48,23 @@ pub(crate) fn split_lines(text: &str) -> Vec<Line<'_>> {
         .collect()
 }
 
+/// The data lines of a small delimited text file (a light, an absorbance spectrum): for
+/// every line neither blank nor a `#` comment, its number (from 1) and its fields, split
+/// at commas, semicolons, tabs and spaces.
+pub(crate) fn delimited_fields(text: &str) -> impl Iterator<Item = (usize, Vec<&str>)> {
+    text.lines().enumerate().filter_map(|(n, line)| {
+        let line = line.trim();
+        let data = !(line.is_empty() || line.starts_with('#'));
+        data.then(|| {
+            let fields = line
+                .split([',', ';', '\t', ' '])
+                .filter(|f| !f.is_empty())
+                .collect();
+            (n + 1, fields)
+        })
+    })
+}
+
 /// How the cells of a line are separated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Delimiter {
