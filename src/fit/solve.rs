@@ -20,7 +20,7 @@ use nalgebra::{DMatrix, DVector};
 
 use super::Solver;
 use super::objective::Objective;
-use super::representation::Representation;
+use super::representation::{GridSpectra, Representation};
 
 /// What a refinement run produced.
 #[derive(Debug, Clone)]
@@ -205,8 +205,13 @@ fn tabulated_cost_gradient<'a>(
 ) -> impl Fn(&[f64]) -> (f64, Vec<f64>) + 'a {
     move |theta: &[f64]| {
         let sp = representation.spectra(theta);
-        let (cost, gk, ga, gv) = objective.cost_gradient(&sp);
-        (cost, representation.pull_back(theta, gk, &ga, &gv))
+        let (cost, kappa, absorption, emission) = objective.cost_gradient(&sp);
+        let gradient = GridSpectra {
+            kappa,
+            absorption,
+            emission,
+        };
+        (cost, representation.pull_back(theta, &gradient))
     }
 }
 
