@@ -501,25 +501,7 @@ fn noise_colour_check(
         ..options.clone()
     };
     // Colour on the data's own grids, as in the accuracy report (cached colorimeters).
-    let colorimeters: Vec<_> = options
-        .lights
-        .iter()
-        .map(|light| PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm))
-        .collect();
-    let lab = |mat: &Material| -> Vec<crate::colour::Lab> {
-        let per_bin = crate::model::predict(
-            mat,
-            &m.name,
-            &m.excitation_nm,
-            &m.emission_nm,
-            Units::PerBin,
-            m.has_diagonal,
-        );
-        colorimeters
-            .iter()
-            .map(|pc| xyz_to_lab(pc.xyz(&per_bin), pc.white))
-            .collect()
-    };
+    let lab = |mat: &Material| assess::predicted_labs(mat, m, &options.lights);
     let reference = lab(material);
     let mut rng = crate::synth::SplitMix64::new(0x5EED);
     let mut sum_sq = 0.0;

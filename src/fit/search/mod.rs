@@ -200,13 +200,7 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
             reflectance: Some(r),
             ..
         }) => r,
-        _ => reflectance_form(
-            &base,
-            m,
-            &data,
-            lights,
-            REFLECTANCE_SHARE * budget.unwrap_or(1.0),
-        ),
+        _ => reflectance_form(&base, m, lights, REFLECTANCE_SHARE * budget.unwrap_or(1.0)),
     };
 
     let reference = measured_xyz(m, &base, lights);
@@ -483,13 +477,12 @@ fn worst(delta_e: &std::collections::BTreeMap<String, f64>) -> f64 {
 fn reflectance_form(
     base: &Material,
     m: &Measurement,
-    data: &FitData,
     lights: &[crate::colour::Light],
     budget: f64,
 ) -> ReflectanceForm {
     let nm = &base.reflectance.wavelength_nm;
     let r = &base.reflectance.value;
-    let reference = colour_of(base, m, data, lights);
+    let reference = assess::predicted_labs(base, m, lights);
     let weights = diagonal_weights(base);
     for degree in 1..=MAX_REFLECTANCE_DEGREE {
         let Ok(fit) = fit_sigmoid_polynomial(nm, r, Some(&weights), degree) else {
@@ -497,7 +490,7 @@ fn reflectance_form(
         };
         let mut candidate = base.clone();
         candidate.reflectance.value = nm.iter().map(|&l| fit.form.eval(l)).collect();
-        let lab = colour_of(&candidate, m, data, lights);
+        let lab = assess::predicted_labs(&candidate, m, lights);
         let ok = reference
             .iter()
             .zip(&lab)
@@ -517,34 +510,6 @@ fn diagonal_weights(material: &Material) -> Vec<f64> {
         .wavelength_nm
         .iter()
         .map(|&l| (1.0 - material.absorbed(l)).max(0.0).powi(2))
-        .collect()
-}
-
-/// CIELAB of a material's patch on the measurement's grids, per light.
-fn colour_of(
-    material: &Material,
-    m: &Measurement,
-    data: &FitData,
-    lights: &[crate::colour::Light],
-) -> Vec<crate::colour::Lab> {
-    let predicted = crate::model::predict(
-        material,
-        &m.name,
-        &data.excitation_nm,
-        &data.emission_nm,
-        crate::measurement::Units::PerBin,
-        true,
-    );
-    lights
-        .iter()
-        .map(|light| {
-            let pc = crate::colour::PatchColorimeter::cached(
-                light,
-                &data.excitation_nm,
-                &data.emission_nm,
-            );
-            pc.lab(&predicted)
-        })
         .collect()
 }
 
