@@ -458,11 +458,17 @@ impl Material {
 
     /// All wavelengths at which some spectrum of the material is sampled, sorted.
     pub fn sample_wavelengths(&self) -> Vec<f64> {
-        let mut all: Vec<f64> = self.reflectance.wavelength_nm.clone();
+        // Spectra often share one grid (a fit tabulates every form on the same one): each
+        // distinct grid is merged once, as a repeat would only be deduplicated again.
+        let mut grids: Vec<&[f64]> = vec![&self.reflectance.wavelength_nm];
         for f in &self.fluorophores {
-            all.extend(&f.absorption.wavelength_nm);
-            all.extend(&f.emission.wavelength_nm);
+            for grid in [&f.absorption.wavelength_nm, &f.emission.wavelength_nm] {
+                if !grids.contains(&grid.as_slice()) {
+                    grids.push(grid);
+                }
+            }
         }
+        let mut all: Vec<f64> = grids.concat();
         all.sort_by(f64::total_cmp);
         all.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
         all

@@ -104,8 +104,14 @@ impl Spectrum {
         if nm >= w[last] {
             return self.value[last];
         }
-        // First sample strictly above nm; nm lies in [w[hi-1], w[hi]).
-        let hi = w.partition_point(|&x| x <= nm);
+        // First sample strictly above nm; nm lies in [w[hi-1], w[hi]). On a uniform grid
+        // (every tabulated and fitted spectrum) the step gives it; else the search does.
+        let guess = ((nm - w[0]) / (w[last] - w[0]) * last as f64) as usize;
+        let hi = if guess < last && w[guess] <= nm && nm < w[guess + 1] {
+            guess + 1
+        } else {
+            w.partition_point(|&x| x <= nm)
+        };
         let lo = hi - 1;
         let t = (nm - w[lo]) / (w[hi] - w[lo]);
         self.value[lo] + t * (self.value[hi] - self.value[lo])
@@ -275,6 +281,26 @@ mod tests {
             reference += 0.5 * (a + b) * (w[1] - w[0]);
         }
         assert!((coarse - reference).abs() < 1e-6 * reference);
+    }
+
+    #[test]
+    fn interpolation_is_linear_between_samples_on_any_grid() {
+        // The straight line 2λ − 800 sampled on a uniform and on an uneven grid: linear
+        // interpolation reproduces it exactly between samples, and holds the ends.
+        let line = |l: f64| 2.0 * l - 800.0;
+        for grid in [
+            uniform_grid(400.0, 500.0, 10.0),
+            vec![400.0, 401.0, 403.0, 450.0, 451.0, 500.0],
+        ] {
+            let s =
+                Spectrum::new(grid.clone(), grid.iter().map(|&l| line(l)).collect(), "s").unwrap();
+            for k in 0..=400 {
+                let l = 400.0 + 0.25 * k as f64;
+                assert!((s.eval_clamped(l) - line(l)).abs() < 1e-9, "{l} nm");
+            }
+            assert_eq!(s.eval_clamped(390.0), line(400.0));
+            assert_eq!(s.eval_clamped(510.0), line(500.0));
+        }
     }
 
     #[test]

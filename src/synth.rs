@@ -57,6 +57,18 @@ pub struct Band {
     pub weight: f64,
 }
 
+/// Bands from (centre nm, width nm, weight) triples: the presets' tables.
+fn bands(table: &[(f64, f64, f64)]) -> Vec<Band> {
+    table
+        .iter()
+        .map(|&(centre_nm, width_nm, weight)| Band {
+            centre_nm,
+            width_nm,
+            weight,
+        })
+        .collect()
+}
+
 impl Band {
     fn eval(&self, nm: f64) -> f64 {
         self.weight * (-0.5 * ((nm - self.centre_nm) / self.width_nm).powi(2)).exp()
@@ -158,72 +170,20 @@ impl SynthSpec {
         };
         match name {
             "green-dye" => {
-                spec.absorption = vec![
-                    Band {
-                        centre_nm: 490.0,
-                        width_nm: 18.0,
-                        weight: 1.0,
-                    },
-                    Band {
-                        centre_nm: 330.0,
-                        width_nm: 25.0,
-                        weight: 0.25,
-                    },
-                ];
-                spec.emission = vec![
-                    Band {
-                        centre_nm: 520.0,
-                        width_nm: 15.0,
-                        weight: 1.0,
-                    },
-                    Band {
-                        centre_nm: 550.0,
-                        width_nm: 25.0,
-                        weight: 0.3,
-                    },
-                ];
+                spec.absorption = bands(&[(490.0, 18.0, 1.0), (330.0, 25.0, 0.25)]);
+                spec.emission = bands(&[(520.0, 15.0, 1.0), (550.0, 25.0, 0.3)]);
                 spec.reflectance_edge_nm = 460.0;
                 spec.reflectance_low = 0.1;
             }
             "red-pigment" => {
-                spec.absorption = vec![
-                    Band {
-                        centre_nm: 545.0,
-                        width_nm: 22.0,
-                        weight: 1.0,
-                    },
-                    Band {
-                        centre_nm: 380.0,
-                        width_nm: 40.0,
-                        weight: 0.3,
-                    },
-                ];
-                spec.emission = vec![Band {
-                    centre_nm: 605.0,
-                    width_nm: 20.0,
-                    weight: 1.0,
-                }];
+                spec.absorption = bands(&[(545.0, 22.0, 1.0), (380.0, 40.0, 0.3)]);
+                spec.emission = bands(&[(605.0, 20.0, 1.0)]);
                 spec.reflectance_edge_nm = 590.0;
                 spec.concentration = 0.9;
             }
             "brightener" => {
-                spec.absorption = vec![Band {
-                    centre_nm: 350.0,
-                    width_nm: 20.0,
-                    weight: 1.0,
-                }];
-                spec.emission = vec![
-                    Band {
-                        centre_nm: 435.0,
-                        width_nm: 15.0,
-                        weight: 1.0,
-                    },
-                    Band {
-                        centre_nm: 460.0,
-                        width_nm: 20.0,
-                        weight: 0.4,
-                    },
-                ];
+                spec.absorption = bands(&[(350.0, 20.0, 1.0)]);
+                spec.emission = bands(&[(435.0, 15.0, 1.0), (460.0, 20.0, 0.4)]);
                 spec.reflectance_low = 0.6;
                 spec.reflectance_high = 0.88;
                 spec.reflectance_edge_nm = 400.0;
@@ -232,43 +192,13 @@ impl SynthSpec {
             "two-dyes" => {
                 // An optical brightener (UV absorption, blue emission) and an orange-red
                 // dye (green absorption, orange-red emission) in a white base.
-                spec.absorption = vec![Band {
-                    centre_nm: 365.0,
-                    width_nm: 15.0,
-                    weight: 1.0,
-                }];
-                spec.emission = vec![
-                    Band {
-                        centre_nm: 440.0,
-                        width_nm: 15.0,
-                        weight: 1.0,
-                    },
-                    Band {
-                        centre_nm: 465.0,
-                        width_nm: 20.0,
-                        weight: 0.35,
-                    },
-                ];
+                spec.absorption = bands(&[(365.0, 15.0, 1.0)]);
+                spec.emission = bands(&[(440.0, 15.0, 1.0), (465.0, 20.0, 0.35)]);
                 spec.concentration = 0.6;
                 spec.yield_fraction_of_limit = 0.8;
                 spec.components = vec![SynthComponent {
-                    absorption: vec![Band {
-                        centre_nm: 545.0,
-                        width_nm: 18.0,
-                        weight: 1.0,
-                    }],
-                    emission: vec![
-                        Band {
-                            centre_nm: 610.0,
-                            width_nm: 17.0,
-                            weight: 1.0,
-                        },
-                        Band {
-                            centre_nm: 640.0,
-                            width_nm: 25.0,
-                            weight: 0.3,
-                        },
-                    ],
+                    absorption: bands(&[(545.0, 18.0, 1.0)]),
+                    emission: bands(&[(610.0, 17.0, 1.0), (640.0, 25.0, 0.3)]),
                     concentration: 0.7,
                     yield_fraction_of_limit: 0.85,
                     yield_form: YieldForm::Energy,
@@ -395,32 +325,27 @@ impl SynthSpec {
                 .map(|&l| bands.iter().map(|b| b.eval(l)).sum())
                 .collect()
         };
-        let mut a = sample(&component.absorption, &self.excitation_nm);
+        // Bands sampled on a grid, divided by their `scale` (peak or area), which must be
+        // positive; `scale_is` says what it is, on which grid, for the error.
+        let normalised =
+            |samples: Vec<f64>, scale: f64, what: &str, scale_is: String| -> Result<Vec<f64>> {
+                if !(scale.is_finite() && scale > 0.0) {
+                    return Err(Error::invalid(
+                        format!("{place}.{what}"),
+                        format!("{scale_is}; give bands with positive weight inside it"),
+                    ));
+                }
+                Ok(samples.iter().map(|x| x / scale).collect())
+            };
+        let a = sample(&component.absorption, &self.excitation_nm);
         let peak = a.iter().cloned().fold(0.0, f64::max);
-        if !(peak.is_finite() && peak > 0.0) {
-            return Err(Error::invalid(
-                format!("{place}.absorption"),
-                format!(
-                    "peaks at {peak} on the excitation grid; give bands with positive weight inside it"
-                ),
-            ));
-        }
-        a.iter_mut().for_each(|x| *x /= peak);
-        let mut e = sample(&component.emission, &self.emission_nm);
-        let area: f64 = e
-            .iter()
-            .zip(bin_widths(&self.emission_nm))
-            .map(|(x, w)| x * w)
-            .sum();
-        if !(area.is_finite() && area > 0.0) {
-            return Err(Error::invalid(
-                format!("{place}.emission"),
-                format!(
-                    "integrates to {area} on the emission grid; give bands with positive weight inside it"
-                ),
-            ));
-        }
-        e.iter_mut().for_each(|x| *x /= area);
+        let on_grid = format!("peaks at {peak} on the excitation grid");
+        let a = normalised(a, peak, "absorption", on_grid)?;
+        let e = sample(&component.emission, &self.emission_nm);
+        let widths = bin_widths(&self.emission_nm);
+        let area: f64 = e.iter().zip(&widths).map(|(x, w)| x * w).sum();
+        let on_grid = format!("integrates to {area} on the emission grid");
+        let e = normalised(e, area, "emission", on_grid)?;
         let absorption = Spectrum::new(self.excitation_nm.clone(), a, "absorption")?;
         let emission = Spectrum::new(self.emission_nm.clone(), e, "emission")?;
         let shortest = absorption

@@ -14,6 +14,20 @@ use fluorite::synth::{PRESETS, SynthSpec};
 
 mod common;
 
+/// `fluorite check`'s text report on `material` (saved in a folder named by `tag`).
+fn check_text(material: &Material, tag: &str) -> String {
+    let dir = temp_dir(tag);
+    let path = dir.join("material.json");
+    material.save(&path).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .arg("check")
+        .arg(&path)
+        .output()
+        .unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    String::from_utf8(out.stdout).unwrap()
+}
+
 #[test]
 fn every_fitted_measured_material_passes() {
     let Some(files) = common::measured_files() else {
@@ -40,7 +54,7 @@ fn every_fitted_measured_material_passes() {
                 .first()
                 .and_then(|f| f.photon_yield_range)
         );
-        assert!(report.valid, "{}", report.to_text());
+        assert!(report.valid, "{}", report.to_json());
         // The exact search (samples and interior vertices) finds at least what the
         // material's own margins (samples and midpoints) find.
         let c = material.conservation_margins();
@@ -54,7 +68,7 @@ fn synthetic_truths_pass() {
     for preset in PRESETS {
         let (_, truth) = SynthSpec::preset(preset).unwrap().generate().unwrap();
         let report = check_material(&truth);
-        assert!(report.valid, "{preset}: {}", report.to_text());
+        assert!(report.valid, "{preset}: {}", report.to_json());
         for f in &report.fluorophores {
             let [lo, hi] = f.photon_yield_range.unwrap();
             assert!(lo <= hi && hi <= 1.0 + 1e-9);
@@ -213,14 +227,14 @@ fn temp_dir(tag: &str) -> PathBuf {
 #[test]
 fn base_is_valid_and_each_law_broken_alone_is_named() {
     let report = check_material(&base());
-    assert!(report.valid, "{}", report.to_text());
+    assert!(report.valid, "{}", report.to_json());
     let dir = temp_dir("laws");
     let mut seen = Vec::new();
     for (n, (law, what, text)) in violating().into_iter().enumerate() {
         let path = dir.join(format!("case{n}.json"));
         std::fs::write(&path, &text).unwrap();
         let report = check_file(&path).unwrap();
-        assert_eq!(report.failed(), vec![law], "{what}:\n{}", report.to_text());
+        assert_eq!(report.failed(), vec![law], "{what}:\n{}", report.to_json());
         assert!(!report.valid);
         let result = report.law(law);
         assert_eq!(result.status, Status::Fail);
@@ -379,7 +393,7 @@ fn two_fluorophores_are_checked_per_component() {
     let spec = two_dyes();
     let m = spec.truth().unwrap();
     let report = check_material(&m);
-    assert!(report.valid, "{}", report.to_text());
+    assert!(report.valid, "{}", report.to_json());
     assert_eq!(report.model, None);
     assert!(report.forms.is_none());
     assert_eq!(report.fluorophores.len(), 2);
@@ -400,7 +414,7 @@ fn two_fluorophores_are_checked_per_component() {
     let expected = (0.7f64 + 0.6 * m.fluorophores[0].absorption.eval_zero_outside(540.0))
         .max(0.7 + 0.6 * m.fluorophores[0].absorption.eval_zero_outside(550.0));
     assert!((total.worst_value - expected).abs() < 1e-12, "{total:?}");
-    let text = report.to_text();
+    let text = check_text(&m, "two-dyes");
     assert!(text.contains("fluorophores[0]: k = c·Q") && text.contains("fluorophores[1]: k = c·Q"));
     assert!(
         text.contains("(no forms block: tabulated spectra)"),
@@ -423,7 +437,7 @@ fn two_fluorophores_are_checked_per_component() {
     assert!(
         report.failed().contains(&Law::TotalAbsorption),
         "{}",
-        report.to_text()
+        report.to_json()
     );
     let total = report.law(Law::TotalAbsorption);
     assert!((total.worst_value - 1.1).abs() < 1e-12);
@@ -433,7 +447,7 @@ fn two_fluorophores_are_checked_per_component() {
 fn forms_are_compared_with_their_samples_and_named() {
     let m = two_dyes().truth_with_forms().unwrap();
     let report = check_material(&m);
-    assert!(report.valid, "{}", report.to_text());
+    assert!(report.valid, "{}", report.to_json());
     assert_eq!(report.model.as_deref(), Some("synth"));
     let forms = report.forms.as_ref().unwrap();
     assert_eq!(forms.model, "synth");
@@ -455,7 +469,7 @@ fn forms_are_compared_with_their_samples_and_named() {
         "{:?}",
         forms.notes
     );
-    let text = report.to_text();
+    let text = check_text(&m, "forms-text");
     assert!(
         text.contains("forms: synth, 4 forms with 18 parameters, samples match within"),
         "{text}"
@@ -493,7 +507,7 @@ fn forms_are_compared_with_their_samples_and_named() {
     let broken = dir.join("broken-forms.json");
     std::fs::write(&broken, serde_json::to_string(&value).unwrap()).unwrap();
     let report = check_file(&broken).unwrap();
-    assert_eq!(report.failed(), vec![Law::Forms], "{}", report.to_text());
+    assert_eq!(report.failed(), vec![Law::Forms], "{}", report.to_json());
     assert!(report.law(Law::Forms).violations[0].contains("does not read"));
     let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
     value["forms"]["fluorophores"].as_array_mut().unwrap().pop();
@@ -531,7 +545,7 @@ fn photon_form_laws_and_summary_are_the_analytic_ones() {
     // Φ = 0.9, λ̄e = 600 nm, absorbed 350–550 nm. In the energy form Q = 0.9 breaks the
     // photon law (0.9·600/350 > 1); a constant photon yield of 0.9 keeps it.
     let report = check_material(&base_photon(0.9));
-    assert!(report.valid, "{}", report.to_text());
+    assert!(report.valid, "{}", report.to_json());
     let photons = report.law(Law::Photons);
     assert_eq!(photons.worst_value, 0.9);
     assert!((photons.margin - 0.1).abs() < 1e-12);
@@ -554,7 +568,7 @@ fn photon_form_laws_and_summary_are_the_analytic_ones() {
     assert_eq!(energy.worst_nm, Some(500.0));
 
     // The text and the JSON report name the form, Φ and the energy-yield range.
-    let text = report.to_text();
+    let text = check_text(&base_photon(0.9), "photon-text");
     assert!(
         text.contains("fluorophores[0]: k = c·Φ = 0.450000 (photon form, Φ = 0.900000)"),
         "{text}"
@@ -571,7 +585,7 @@ fn photon_form_laws_and_summary_are_the_analytic_ones() {
     assert_eq!(f["yield"], 0.9);
     assert_eq!(f["photon_yield_range"], serde_json::json!([0.9, 0.9]));
     // The energy form states Q and the Φ(λ) range.
-    let text = check_material(&base()).to_text();
+    let text = check_text(&base(), "energy-text");
     assert!(
         text.contains("fluorophores[0]: k = c·Q = 0.150000 (energy form, Q = 0.300000)")
             && text.contains("photon quantum yield Φ(λ) = Q·λ̄e/λ"),
@@ -584,7 +598,7 @@ fn photon_form_laws_and_summary_are_the_analytic_ones() {
         report.failed(),
         vec![Law::QuantumYieldRange, Law::Photons],
         "{}",
-        report.to_text()
+        report.to_json()
     );
     assert!(report.law(Law::QuantumYieldRange).violations[0].contains("photon_yield"));
 }
@@ -659,7 +673,7 @@ fn photon_form_energy_law_finds_the_maximum_between_samples_and_above_the_mean_e
     };
     let m = Material::new("anti-Stokes", r, vec![f]);
     let report = check_material(&m);
-    assert_eq!(report.failed(), vec![Law::Energy], "{}", report.to_text());
+    assert_eq!(report.failed(), vec![Law::Energy], "{}", report.to_json());
     let energy = report.law(Law::Energy);
     assert!((energy.worst_value - 1.35).abs() < 1e-12, "{energy:?}");
     assert_eq!(energy.worst_nm, Some(600.0));
@@ -670,7 +684,7 @@ fn photon_form_energy_law_finds_the_maximum_between_samples_and_above_the_mean_e
     assert!(
         (report.law(Law::Energy).worst_value - 0.9).abs() < 1e-12,
         "{}",
-        report.to_text()
+        report.to_json()
     );
 }
 
@@ -739,7 +753,7 @@ fn a_yield_given_wrongly_for_its_form_is_reported_not_fatal() {
             report.failed(),
             vec![Law::QuantumYieldRange],
             "{what}: {}",
-            report.to_text()
+            report.to_json()
         );
         let law = report.law(Law::QuantumYieldRange);
         assert!(
@@ -763,4 +777,21 @@ fn a_yield_given_wrongly_for_its_form_is_reported_not_fatal() {
         assert_eq!(out.status.code(), Some(1), "{what}");
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn validate_compares_forms_with_samples_but_not_the_notes() {
+    // The two-dye truth with its forms: valid, though both absorption forms rise above 1
+    // between samples (notes of the report, which break no law).
+    let m = two_dyes().truth_with_forms().unwrap();
+    assert_eq!(check_material(&m).forms.unwrap().notes.len(), 2);
+    m.validate().unwrap();
+    // One absorption sample 1 % of the peak below its form: the forms law breaks.
+    let mut off = m.clone();
+    let a = &mut off.fluorophores[0].absorption;
+    let i = a.value.iter().position(|&v| v > 0.3 && v < 0.9).unwrap();
+    a.value[i] -= 0.01;
+    let err = off.validate().unwrap_err().to_string();
+    assert!(err.contains("forms"), "{err}");
+    assert_eq!(check_material(&off).failed(), vec![Law::Forms]);
 }

@@ -82,7 +82,7 @@ fn dyes_become_valid_materials_matching_their_spectra() {
         let limit = photon_limit(&rows);
         let q = 0.9 * limit;
         let (material, report) = import_spectra(&options(&path, q)).unwrap();
-        assert!(report.valid, "{dye}: {}", report.to_text());
+        assert!(report.valid, "{dye}: {}", report.to_json());
         let f = &material.fluorophores[0];
         assert_eq!((f.concentration, f.quantum_yield), (0.6, q));
         let peak = rows.iter().map(|r| r[1]).fold(0.0, f64::max);
@@ -203,7 +203,7 @@ fn a_published_photon_yield_builds_a_photon_form_material() {
             ..options(&path, 0.95)
         };
         let (material, report) = import_spectra(&photon).unwrap();
-        assert!(report.valid, "{dye}: {}", report.to_text());
+        assert!(report.valid, "{dye}: {}", report.to_json());
         let f = &material.fluorophores[0];
         assert_eq!(f.yield_form, YieldForm::Photon);
         assert_eq!((f.concentration, f.quantum_yield), (0.6, 0.95));

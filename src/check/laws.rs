@@ -114,8 +114,27 @@ fn to_spectrum(s: &RawSpectrum) -> Spectrum {
     }
 }
 
+/// How far a check follows the `forms` block.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum FormsDepth {
+    /// The [`Law::Forms`] comparison with the samples, and a scan between samples for
+    /// the report's notes (a full report).
+    Report,
+    /// The [`Law::Forms`] comparison alone: the notes break no law, so validation skips
+    /// the scan.
+    Law,
+    /// Not at all ([`Law::Forms`] not evaluated): for a material whose samples were just
+    /// tabulated from its forms by the same code.
+    Skip,
+}
+
 /// Checks every law on `m` and reports each with its worst wavelength and margin.
 pub fn check(m: &RawMaterial) -> CheckReport {
+    check_to(m, FormsDepth::Report)
+}
+
+/// [`check`], following the forms block to `depth`.
+pub(super) fn check_to(m: &RawMaterial, depth: FormsDepth) -> CheckReport {
     let mut schema = Tracker::new(Law::Schema);
     let ok = m.schema == SCHEMA;
     schema.observe(
@@ -408,7 +427,14 @@ pub fn check(m: &RawMaterial) -> CheckReport {
         photons.evaluated = false;
     }
 
-    let (forms_law, forms) = check_forms(m);
+    let (forms_law, forms) = match depth {
+        FormsDepth::Skip => {
+            let mut law = Tracker::new(Law::Forms);
+            law.evaluated = m.forms.is_none();
+            (law, None)
+        }
+        _ => check_forms(m, depth == FormsDepth::Report),
+    };
 
     let laws = vec![
         schema.result(),
@@ -442,8 +468,9 @@ pub fn check(m: &RawMaterial) -> CheckReport {
 const FORM_SCAN_STEP_NM: f64 = 0.5;
 
 /// The [`Law::Forms`] tracker and the forms summary: every form compared with its
-/// spectrum's samples (all violations named, one per spectrum).
-fn check_forms(m: &RawMaterial) -> (Tracker, Option<FormsSummary>) {
+/// spectrum's samples (all violations named, one per spectrum), and with `notes` every
+/// absorption form scanned between its samples.
+fn check_forms(m: &RawMaterial, notes: bool) -> (Tracker, Option<FormsSummary>) {
     let mut law = Tracker::new(Law::Forms);
     let Some(raw) = &m.forms else {
         return (law, None);
@@ -505,7 +532,8 @@ fn check_forms(m: &RawMaterial) -> (Tracker, Option<FormsSummary>) {
             });
         }
         // Between samples an absorption form may exceed 1 though its samples do not.
-        if what.ends_with(".absorption")
+        if notes
+            && what.ends_with(".absorption")
             && let (Some(&lo), Some(&hi)) =
                 (samples.wavelength_nm.first(), samples.wavelength_nm.last())
         {
@@ -565,10 +593,8 @@ fn energy_extrema(material: &Material, grid: &[f64]) -> Vec<(f64, f64)> {
                 .sum::<f64>()
     };
     let mut out: Vec<(f64, f64)> = grid.iter().map(|&l| (l, albedo(l))).collect();
-    for w in grid.windows(2) {
-        let (l0, l1) = (w[0], w[1]);
-        let f0 = albedo(l0);
-        let f1 = albedo(l1);
+    for k in 1..grid.len() {
+        let ((l0, f0), (l1, f1)) = (out[k - 1], out[k]);
         let fm = albedo(0.5 * (l0 + l1));
         // ρ(t) = f0 + b·t + c·t², t ∈ [0, 1].
         let c = 2.0 * (f0 + f1) - 4.0 * fm;
@@ -591,7 +617,18 @@ impl Material {
     /// returns the first broken one, in [`Law::ALL`] order, as an error naming where it
     /// breaks and by how much.
     pub fn validate(&self) -> Result<()> {
-        let report = check_material(self);
+        self.validate_to(FormsDepth::Law)
+    }
+
+    /// [`Material::validate`] without comparing the forms with the samples, for a
+    /// material whose samples were just tabulated from its forms (a model search's
+    /// candidates: the chosen one is then validated in full).
+    pub(crate) fn validate_except_forms(&self) -> Result<()> {
+        self.validate_to(FormsDepth::Skip)
+    }
+
+    fn validate_to(&self, depth: FormsDepth) -> Result<()> {
+        let report = check_to(&RawMaterial::from(self), depth);
         match report.laws.iter().find(|l| l.status == Status::Fail) {
             None => Ok(()),
             Some(law) => Err(Error::invalid(

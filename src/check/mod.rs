@@ -252,6 +252,12 @@ impl CheckReport {
             .collect()
     }
 
+    /// The names of the laws that fail, comma-separated.
+    pub fn failed_names(&self) -> String {
+        let names: Vec<&str> = self.failed().iter().map(|l| l.name()).collect();
+        names.join(", ")
+    }
+
     /// The result of one law.
     pub fn law(&self, law: Law) -> &LawResult {
         self.laws
@@ -266,126 +272,8 @@ impl CheckReport {
         s.push('\n');
         s
     }
-
-    /// A human-readable report: one line per law, then the violations and the yields.
-    pub fn to_text(&self) -> String {
-        let mut out = format!(
-            "{}{}: {}\n",
-            self.material,
-            self.source
-                .as_ref()
-                .map(|s| format!(" ({s})"))
-                .unwrap_or_default(),
-            if self.valid {
-                "valid".to_string()
-            } else {
-                format!(
-                    "VIOLATES {}",
-                    self.failed()
-                        .iter()
-                        .map(|l| l.name())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )
-            }
-        );
-        for l in &self.laws {
-            let status = match l.status {
-                Status::Pass => "ok  ",
-                Status::Fail => "FAIL",
-                Status::NotEvaluated => "n/a ",
-            };
-            let mut line = format!("  {status} {:<20} {:<40}", l.law.name(), l.statement);
-            // Structural laws have a verdict, not a meaningful margin.
-            let structural = matches!(
-                l.law,
-                Law::Schema | Law::FiniteNonNegative | Law::SortedWavelengths
-            );
-            if l.law == Law::Forms && l.status == Status::Pass && self.forms.is_none() {
-                line.push_str(" (no forms block: tabulated spectra)");
-            } else if !structural && l.status != Status::NotEvaluated && !l.margin.is_nan() {
-                // `+ 0.0` turns −0 into 0 for printing.
-                line.push_str(&format!(" margin {:+.3e}", l.margin + 0.0));
-                if let Some(at) = &l.worst_at {
-                    if l.law == Law::Forms {
-                        line.push_str(&format!(" worst {} off by {:.3e}", at, l.worst_value));
-                    } else {
-                        line.push_str(&format!(" worst {} = {:.6}", at, l.worst_value));
-                    }
-                }
-                if let Some(nm) = l.worst_nm {
-                    line.push_str(&format!(" at {nm} nm"));
-                }
-            }
-            out.push_str(line.trim_end());
-            out.push('\n');
-            if l.status == Status::Fail {
-                for v in &l.violations {
-                    out.push_str(&format!("         - {v}\n"));
-                }
-            }
-        }
-        for (n, f) in self.fluorophores.iter().enumerate() {
-            let symbol = match f.yield_form {
-                YieldForm::Energy => "Q",
-                YieldForm::Photon => "Φ",
-            };
-            out.push_str(&format!(
-                "  fluorophores[{n}]: k = c·{symbol} = {:.6} ({} form, {symbol} = {:.6}), λ̄e = {:.2} nm",
-                f.k,
-                f.yield_form.name(),
-                f.yield_value,
-                f.mean_emission_nm
-            ));
-            match (f.yield_form, f.absorbed_nm) {
-                (YieldForm::Energy, Some([lo, hi])) => {
-                    if let Some([pl, ph]) = f.photon_yield_range {
-                        out.push_str(&format!(
-                            ", photon quantum yield Φ(λ) = Q·λ̄e/λ from {pl:.4} (at {hi} nm) to {ph:.4} (at {lo} nm)"
-                        ));
-                    }
-                }
-                (YieldForm::Photon, Some([lo, hi])) => {
-                    if let Some([el, eh]) = f.energy_yield_range {
-                        out.push_str(&format!(
-                            ", energy quantum yield Q(λ) = Φ·λ/λ̄e from {el:.4} (at {lo} nm) to {eh:.4} (at {hi} nm)"
-                        ));
-                    }
-                }
-                _ => {}
-            }
-            out.push('\n');
-        }
-        if let Some(f) = &self.forms {
-            let model = if f.model.is_empty() {
-                "(no model name)"
-            } else {
-                &f.model
-            };
-            let agreement = if f.worst_deviation.is_nan() {
-                "not compared with the samples".to_string()
-            } else if f.worst_deviation <= FORM_TOLERANCE {
-                format!(
-                    "samples match within {:.1e} of the peak (tolerance {FORM_TOLERANCE:.0e})",
-                    f.worst_deviation
-                )
-            } else {
-                format!(
-                    "samples DO NOT match: off by up to {:.3e} of the peak (tolerance {FORM_TOLERANCE:.0e})",
-                    f.worst_deviation
-                )
-            };
-            out.push_str(&format!(
-                "  forms: {model}, {} forms with {} parameters, {agreement}\n",
-                f.forms, f.parameters
-            ));
-            for note in &f.notes {
-                out.push_str(&format!("  note: {note}\n"));
-            }
-        }
-        out
-    }
 }
+
 /// Reads `path` leniently and checks it. Errors only when the file cannot be read or
 /// is not a material at all (the CLI's exit code 2).
 pub fn check_file(path: &Path) -> Result<CheckReport> {

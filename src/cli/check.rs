@@ -28,7 +28,7 @@ pub fn run(args: CheckArgs) -> anyhow::Result<ExitCode> {
                     worst = worst.max(1);
                 }
                 if !args.json {
-                    print!("{}", report.to_text());
+                    print!("{}", super::printer::check_report(&report));
                 }
                 reports.push(report);
             }

@@ -96,6 +96,6 @@ pub fn run(args: ImportSpectraArgs) -> anyhow::Result<ExitCode> {
     let (material, report) = import_spectra(&options)?;
     write_atomic(&args.out, material.to_json().as_bytes())?;
     println!("{}", args.out.display());
-    print!("{}", report.to_text());
+    print!("{}", super::printer::check_report(&report));
     Ok(ExitCode::SUCCESS)
 }

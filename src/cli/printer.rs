@@ -1,11 +1,16 @@
-//! What `fluorite fit` prints: the per-file summary and the Markdown tables (output
-//! formatting apart from the command, as ripgrep keeps its printer).
+//! What `fluorite fit` and `fluorite check` print: fit's per-file summary and Markdown
+//! tables, check's report (output formatting apart from the commands and the library, as
+//! ripgrep keeps its printer).
 
 use std::path::Path;
 
 use fluorite::YieldForm;
+use fluorite::check::{CheckReport, FORM_TOLERANCE, Law, Status};
 use fluorite::fit::FitOutcome;
 use fluorite::measurement::Measurement;
+
+/// How the energy form's photon yield peaks, after its range.
+const PHOTON_LIMIT: &str = " (Φ(λmin) = Q·λ̄e/λmin)";
 
 /// The Markdown table of accuracy and speed over all inputs (`fit --table`): the model
 /// table for parametric fits, the grid table otherwise.
@@ -102,24 +107,13 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
                 // the longest to the shortest (energy form), Q(λ) from the shortest to the
                 // longest (photon form).
                 let [lo, hi] = absorbed_nm(f).unwrap_or([f64::NAN; 2]);
-                let (symbol, varying) = match f.yield_form {
-                    YieldForm::Energy => (
-                        "Q",
-                        format!(
-                            "photon yield Φ(λ) = {:.3}–{:.3} (Φ(λmin) = Q·λ̄e/λmin)",
-                            f.photon_yield_with_mean(hi, mean),
-                            f.photon_yield_with_mean(lo, mean)
-                        ),
-                    ),
-                    YieldForm::Photon => (
-                        "Φ",
-                        format!(
-                            "energy yield Q(λ) = Φ·λ/λ̄e = {:.3}–{:.3}",
-                            f.energy_yield_with_mean(lo, mean),
-                            f.energy_yield_with_mean(hi, mean)
-                        ),
-                    ),
+                let photon = [hi, lo].map(|l| f.photon_yield_with_mean(l, mean));
+                let energy = [lo, hi].map(|l| f.energy_yield_with_mean(l, mean));
+                let (symbol, varying, range, note) = match f.yield_form {
+                    YieldForm::Energy => ("Q", "photon yield Φ(λ)", photon, PHOTON_LIMIT),
+                    YieldForm::Photon => ("Φ", "energy yield Q(λ) = Φ·λ/λ̄e", energy, ""),
                 };
+                let varying = format!("{varying} = {:.3}–{:.3}{note}", range[0], range[1]);
                 let _ = writeln!(
                     s,
                     "{label}k = c·{symbol} = {:.4}   c = {:.4} (feasible {:.4}–{:.4})   {symbol} = {:.4} ({} form)   λ̄e = {:.1} nm   {varying}",
@@ -205,16 +199,26 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
     s
 }
 
+/// The table cells of the worst ΔE2000 under d65, A, F11 and UV ("–" where the fit did
+/// not report one).
+fn delta_e_cells(report: &fluorite::material::FitReport) -> String {
+    ["d65", "a", "f11", "uv"]
+        .iter()
+        .map(|l| {
+            report
+                .delta_e2000
+                .get(*l)
+                .map(|v| format!("{v:.2}"))
+                .unwrap_or_else(|| "–".into())
+        })
+        .collect::<Vec<_>>()
+        .join(" | ")
+}
+
 /// One Markdown table row for `--table` with a parametric model or the search.
 pub fn model_table_row(m: &Measurement, outcome: &FitOutcome) -> String {
     let report = outcome.report();
-    let de = |l: &str| {
-        report
-            .delta_e2000
-            .get(l)
-            .map(|v| format!("{v:.2}"))
-            .unwrap_or_else(|| "–".into())
-    };
+    let delta_e = delta_e_cells(report);
     let laws = match outcome {
         FitOutcome::Material(material) => {
             let failed = fluorite::check::check_material(material).failed();
@@ -234,14 +238,10 @@ pub fn model_table_row(m: &Measurement, outcome: &FitOutcome) -> String {
         None => ("–", 1),
     };
     format!(
-        "| {} | {} | {} | {} | {} | {} | {} | {met} | {laws} | {tried} | {:.1} |",
+        "| {} | {} | {} | {delta_e} | {met} | {laws} | {tried} | {:.1} |",
         m.name,
         report.model,
         report.parameter_count,
-        de("d65"),
-        de("a"),
-        de("f11"),
-        de("uv"),
         1e3 * report.seconds
     )
 }
@@ -261,13 +261,7 @@ fn absorbed_nm(f: &fluorite::Fluorophore) -> Option<[f64; 2]> {
 /// One Markdown table row for `--table`.
 pub fn table_row(m: &Measurement, outcome: &FitOutcome) -> String {
     let report = outcome.report();
-    let de = |l: &str| {
-        report
-            .delta_e2000
-            .get(l)
-            .map(|v| format!("{v:.2}"))
-            .unwrap_or_else(|| "–".into())
-    };
+    let delta_e = delta_e_cells(report);
     let (k, c) = match outcome {
         FitOutcome::Material(material) => match material.fluorophores.first() {
             Some(f) => {
@@ -286,17 +280,126 @@ pub fn table_row(m: &Measurement, outcome: &FitOutcome) -> String {
         ),
     };
     format!(
-        "| {} | {k} | {c} | {:.1} % | {:.4} | {} | {} | {} | {} | {} | {:.2} |",
+        "| {} | {k} | {c} | {:.1} % | {:.4} | {delta_e} | {} | {:.2} |",
         m.name,
         100.0 * report.rel_residual_fluorescence,
         report.rmse_diagonal,
-        de("d65"),
-        de("a"),
-        de("f11"),
-        de("uv"),
         report.iterations,
         1e3 * report.seconds
     )
+}
+
+/// `fluorite check`'s report: one line per law, then the violations and the yields.
+pub fn check_report(report: &CheckReport) -> String {
+    let mut out = format!(
+        "{}{}: {}\n",
+        report.material,
+        report
+            .source
+            .as_ref()
+            .map(|s| format!(" ({s})"))
+            .unwrap_or_default(),
+        if report.valid {
+            "valid".to_string()
+        } else {
+            format!("VIOLATES {}", report.failed_names())
+        }
+    );
+    for l in &report.laws {
+        let status = match l.status {
+            Status::Pass => "ok  ",
+            Status::Fail => "FAIL",
+            Status::NotEvaluated => "n/a ",
+        };
+        let mut line = format!("  {status} {:<20} {:<40}", l.law.name(), l.statement);
+        // Structural laws have a verdict, not a meaningful margin.
+        let structural = matches!(
+            l.law,
+            Law::Schema | Law::FiniteNonNegative | Law::SortedWavelengths
+        );
+        if l.law == Law::Forms && l.status == Status::Pass && report.forms.is_none() {
+            line.push_str(" (no forms block: tabulated spectra)");
+        } else if !structural && l.status != Status::NotEvaluated && !l.margin.is_nan() {
+            // `+ 0.0` turns −0 into 0 for printing.
+            line.push_str(&format!(" margin {:+.3e}", l.margin + 0.0));
+            if let Some(at) = &l.worst_at {
+                if l.law == Law::Forms {
+                    line.push_str(&format!(" worst {} off by {:.3e}", at, l.worst_value));
+                } else {
+                    line.push_str(&format!(" worst {} = {:.6}", at, l.worst_value));
+                }
+            }
+            if let Some(nm) = l.worst_nm {
+                line.push_str(&format!(" at {nm} nm"));
+            }
+        }
+        out.push_str(line.trim_end());
+        out.push('\n');
+        if l.status == Status::Fail {
+            for v in &l.violations {
+                out.push_str(&format!("         - {v}\n"));
+            }
+        }
+    }
+    for (n, f) in report.fluorophores.iter().enumerate() {
+        let symbol = match f.yield_form {
+            YieldForm::Energy => "Q",
+            YieldForm::Photon => "Φ",
+        };
+        out.push_str(&format!(
+            "  fluorophores[{n}]: k = c·{symbol} = {:.6} ({} form, {symbol} = {:.6}), λ̄e = {:.2} nm",
+            f.k,
+            f.yield_form.name(),
+            f.yield_value,
+            f.mean_emission_nm
+        ));
+        match (f.yield_form, f.absorbed_nm) {
+            (YieldForm::Energy, Some([lo, hi])) => {
+                if let Some([pl, ph]) = f.photon_yield_range {
+                    out.push_str(&format!(
+                        ", photon quantum yield Φ(λ) = Q·λ̄e/λ from {pl:.4} (at {hi} nm) to {ph:.4} (at {lo} nm)"
+                    ));
+                }
+            }
+            (YieldForm::Photon, Some([lo, hi])) => {
+                if let Some([el, eh]) = f.energy_yield_range {
+                    out.push_str(&format!(
+                        ", energy quantum yield Q(λ) = Φ·λ/λ̄e from {el:.4} (at {lo} nm) to {eh:.4} (at {hi} nm)"
+                    ));
+                }
+            }
+            _ => {}
+        }
+        out.push('\n');
+    }
+    if let Some(f) = &report.forms {
+        let model = if f.model.is_empty() {
+            "(no model name)"
+        } else {
+            &f.model
+        };
+        let agreement = if f.worst_deviation.is_nan() {
+            "not compared with the samples".to_string()
+        } else if f.worst_deviation <= FORM_TOLERANCE {
+            format!(
+                "samples match within {:.1e} of the peak (tolerance {FORM_TOLERANCE:.0e})",
+                f.worst_deviation
+            )
+        } else {
+            format!(
+                "samples DO NOT match: off by up to {:.3e} of the peak (tolerance {FORM_TOLERANCE:.0e})",
+                f.worst_deviation
+            )
+        };
+        out.push_str(&format!(
+            "  forms: {model}, {} forms with {} parameters, {agreement}\n",
+            f.forms, f.parameters
+        ));
+        for note in &f.notes {
+            out.push_str(&format!("  note: {note}\n"));
+        }
+    }
+    out
 }
 
 #[cfg(test)]

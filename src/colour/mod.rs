@@ -139,19 +139,11 @@ impl Light {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let mut wavelengths = Vec::new();
         let mut values = Vec::new();
-        for (n, line) in text.lines().enumerate() {
-            let line = line.trim();
-            if line.is_empty() || line.starts_with('#') {
-                continue;
-            }
-            let fields: Vec<&str> = line
-                .split([',', ';', '\t', ' '])
-                .filter(|f| !f.is_empty())
-                .collect();
+        for (line, fields) in crate::formats::delimited_fields(&text) {
             if fields.len() < 2 {
                 return Err(Error::parse(
                     path,
-                    n + 1,
+                    line,
                     0,
                     "expected two columns: wavelength_nm,power",
                 ));
@@ -163,7 +155,7 @@ impl Light {
                     if !v.is_finite() || v < 0.0 {
                         return Err(Error::parse(
                             path,
-                            n + 1,
+                            line,
                             2,
                             format!("power {v} must be a non-negative finite number"),
                         ));
@@ -175,7 +167,7 @@ impl Light {
                 (None, _) => {
                     return Err(Error::parse(
                         path,
-                        n + 1,
+                        line,
                         1,
                         format!("\"{}\" is not a wavelength", fields[0]),
                     ));
@@ -183,7 +175,7 @@ impl Light {
                 (_, None) => {
                     return Err(Error::parse(
                         path,
-                        n + 1,
+                        line,
                         2,
                         format!("\"{}\" is not a number", fields[1]),
                     ));

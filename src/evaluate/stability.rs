@@ -293,24 +293,16 @@ pub fn recovery_error(fitted: &Material, truth: &Material) -> f64 {
         }
     };
     let (mean_fit, mean_true) = (f.emission_mean_nm(), t.emission_mean_nm());
-    let ka_fit: Vec<f64> = f
-        .absorption
-        .wavelength_nm
-        .iter()
-        .map(|&l| f.reradiated_with_mean(l, mean_fit))
-        .collect();
-    let ka_true: Vec<f64> = f
-        .absorption
-        .wavelength_nm
-        .iter()
-        .map(|&l| t.reradiated_with_mean(l, mean_true))
-        .collect();
-    let e_true: Vec<f64> = f
-        .emission
-        .wavelength_nm
-        .iter()
-        .map(|&l| t.emission.eval_zero_outside(l))
-        .collect();
+    // Both on the fitted spectra's wavelengths.
+    let on = |grid: &[f64], value: &dyn Fn(f64) -> f64| -> Vec<f64> {
+        grid.iter().map(|&l| value(l)).collect()
+    };
+    let absorbed = &f.absorption.wavelength_nm;
+    let ka_fit = on(absorbed, &|l| f.reradiated_with_mean(l, mean_fit));
+    let ka_true = on(absorbed, &|l| t.reradiated_with_mean(l, mean_true));
+    let e_true = on(&f.emission.wavelength_nm, &|l| {
+        t.emission.eval_zero_outside(l)
+    });
     rel(&ka_fit, &ka_true).max(rel(&f.emission.value, &e_true))
 }
 

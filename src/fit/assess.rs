@@ -2,8 +2,8 @@
 
 use std::collections::BTreeMap;
 
-use crate::colour::{Light, PatchColorimeter, delta_e2000, xyz_to_lab};
-use crate::material::Material;
+use crate::colour::{Lab, Light, PatchColorimeter, delta_e2000};
+use crate::material::{FitReport, Material};
 use crate::measurement::Measurement;
 use crate::model::predict_like;
 
@@ -22,6 +22,36 @@ pub struct Accuracy {
     pub delta_e2000: BTreeMap<String, f64>,
     /// What of the colour reference was filled from the model (missing cells).
     pub filled: FilledReference,
+}
+
+impl Accuracy {
+    /// Records the residuals, the ΔE2000 and the filled share of the colour reference in
+    /// a fit report.
+    pub fn record_in(&self, fit: &mut FitReport) {
+        fit.rel_residual_fluorescence = self.rel_residual_fluorescence;
+        fit.rmse_diagonal = self.rmse_diagonal;
+        fit.delta_e2000 = self.delta_e2000.clone();
+        fit.reference_filled_cells = self.filled.cells;
+        fit.reference_filled_share = self.filled.light_share;
+    }
+}
+
+/// CIELAB of `material`'s patch under each light: predicted on `m`'s grids (per bin, with
+/// a diagonal where `m` has one) and seen by the cached colorimeters of those grids.
+pub fn predicted_labs(material: &Material, m: &Measurement, lights: &[Light]) -> Vec<Lab> {
+    let per_bin = crate::model::predict(
+        material,
+        &m.name,
+        &m.excitation_nm,
+        &m.emission_nm,
+        crate::measurement::Units::PerBin,
+        m.has_diagonal,
+    );
+    lights
+        .iter()
+        .map(|light| PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm))
+        .map(|pc| pc.lab(&per_bin))
+        .collect()
 }
 
 /// Residual figures and ΔE2000 for `material` against measurement `m`.
@@ -58,8 +88,7 @@ pub fn accuracy(
         let measured = measured_patch(m, &fitted_per_bin);
         for light in lights {
             let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
-            let lab_m = xyz_to_lab(pc.xyz(&measured), pc.white);
-            let lab_f = xyz_to_lab(pc.xyz(&fitted_per_bin), pc.white);
+            let (lab_m, lab_f) = (pc.lab(&measured), pc.lab(&fitted_per_bin));
             delta_e.insert(light.name.clone(), delta_e2000(lab_m, lab_f));
         }
     }

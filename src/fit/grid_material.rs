@@ -240,25 +240,25 @@ pub(super) fn flag_clamped(
     wavelengths: &[f64],
     warnings: &mut Vec<String>,
 ) {
-    let at_cap: Vec<bool> = regimes
-        .iter()
-        .map(|r| *r == DiagonalRegime::AtCap)
-        .collect();
-    if at_cap.iter().any(|&x| x) {
-        warnings.push(format!(
-            "reflectance at its conservation cap at {}: the measured diagonal plus the fluorescence would need r > 1 or more photons out than in",
-            assess::ranges(wavelengths, &at_cap)
-        ));
-    }
-    let at_zero: Vec<bool> = regimes
-        .iter()
-        .map(|r| *r == DiagonalRegime::AtZero)
-        .collect();
-    if at_zero.iter().any(|&x| x) {
-        warnings.push(format!(
-            "reflectance at zero at {}: the measured diagonal is below the fitted fluorescence there (or negative noise)",
-            assess::ranges(wavelengths, &at_zero)
-        ));
+    // Where the reflectance sits on a bound, and why.
+    let bounds = [
+        (
+            DiagonalRegime::AtCap,
+            "at its conservation cap",
+            "the measured diagonal plus the fluorescence would need r > 1 or more photons out than in",
+        ),
+        (
+            DiagonalRegime::AtZero,
+            "at zero",
+            "the measured diagonal is below the fitted fluorescence there (or negative noise)",
+        ),
+    ];
+    for (regime, bound, why) in bounds {
+        let here: Vec<bool> = regimes.iter().map(|r| *r == regime).collect();
+        if here.iter().any(|&x| x) {
+            let ranges = assess::ranges(wavelengths, &here);
+            warnings.push(format!("reflectance {bound} at {ranges}: {why}"));
+        }
     }
 }
 
@@ -310,11 +310,7 @@ pub(super) fn plain_reflector(
     material.fit = Some(report);
     let accuracy = assess::accuracy(&material, m, data, &options.lights);
     let fit = material.fit.as_mut().expect("set above");
-    fit.rel_residual_fluorescence = accuracy.rel_residual_fluorescence;
-    fit.rmse_diagonal = accuracy.rmse_diagonal;
-    fit.delta_e2000 = accuracy.delta_e2000;
-    fit.reference_filled_cells = accuracy.filled.cells;
-    fit.reference_filled_share = accuracy.filled.light_share;
+    accuracy.record_in(fit);
     fit.warnings = warnings;
     fit.seconds = started.elapsed().as_secs_f64();
     FitOutcome::Material(Box::new(material))

@@ -2,7 +2,7 @@
 //! cells (alternating least squares, each half-step an exact non-negative least-squares
 //! solve), then the diagonal minus the fluorescent term.
 
-use super::data::FitData;
+use super::data::{Cell, FitData};
 
 /// A rank-1 factorisation M ≈ u·vᵀ of the off-diagonal cells.
 #[derive(Debug, Clone)]
@@ -34,45 +34,13 @@ pub fn rank_one(data: &FitData, max_sweeps: usize) -> RankOne {
     let mut history = Vec::new();
     let mut converged = false;
     let mut sweeps = 0;
-    let mut num_row = vec![0.0; n_ex];
-    let mut den_row = vec![0.0; n_ex];
-    let mut num_col = vec![0.0; n_em];
-    let mut den_col = vec![0.0; n_em];
     for sweep in 0..max_sweeps {
         sweeps = sweep + 1;
-        num_row.iter_mut().for_each(|x| *x = 0.0);
-        den_row.iter_mut().for_each(|x| *x = 0.0);
-        for c in &data.off_diagonal {
-            let v = column[c.column];
-            num_row[c.row] += c.value * v;
-            den_row[c.row] += v * v;
-        }
-        for i in 0..n_ex {
-            row[i] = if den_row[i] > 0.0 {
-                (num_row[i] / den_row[i]).max(0.0)
-            } else {
-                0.0
-            };
-        }
-        num_col.iter_mut().for_each(|x| *x = 0.0);
-        den_col.iter_mut().for_each(|x| *x = 0.0);
-        for c in &data.off_diagonal {
-            let u = row[c.row];
-            num_col[c.column] += c.value * u;
-            den_col[c.column] += u * u;
-        }
-        let mut change = 0.0;
-        let mut norm = 0.0;
-        for j in 0..n_em {
-            let new = if den_col[j] > 0.0 {
-                (num_col[j] / den_col[j]).max(0.0)
-            } else {
-                0.0
-            };
-            change += (new - column[j]).powi(2);
-            norm += new * new;
-            column[j] = new;
-        }
+        row = fit_factor(&data.off_diagonal, None, &column, n_ex, by_row);
+        let new = fit_factor(&data.off_diagonal, None, &row, n_em, by_column);
+        let change: f64 = new.iter().zip(&column).map(|(a, b)| (a - b).powi(2)).sum();
+        let norm: f64 = new.iter().map(|x| x * x).sum();
+        column = new;
         let cost: f64 = data
             .off_diagonal
             .iter()
@@ -123,7 +91,6 @@ pub fn masked_nmf(data: &FitData, start: Factors, sweeps: usize) -> Factors {
         mut columns,
     } = start;
     let k_count = rows.len();
-    let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
     let mut residual: Vec<f64> = data
         .off_diagonal
         .iter()
@@ -134,49 +101,77 @@ pub fn masked_nmf(data: &FitData, start: Factors, sweeps: usize) -> Factors {
                     .sum::<f64>()
         })
         .collect();
-    let mut num = vec![0.0; n_ex.max(n_em)];
-    let mut den = vec![0.0; n_ex.max(n_em)];
     for _ in 0..sweeps {
         for k in 0..k_count {
-            // Rows of component k.
-            num[..n_ex].iter_mut().for_each(|x| *x = 0.0);
-            den[..n_ex].iter_mut().for_each(|x| *x = 0.0);
-            for (c, r) in data.off_diagonal.iter().zip(&residual) {
-                let v = columns[k][c.column];
-                num[c.row] += (r + rows[k][c.row] * v) * v;
-                den[c.row] += v * v;
-            }
-            let old = rows[k].clone();
-            for i in 0..n_ex {
-                rows[k][i] = if den[i] > 0.0 {
-                    (num[i] / den[i]).max(0.0)
-                } else {
-                    0.0
-                };
-            }
-            for (c, r) in data.off_diagonal.iter().zip(residual.iter_mut()) {
-                *r -= (rows[k][c.row] - old[c.row]) * columns[k][c.column];
-            }
-            // Columns of component k.
-            num[..n_em].iter_mut().for_each(|x| *x = 0.0);
-            den[..n_em].iter_mut().for_each(|x| *x = 0.0);
-            for (c, r) in data.off_diagonal.iter().zip(&residual) {
-                let u = rows[k][c.row];
-                num[c.column] += (r + u * columns[k][c.column]) * u;
-                den[c.column] += u * u;
-            }
-            let old = columns[k].clone();
-            for j in 0..n_em {
-                columns[k][j] = if den[j] > 0.0 {
-                    (num[j] / den[j]).max(0.0)
-                } else {
-                    0.0
-                };
-            }
-            for (c, r) in data.off_diagonal.iter().zip(residual.iter_mut()) {
-                *r -= rows[k][c.row] * (columns[k][c.column] - old[c.column]);
-            }
+            refit_component(data, &mut residual, &mut rows[k], &columns[k], by_row);
+            refit_component(data, &mut residual, &mut columns[k], &rows[k], by_column);
         }
     }
     Factors { rows, columns }
+}
+
+/// A cell's (row, column): for the half-step that fits the rows.
+pub(super) fn by_row(c: &Cell) -> (usize, usize) {
+    (c.row, c.column)
+}
+
+/// A cell's (column, row): for the half-step that fits the columns.
+pub(super) fn by_column(c: &Cell) -> (usize, usize) {
+    (c.column, c.row)
+}
+
+/// The exact non-negative least-squares solution num/den of one factor entry, 0 where no
+/// cell constrains it.
+fn nonnegative_quotient(num: f64, den: f64) -> f64 {
+    if den > 0.0 { (num / den).max(0.0) } else { 0.0 }
+}
+
+/// One half-step of alternating least squares on `cells`: the non-negative factor along
+/// `at(cell).0` (length `n`) that best fits the cells given the other factor `other`
+/// (along `at(cell).1`), each cell weighted by `weights` (all 1 when None).
+pub(super) fn fit_factor(
+    cells: &[Cell],
+    weights: Option<&[f64]>,
+    other: &[f64],
+    n: usize,
+    at: impl Fn(&Cell) -> (usize, usize),
+) -> Vec<f64> {
+    let (mut num, mut den) = (vec![0.0; n], vec![0.0; n]);
+    for (k, c) in cells.iter().enumerate() {
+        let (i, j) = at(c);
+        let w = weights.map_or(1.0, |w| w[k]);
+        num[i] += w * c.value * other[j];
+        den[i] += w * other[j] * other[j];
+    }
+    num.iter()
+        .zip(&den)
+        .map(|(&n, &d)| nonnegative_quotient(n, d))
+        .collect()
+}
+
+/// One half-step of [`masked_nmf`]: component factor `this` (along `at(cell).0`) refitted
+/// given its partner `other`, against the `residual` of the other components, which is
+/// kept current.
+fn refit_component(
+    data: &FitData,
+    residual: &mut [f64],
+    this: &mut [f64],
+    other: &[f64],
+    at: impl Fn(&Cell) -> (usize, usize),
+) {
+    let (mut num, mut den) = (vec![0.0; this.len()], vec![0.0; this.len()]);
+    for (c, r) in data.off_diagonal.iter().zip(residual.iter()) {
+        let (i, j) = at(c);
+        let v = other[j];
+        num[i] += (r + this[i] * v) * v;
+        den[i] += v * v;
+    }
+    let old = this.to_vec();
+    for (x, (&n, &d)) in this.iter_mut().zip(num.iter().zip(&den)) {
+        *x = nonnegative_quotient(n, d);
+    }
+    for (c, r) in data.off_diagonal.iter().zip(residual.iter_mut()) {
+        let (i, j) = at(c);
+        *r -= (this[i] - old[i]) * other[j];
+    }
 }

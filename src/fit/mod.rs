@@ -37,7 +37,7 @@ mod tabulated;
 
 use std::time::Instant;
 
-use crate::colour::{Light, PatchColorimeter, delta_e2000, xyz_to_lab};
+use crate::colour::{Light, PatchColorimeter, delta_e2000};
 use crate::error::{Error, Result};
 use crate::material::{
     FitReport, Fluorophore, FluorophoreShapes, Material, SHAPES_SCHEMA, YieldForm,

@@ -33,20 +33,15 @@ pub trait Representation: Send + Sync {
     fn encode(&self, spectra: &GridSpectra) -> Vec<f64>;
     /// ∂(κ, a, e)/∂θ as a dense matrix with 1 + n_ex + n_em rows and `n_params` columns.
     fn jacobian(&self, theta: &[f64]) -> DMatrix<f64>;
-    /// θ-gradient from gradients with respect to κ, the absorption and emission samples.
-    /// The default multiplies by [`Representation::jacobian`]; override when cheaper.
-    fn pull_back(
-        &self,
-        theta: &[f64],
-        grad_kappa: f64,
-        grad_absorption: &[f64],
-        grad_emission: &[f64],
-    ) -> Vec<f64> {
+    /// θ-gradient from the `gradient` with respect to κ, the absorption and the emission
+    /// samples (laid out as the spectra). The default multiplies by
+    /// [`Representation::jacobian`]; override when cheaper.
+    fn pull_back(&self, theta: &[f64], gradient: &GridSpectra) -> Vec<f64> {
         let j = self.jacobian(theta);
-        let mut g = Vec::with_capacity(1 + grad_absorption.len() + grad_emission.len());
-        g.push(grad_kappa);
-        g.extend_from_slice(grad_absorption);
-        g.extend_from_slice(grad_emission);
+        let mut g = Vec::with_capacity(1 + gradient.absorption.len() + gradient.emission.len());
+        g.push(gradient.kappa);
+        g.extend_from_slice(&gradient.absorption);
+        g.extend_from_slice(&gradient.emission);
         (0..j.ncols())
             .map(|c| (0..j.nrows()).map(|r| j[(r, c)] * g[r]).sum())
             .collect()
@@ -102,23 +97,19 @@ impl Representation for Tabulated {
         j
     }
 
-    fn pull_back(
-        &self,
-        theta: &[f64],
-        grad_kappa: f64,
-        grad_absorption: &[f64],
-        grad_emission: &[f64],
-    ) -> Vec<f64> {
+    fn pull_back(&self, theta: &[f64], gradient: &GridSpectra) -> Vec<f64> {
         let mut g = Vec::with_capacity(self.n_params());
-        g.push(grad_kappa * (2.0 * theta[0]).sin());
+        g.push(gradient.kappa * (2.0 * theta[0]).sin());
         g.extend(
-            grad_absorption
+            gradient
+                .absorption
                 .iter()
                 .zip(&theta[1..])
                 .map(|(ga, t)| ga * (2.0 * t).sin()),
         );
         g.extend(
-            grad_emission
+            gradient
+                .emission
                 .iter()
                 .zip(&theta[1 + self.n_excitation..])
                 .map(|(ge, q)| ge * 2.0 * q),

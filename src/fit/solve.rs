@@ -4,7 +4,7 @@
 
 use std::cell::RefCell;
 
-use argmin::core::{CostFunction, Gradient, Jacobian, Operator};
+use argmin::core::{CostFunction, Gradient, IterState, Jacobian, Operator, State};
 use argmin::solver::gaussnewton::GaussNewtonLS;
 use argmin::solver::linesearch::{
     BacktrackingLineSearch, MoreThuenteLineSearch, condition::ArmijoCondition,
@@ -16,8 +16,9 @@ use nalgebra::{DMatrix, DVector};
 pub use crate::optimise::Refined;
 use crate::optimise::run;
 
+use super::Solver;
 use super::objective::Objective;
-use super::representation::Representation;
+use super::representation::{GridSpectra, Representation};
 
 /// Stopping rules for the iterative solvers.
 #[derive(Debug, Clone, Copy)]
@@ -94,18 +95,46 @@ impl Jacobian for ResidualProblem<'_> {
     }
 }
 
+/// An argmin state over θ, whatever else the solver keeps (gradient, Jacobian, Hessian,
+/// residuals).
+type ThetaState<G, J, H, R> = IterState<DVector<f64>, G, J, H, R, f64>;
+
+/// The state setup of a solver that starts at `theta0` (all but Nelder-Mead, which
+/// starts from its simplex).
+fn start_at<G, J, H, R>(
+    theta0: &[f64],
+    stopping: Stopping,
+) -> impl FnOnce(ThetaState<G, J, H, R>) -> ThetaState<G, J, H, R>
+where
+    ThetaState<G, J, H, R>: State<Float = f64>,
+{
+    move |state| {
+        state
+            .param(DVector::from_column_slice(theta0))
+            .max_iters(stopping.max_iterations)
+    }
+}
+
 /// Correction pairs L-BFGS keeps.
 const LBFGS_MEMORY: usize = 10;
 
-/// Refines `theta0` with L-BFGS and a More-Thuente line search.
-pub fn lbfgs(
+/// Refines the tabulated fit's `theta0` with an iterative `solver`: L-BFGS and
+/// Nelder-Mead on its cost (and gradient), Gauss-Newton on its residuals. The closed-form
+/// estimate ([`Solver::Init`]) has nothing to refine here.
+pub fn refine_tabulated(
+    solver: Solver,
     objective: Objective<'_>,
     representation: &dyn Representation,
     theta0: &[f64],
     stopping: Stopping,
 ) -> Result<Refined, String> {
-    let function = tabulated_cost_gradient(&objective, representation);
-    lbfgs_function(&function, theta0, stopping)
+    let function = || tabulated_cost_gradient(&objective, representation);
+    match solver {
+        Solver::Init => Err("the closed-form estimate is not refined iteratively".into()),
+        Solver::Lbfgs => lbfgs_function(&function(), theta0, stopping),
+        Solver::NelderMead => nelder_mead(&function(), theta0, stopping),
+        Solver::GaussNewton => gauss_newton(objective, representation, theta0, stopping),
+    }
 }
 
 /// The tabulated fit's cost and θ-gradient as a function of θ.
@@ -115,13 +144,18 @@ fn tabulated_cost_gradient<'a>(
 ) -> impl Fn(&[f64]) -> (f64, Vec<f64>) + 'a {
     move |theta: &[f64]| {
         let sp = representation.spectra(theta);
-        let (cost, gk, ga, gv) = objective.cost_gradient(&sp);
-        (cost, representation.pull_back(theta, gk, &ga, &gv))
+        let (cost, kappa, absorption, emission) = objective.cost_gradient(&sp);
+        let gradient = GridSpectra {
+            kappa,
+            absorption,
+            emission,
+        };
+        (cost, representation.pull_back(theta, &gradient))
     }
 }
 
 /// Refines `theta0` with Gauss-Newton and a backtracking (Armijo) line search.
-pub fn gauss_newton(
+fn gauss_newton(
     objective: Objective<'_>,
     representation: &dyn Representation,
     theta0: &[f64],
@@ -160,11 +194,7 @@ pub fn gauss_newton_model(
     let mut refined = run(
         problem,
         solver,
-        |state| {
-            state
-                .param(DVector::from_column_slice(theta0))
-                .max_iters(stopping.max_iterations)
-        },
+        start_at(theta0, stopping),
         theta0,
         "Gauss-Newton",
     )?;
@@ -183,17 +213,12 @@ const NELDER_MEAD_STEP: f64 = 0.05;
 
 /// Refines `theta0` with Nelder-Mead, which uses cost values only. It stops when the
 /// standard deviation of the simplex's costs falls below the cost tolerance.
-pub fn nelder_mead(
-    objective: Objective<'_>,
-    representation: &dyn Representation,
+fn nelder_mead(
+    function: CostGradient<'_>,
     theta0: &[f64],
     stopping: Stopping,
 ) -> Result<Refined, String> {
-    let function = tabulated_cost_gradient(&objective, representation);
-    let problem = FunctionProblem {
-        function: &function,
-        cache: RefCell::new(None),
-    };
+    let problem = FunctionProblem::new(function);
     let start = DVector::from_column_slice(theta0);
     let mut simplex = vec![start.clone()];
     for k in 0..theta0.len() {
@@ -225,7 +250,14 @@ struct FunctionProblem<'a> {
     cache: RefCell<Option<Evaluation>>,
 }
 
-impl FunctionProblem<'_> {
+impl<'a> FunctionProblem<'a> {
+    fn new(function: CostGradient<'a>) -> Self {
+        FunctionProblem {
+            function,
+            cache: RefCell::new(None),
+        }
+    }
+
     fn evaluate(&self, theta: &[f64]) -> (f64, Vec<f64>) {
         if let Some((t, c, g)) = self.cache.borrow().as_ref()
             && t.as_slice() == theta
@@ -260,10 +292,7 @@ pub fn lbfgs_function(
     theta0: &[f64],
     stopping: Stopping,
 ) -> Result<Refined, String> {
-    let problem = FunctionProblem {
-        function,
-        cache: RefCell::new(None),
-    };
+    let problem = FunctionProblem::new(function);
     let solver = LBFGS::new(MoreThuenteLineSearch::new(), LBFGS_MEMORY)
         .with_tolerance_grad(stopping.gradient_tolerance)
         .and_then(|s| s.with_tolerance_cost(stopping.cost_tolerance))
@@ -271,11 +300,7 @@ pub fn lbfgs_function(
     run(
         problem,
         solver,
-        |state| {
-            state
-                .param(DVector::from_column_slice(theta0))
-                .max_iters(stopping.max_iterations)
-        },
+        start_at(theta0, stopping),
         theta0,
         "L-BFGS",
     )

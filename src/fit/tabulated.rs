@@ -82,16 +82,14 @@ fn refine_form<'a>(
             },
             cost_history: start.cost_history.clone(),
         },
-        Solver::Lbfgs => solve::lbfgs(objective.clone(), representation, &theta0, stopping)
-            .map_err(Error::Fit)?,
-        Solver::GaussNewton => {
-            solve::gauss_newton(objective.clone(), representation, &theta0, stopping)
-                .map_err(Error::Fit)?
-        }
-        Solver::NelderMead => {
-            solve::nelder_mead(objective.clone(), representation, &theta0, stopping)
-                .map_err(Error::Fit)?
-        }
+        iterative => solve::refine_tabulated(
+            iterative,
+            objective.clone(),
+            representation,
+            &theta0,
+            stopping,
+        )
+        .map_err(Error::Fit)?,
     };
     let mut cost_history = if options.solver == Solver::Init {
         refined.cost_history.clone()
@@ -405,11 +403,7 @@ pub(super) fn fit_checked(
         ));
     }
     let fit = material.fit.as_mut().expect("report set above");
-    fit.rel_residual_fluorescence = accuracy.rel_residual_fluorescence;
-    fit.rmse_diagonal = accuracy.rmse_diagonal;
-    fit.delta_e2000 = accuracy.delta_e2000;
-    fit.reference_filled_cells = accuracy.filled.cells;
-    fit.reference_filled_share = accuracy.filled.light_share;
+    accuracy.record_in(fit);
     let rss = accuracy.rms_off_diagonal.powi(2) * data.off_diagonal.len() as f64
         + accuracy.rmse_diagonal.powi(2) * data.diagonal.len() as f64;
     fit.bic = Some(assess::bic(
@@ -507,25 +501,7 @@ fn noise_colour_check(
         ..options.clone()
     };
     // Colour on the data's own grids, as in the accuracy report (cached colorimeters).
-    let colorimeters: Vec<_> = options
-        .lights
-        .iter()
-        .map(|light| PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm))
-        .collect();
-    let lab = |mat: &Material| -> Vec<crate::colour::Lab> {
-        let per_bin = crate::model::predict(
-            mat,
-            &m.name,
-            &m.excitation_nm,
-            &m.emission_nm,
-            Units::PerBin,
-            m.has_diagonal,
-        );
-        colorimeters
-            .iter()
-            .map(|pc| xyz_to_lab(pc.xyz(&per_bin), pc.white))
-            .collect()
-    };
+    let lab = |mat: &Material| assess::predicted_labs(mat, m, &options.lights);
     let reference = lab(material);
     let mut rng = crate::synth::SplitMix64::new(0x5EED);
     let mut sum_sq = 0.0;

@@ -80,23 +80,18 @@ impl GridLine {
             };
         }
         let [em_start, em_end, em_step, n_ex, ex_start, ex_step] = f;
-        for (k, value) in [(0, em_start), (4, ex_start)] {
+        let positive = [
+            (0, em_start, "wavelengths"),
+            (4, ex_start, "wavelengths"),
+            (2, em_step, "steps"),
+            (5, ex_step, "steps"),
+        ];
+        for (k, value, what) in positive {
             if value <= 0.0 {
                 return Err(at(
                     k + 1,
                     format!(
-                        "grid line field {} is {value} nm; wavelengths must be positive",
-                        GRID_FIELDS[k]
-                    ),
-                ));
-            }
-        }
-        for (k, value) in [(2, em_step), (5, ex_step)] {
-            if value <= 0.0 {
-                return Err(at(
-                    k + 1,
-                    format!(
-                        "grid line field {} is {value} nm; steps must be positive",
+                        "grid line field {} is {value} nm; {what} must be positive",
                         GRID_FIELDS[k]
                     ),
                 ));

@@ -74,15 +74,11 @@ pub(super) fn read(path: &Path, lines: &[Line]) -> Result<Parsed> {
             drop_trailing_empty(&mut cells);
         }
         if cells.len() != width {
-            return Err(reader.error(
-                line.number,
-                cells.len().min(width) + 1,
-                format!(
-                    "ragged row: it has {} cells, but the header on line {} names {width} columns; give every row one cell per column",
-                    cells.len(),
-                    header.number
-                ),
-            ));
+            let why = format!(
+                "the header on line {} names {width} columns; give every row one cell per column",
+                header.number
+            );
+            return Err(reader.ragged_row(line.number, cells.len(), width, &why));
         }
         let ex = reader.wavelength(
             &cells[ex_col],

@@ -25,6 +25,8 @@ pub mod exr;
 mod long;
 mod table;
 mod text;
+
+pub(crate) use text::delimited_fields;
 mod webfluor;
 mod wide;
 

@@ -42,7 +42,18 @@ pub(crate) struct TableLayout<'a> {
     pub skip_comments: bool,
 }
 
-impl TableLayout<'_> {
+impl<'a> TableLayout<'a> {
+    /// A table of `path` that runs to the end of the file, `#` lines being comments (the
+    /// wide CSV and WebFluor layouts).
+    pub fn commented(path: &'a Path, delimiter: Delimiter) -> Self {
+        TableLayout {
+            path,
+            delimiter,
+            terminator: None,
+            skip_comments: true,
+        }
+    }
+
     fn skipped(&self, line: &Line) -> bool {
         line.is_blank() || (self.skip_comments && line.text.trim_start().starts_with('#'))
     }
@@ -143,19 +154,15 @@ impl TableLayout<'_> {
                         columns.len()
                     )
                 };
-                return Err(reader.error(
-                    line.number,
-                    cells.len().min(width) + 1,
-                    format!(
-                        "ragged row: it has {} cells, but {corner_note}, so every row needs {width} cells (its wavelength, then one value per column); {}",
-                        cells.len(),
-                        if cells.len() < width {
-                            "add the missing cells (leave them empty for missing values)"
-                        } else {
-                            "remove the extra cells or add their wavelengths to the header"
-                        }
-                    ),
-                ));
+                let mend = if cells.len() < width {
+                    "add the missing cells (leave them empty for missing values)"
+                } else {
+                    "remove the extra cells or add their wavelengths to the header"
+                };
+                let why = format!(
+                    "{corner_note}, so every row needs {width} cells (its wavelength, then one value per column); {mend}"
+                );
+                return Err(reader.ragged_row(line.number, cells.len(), width, &why));
             }
             let nm = reader.wavelength(&cells[0], line.number, 1, "row wavelength")?;
             rows.push(Located {
@@ -180,6 +187,19 @@ impl TableLayout<'_> {
 }
 
 impl Table {
+    /// An error unless the table has rows; `what` says what the file held instead.
+    pub fn require_rows(&self, path: &Path, what: &str) -> Result<()> {
+        if self.rows.is_empty() {
+            return Err(Error::parse(
+                path,
+                self.header_line,
+                0,
+                format!("{what}; the file seems truncated"),
+            ));
+        }
+        Ok(())
+    }
+
     /// Sorts the rows by increasing wavelength (rows must be unique).
     pub fn sort_rows(&mut self) {
         let n = self.columns.len();

@@ -48,6 +48,23 @@ pub(crate) fn split_lines(text: &str) -> Vec<Line<'_>> {
         .collect()
 }
 
+/// The data lines of a small delimited text file (a light, an absorbance spectrum): for
+/// every line neither blank nor a `#` comment, its number (from 1) and its fields, split
+/// at commas, semicolons, tabs and spaces.
+pub(crate) fn delimited_fields(text: &str) -> impl Iterator<Item = (usize, Vec<&str>)> {
+    text.lines().enumerate().filter_map(|(n, line)| {
+        let line = line.trim();
+        let data = !(line.is_empty() || line.starts_with('#'));
+        data.then(|| {
+            let fields = line
+                .split([',', ';', '\t', ' '])
+                .filter(|f| !f.is_empty())
+                .collect();
+            (n + 1, fields)
+        })
+    })
+}
+
 /// How the cells of a line are separated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Delimiter {
@@ -194,6 +211,16 @@ impl CellReader<'_> {
     /// A parse error at `line`, `column` (1-based).
     pub fn error(&self, line: usize, column: usize, message: impl Into<String>) -> Error {
         Error::parse(self.path, line, column, message)
+    }
+
+    /// A ragged row at `line`: it has `cells` cells where `width` are due; `why` says what
+    /// sets the width and how to mend the row.
+    pub fn ragged_row(&self, line: usize, cells: usize, width: usize, why: &str) -> Error {
+        self.error(
+            line,
+            cells.min(width) + 1,
+            format!("ragged row: it has {cells} cells, but {why}"),
+        )
     }
 
     /// A measured value; missing cells become NaN.

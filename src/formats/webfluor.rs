@@ -7,28 +7,19 @@
 
 use std::path::Path;
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 use super::table::TableLayout;
 use super::text::{Delimiter, Line, check_increasing, check_unique};
 use super::{Parsed, ReadOptions, RowsAre};
 
 pub(super) fn read(path: &Path, lines: &[Line], options: &ReadOptions) -> Result<Parsed> {
-    let layout = TableLayout {
-        path,
-        delimiter: Delimiter::Whitespace,
-        terminator: None,
-        skip_comments: true,
-    };
+    let layout = TableLayout::commented(path, Delimiter::Whitespace);
     let mut table = layout.read(lines)?;
-    if table.rows.is_empty() {
-        return Err(Error::parse(
-            path,
-            table.header_line,
-            0,
-            "has a line of emission wavelengths but no excitation rows; the file seems truncated",
-        ));
-    }
+    table.require_rows(
+        path,
+        "has a line of emission wavelengths but no excitation rows",
+    )?;
     check_increasing(path, &table.columns, "emission wavelength", false)?;
     check_unique(path, &table.rows, "excitation wavelength", true)?;
     table.sort_rows();

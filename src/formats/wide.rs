@@ -23,21 +23,12 @@ pub(super) fn read(path: &Path, lines: &[Line], options: &ReadOptions) -> Result
         .iter()
         .find(|l| !l.is_blank() && !l.text.trim_start().starts_with('#'))
         .ok_or_else(|| Error::parse(path, 0, 0, "holds no header line"))?;
-    let layout = TableLayout {
-        path,
-        delimiter: Delimiter::detect(header.text),
-        terminator: None,
-        skip_comments: true,
-    };
+    let layout = TableLayout::commented(path, Delimiter::detect(header.text));
     let table = layout.read(lines)?;
-    if table.rows.is_empty() {
-        return Err(Error::parse(
-            path,
-            table.header_line,
-            0,
-            "has a header line of column wavelengths but no data rows; the file seems truncated",
-        ));
-    }
+    table.require_rows(
+        path,
+        "has a header line of column wavelengths but no data rows",
+    )?;
     check_increasing(path, &table.columns, "column wavelength", false)?;
     check_increasing(path, &table.rows, "row wavelength", true)?;
 

@@ -10,6 +10,20 @@ use super::text::TextBitmap;
 use super::{FigureKind, ImageFormat, Layout};
 use crate::error::{Error, Result};
 
+/// The ten colours of matplotlib's `tab10` palette, which every figure draws from.
+pub(crate) const TAB10: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+];
+
 /// Result of drawing onto a backend.
 pub(crate) type DrawResult<T, DB> =
     std::result::Result<T, DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
@@ -20,14 +34,13 @@ pub(crate) trait Draw {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<Layout, DB>;
 }
 
-/// Renders `figure` at `size` into PNG or SVG bytes, with the layout it drew.
+/// Renders `figure` of `kind` at its size into PNG or SVG bytes, with the layout it drew.
 pub(crate) fn render<D: Draw>(
     figure: &D,
     kind: FigureKind,
-    size: (u32, u32),
     format: ImageFormat,
 ) -> Result<(Vec<u8>, Layout)> {
-    render_named(figure, kind.suffix(), size, format)
+    render_named(figure, kind.suffix(), kind.size(), format)
 }
 
 /// Renders `figure`, named `name` in errors, at `size` into PNG or SVG bytes: for figures
@@ -108,6 +121,20 @@ pub(crate) fn draw_text<DB: DrawingBackend>(
     style: &TextStyle<'static>,
 ) -> DrawResult<(), DB> {
     root.draw(&Text::new(text.to_string(), at, style.clone()))
+}
+
+/// Draws a figure's title, bold and centred on `at`.
+pub(crate) fn draw_title<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    at: (i32, i32),
+) -> DrawResult<(), DB> {
+    draw_text(
+        root,
+        title,
+        at,
+        &anchored(bold(21.0), HPos::Center, VPos::Center),
+    )
 }
 
 /// A "nice" tick spacing (1, 2 or 5 × 10ⁿ) giving about `target` ticks over [lo, hi].

@@ -2,12 +2,14 @@
 //! history kept in the material's `fit` block.
 
 use plotters::coord::Shift;
+use plotters::coord::ranged1d::ValueFormatter;
+use plotters::coord::types::RangedCoordi32;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
 use super::common::{
-    Draw, DrawResult, anchored, bold, draw_text, font, format_significant, format_tick,
-    render as render_figure, tick_step,
+    Draw, DrawResult, TAB10, anchored, draw_text, draw_title, font, format_significant,
+    format_tick, render as render_figure, tick_step,
 };
 use super::{FigureKind, ImageFormat, Layout};
 use crate::error::Result;
@@ -17,7 +19,7 @@ use crate::material::{FitReport, Material};
 pub const SIZE: (u32, u32) = (900, 500);
 
 const TITLE_HEIGHT: i32 = 44;
-const LINE_COLOUR: RGBColor = RGBColor(31, 119, 180);
+const LINE_COLOUR: RGBColor = TAB10[0];
 
 struct ConvergenceFigure<'a> {
     material: &'a Material,
@@ -33,7 +35,6 @@ pub(crate) fn render(
     render_figure(
         &ConvergenceFigure { material, fit },
         FigureKind::Convergence,
-        SIZE,
         format,
     )
 }
@@ -67,14 +68,13 @@ impl Draw for ConvergenceFigure<'_> {
         } else {
             fit.cost_history.len().saturating_sub(1) as u64
         };
-        draw_text(
+        draw_title(
             root,
             &format!(
                 "{}: convergence of {solver} ({iterations} iterations, {status})",
                 self.material.name
             ),
             (width as i32 / 2, TITLE_HEIGHT / 2 + 2),
-            &anchored(bold(21.0), HPos::Center, VPos::Center),
         )?;
         let points: Vec<(i32, f64)> = fit
             .cost_history
@@ -103,23 +103,12 @@ impl Draw for ConvergenceFigure<'_> {
         if wants_log_axis(&fit.cost_history) {
             let mut chart =
                 builder.build_cartesian_2d(0..x_hi, (min * 0.8..max * 1.25).log_scale())?;
-            chart
-                .configure_mesh()
-                .light_line_style(RGBColor(235, 235, 235))
-                .bold_line_style(RGBColor(215, 215, 215))
-                .x_labels(x_labels)
-                .y_labels(8)
-                .y_label_formatter(&|v| format_significant(*v, 2))
-                .x_desc("iteration")
-                .y_desc(format!("{y_desc}, log scale"))
-                .label_style(font(15.0))
-                .axis_desc_style(font(16.0))
-                .draw()?;
-            chart.draw_series(LineSeries::new(points.clone(), LINE_COLOUR.stroke_width(3)))?;
-            chart.draw_series(
-                points
-                    .iter()
-                    .map(|&p| Circle::new(p, 3, LINE_COLOUR.filled())),
+            draw_costs(
+                &mut chart,
+                &points,
+                x_labels,
+                &format!("{y_desc}, log scale"),
+                &|v| format_significant(*v, 2),
             )?;
         } else {
             let (lo, hi) = if min.is_finite() && max > min {
@@ -135,24 +124,9 @@ impl Draw for ConvergenceFigure<'_> {
             };
             let step_y = tick_step(lo, hi, 7);
             let mut chart = builder.build_cartesian_2d(0..x_hi, lo..hi)?;
-            chart
-                .configure_mesh()
-                .light_line_style(RGBColor(235, 235, 235))
-                .bold_line_style(RGBColor(215, 215, 215))
-                .x_labels(x_labels)
-                .y_labels(8)
-                .y_label_formatter(&|v| format_tick(*v, step_y))
-                .x_desc("iteration")
-                .y_desc(y_desc)
-                .label_style(font(15.0))
-                .axis_desc_style(font(16.0))
-                .draw()?;
-            chart.draw_series(LineSeries::new(points.clone(), LINE_COLOUR.stroke_width(3)))?;
-            chart.draw_series(
-                points
-                    .iter()
-                    .map(|&p| Circle::new(p, 3, LINE_COLOUR.filled())),
-            )?;
+            draw_costs(&mut chart, &points, x_labels, y_desc, &|v| {
+                format_tick(*v, step_y)
+            })?;
         }
         draw_text(
             root,
@@ -166,4 +140,40 @@ impl Draw for ConvergenceFigure<'_> {
         )?;
         Ok(Layout::default())
     }
+}
+
+/// Draws the grid, the axes and the cost per iteration (line and points) on `chart`, whose
+/// cost axis is linear or logarithmic.
+fn draw_costs<DB: DrawingBackend, Y>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordi32, Y>>,
+    points: &[(i32, f64)],
+    x_labels: usize,
+    y_desc: &str,
+    y_label: &dyn Fn(&f64) -> String,
+) -> DrawResult<(), DB>
+where
+    Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+{
+    chart
+        .configure_mesh()
+        .light_line_style(RGBColor(235, 235, 235))
+        .bold_line_style(RGBColor(215, 215, 215))
+        .x_labels(x_labels)
+        .y_labels(8)
+        .y_label_formatter(y_label)
+        .x_desc("iteration")
+        .y_desc(y_desc)
+        .label_style(font(15.0))
+        .axis_desc_style(font(16.0))
+        .draw()?;
+    chart.draw_series(LineSeries::new(
+        points.iter().copied(),
+        LINE_COLOUR.stroke_width(3),
+    ))?;
+    chart.draw_series(
+        points
+            .iter()
+            .map(|&p| Circle::new(p, 3, LINE_COLOUR.filled())),
+    )?;
+    Ok(())
 }

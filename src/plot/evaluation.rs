@@ -7,7 +7,8 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
 use super::common::{
-    Draw, DrawResult, anchored, bold, draw_text, font, format_significant, render_named,
+    Draw, DrawResult, TAB10, anchored, bold, draw_text, draw_title, font, format_significant,
+    render_named,
 };
 use super::{ImageFormat, Layout};
 use crate::error::Result;
@@ -19,21 +20,8 @@ pub const SPEED_ACCURACY_SIZE: (u32, u32) = (1400, 640);
 /// Size of the stability chart in pixels.
 pub const STABILITY_SIZE: (u32, u32) = (1400, 900);
 
-pub(crate) const PALETTE: [RGBColor; 10] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(127, 127, 127),
-    RGBColor(188, 189, 34),
-    RGBColor(23, 190, 207),
-];
-
 fn colour(k: usize) -> RGBColor {
-    PALETTE[k % PALETTE.len()]
+    TAB10[k % TAB10.len()]
 }
 
 /// Number of distinct method markers (they repeat after this many methods).
@@ -173,11 +161,10 @@ impl Draw for SpeedAccuracy<'_> {
         let (width, height) = SPEED_ACCURACY_SIZE;
         let inputs = unique(self.rows.iter().map(|r| r.input.clone()));
         let methods = unique(self.rows.iter().map(|r| r.method.clone()));
-        draw_text(
+        draw_title(
             root,
             "Speed against accuracy (median of repeated fits; line: Pareto front per input)",
             (width as i32 / 2, 22),
-            &anchored(bold(21.0), HPos::Center, VPos::Center),
         )?;
         let legend_w = 250;
         let plot_area = root
@@ -253,44 +240,45 @@ impl Draw for SpeedAccuracy<'_> {
             .clone()
             .shrink(((width - legend_w) as i32, 60), (legend_w, height - 60));
         let mut y = 10;
-        draw_text(
-            &legend,
-            "method",
-            (10, y),
-            &anchored(bold(15.0), HPos::Left, VPos::Center),
-        )?;
+        legend_text(&legend, "method", true, y)?;
         for (k, m) in methods.iter().enumerate() {
             y += 24;
             marker(&legend, (20, y), k, RGBColor(60, 60, 60))?;
-            draw_text(
-                &legend,
-                m,
-                (38, y),
-                &anchored(font(14.0), HPos::Left, VPos::Center),
-            )?;
+            legend_text(&legend, m, false, y)?;
         }
         y += 36;
-        draw_text(
-            &legend,
-            "input",
-            (10, y),
-            &anchored(bold(15.0), HPos::Left, VPos::Center),
-        )?;
+        legend_text(&legend, "input", true, y)?;
         for (k, input) in inputs.iter().enumerate() {
             y += 22;
             legend.draw(&Rectangle::new(
                 [(12, y - 7), (28, y + 7)],
                 colour(k).filled(),
             ))?;
-            draw_text(
-                &legend,
-                input,
-                (38, y),
-                &anchored(font(14.0), HPos::Left, VPos::Center),
-            )?;
+            legend_text(&legend, input, false, y)?;
         }
         Ok(Layout::default())
     }
+}
+
+/// A legend's text at height `y`: a heading (bold, from the left edge) or an entry
+/// (beside its marker).
+fn legend_text<DB: DrawingBackend>(
+    legend: &DrawingArea<DB, Shift>,
+    text: &str,
+    heading: bool,
+    y: i32,
+) -> DrawResult<(), DB> {
+    let (style, x) = if heading {
+        (bold(15.0), 10)
+    } else {
+        (font(14.0), 38)
+    };
+    draw_text(
+        legend,
+        text,
+        (x, y),
+        &anchored(style, HPos::Left, VPos::Center),
+    )
 }
 
 struct Stability<'a> {
@@ -314,11 +302,10 @@ impl Draw for Stability<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<Layout, DB> {
         let (width, height) = STABILITY_SIZE;
         let methods = unique(self.summaries.iter().map(|s| s.method.clone()));
-        draw_text(
+        draw_title(
             root,
             "Success rate (truth recovered within 10 % and ΔE2000 ≤ 1) against each condition",
             (width as i32 / 2, 22),
-            &anchored(bold(21.0), HPos::Center, VPos::Center),
         )?;
         // Legend line under the title.
         let mut x = 120;

@@ -15,11 +15,10 @@ use plotters::style::text_anchor::{HPos, VPos};
 
 use super::colormap::{self, ColourScale};
 use super::common::{
-    Draw, DrawResult, anchored, bold, draw_text, font, format_significant, format_tick,
-    render as render_figure, tick_step, ticks,
+    Draw, DrawResult, anchored, draw_text, draw_title, font, format_significant, format_tick,
+    tick_step, ticks,
 };
-use super::{Comparison, FigureKind, ImageFormat, Layout};
-use crate::error::Result;
+use super::{Comparison, Layout};
 use crate::material::Material;
 use crate::measurement::{CellKind, Measurement, Units};
 
@@ -233,26 +232,10 @@ fn fitted_title(material: &Material, c: &Comparison) -> String {
     }
 }
 
-struct ResidualFigure<'a> {
-    material: &'a Material,
-    comparison: &'a Comparison,
-}
-
-/// Renders the residual figure.
-pub(crate) fn render(
-    material: &Material,
-    comparison: &Comparison,
-    format: ImageFormat,
-) -> Result<(Vec<u8>, Layout)> {
-    render_figure(
-        &ResidualFigure {
-            material,
-            comparison,
-        },
-        FigureKind::Residuals,
-        SIZE,
-        format,
-    )
+/// The residual figure: measured, fitted and their difference.
+pub(crate) struct ResidualFigure<'a> {
+    pub(crate) material: &'a Material,
+    pub(crate) comparison: &'a Comparison,
 }
 
 struct PanelSpec<'a> {
@@ -268,7 +251,7 @@ impl Draw for ResidualFigure<'_> {
         let c = self.comparison;
         let m = &c.measured;
         let (width, height) = SIZE;
-        draw_text(
+        draw_title(
             root,
             &format!(
                 "{}: reradiation matrix, measured vs fitted ({})",
@@ -276,7 +259,6 @@ impl Draw for ResidualFigure<'_> {
                 units_label(m)
             ),
             (width as i32 / 2, TITLE_HEIGHT / 2 + 2),
-            &anchored(bold(21.0), HPos::Center, VPos::Center),
         )?;
 
         let values = value_scale(c);

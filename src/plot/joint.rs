@@ -5,8 +5,8 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
+use super::common::TAB10;
 use super::common::{Draw, DrawResult, anchored, bold, draw_text, font, render_named};
-use super::evaluation::PALETTE;
 use super::{ImageFormat, Layout};
 use crate::eem::joint::JointFit;
 use crate::error::Result;
@@ -26,7 +26,7 @@ pub fn components(fit: &JointFit, format: ImageFormat) -> Result<Vec<u8>> {
 }
 
 fn colour(c: usize) -> RGBColor {
-    PALETTE[c % PALETTE.len()]
+    TAB10[c % TAB10.len()]
 }
 
 impl Draw for Components<'_> {

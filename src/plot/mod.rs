@@ -347,7 +347,16 @@ pub fn plot(
     };
 
     match &comparison {
-        Some(c) => push(FigureKind::Residuals, heatmap::render(material, c, format)?),
+        Some(comparison) => {
+            let figure = heatmap::ResidualFigure {
+                material,
+                comparison,
+            };
+            push(
+                FigureKind::Residuals,
+                common::render(&figure, FigureKind::Residuals, format)?,
+            )
+        }
         None => skipped.push("residual map: needs the measured matrix (--data FILE)".to_string()),
     }
     push(
@@ -359,7 +368,13 @@ pub fn plot(
             "colour swatches: the data are on an arbitrary scale, so they have no colour to compare"
                 .to_string(),
         ),
-        Some(c) => push(FigureKind::Colour, swatches::render(material, c, format)?),
+        Some(comparison) => {
+            let figure = swatches::ColourFigure {
+                material,
+                comparison,
+            };
+            push(FigureKind::Colour, common::render(&figure, FigureKind::Colour, format)?)
+        }
         None => skipped.push(
             "colour swatches: need the measured matrix (--data FILE)".to_string(),
         ),

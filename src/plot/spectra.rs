@@ -19,12 +19,12 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
 use super::common::{
-    Draw, DrawResult, anchored, bold, draw_text, font, format_significant, format_tick,
-    render as render_figure, tick_step,
+    Draw, DrawResult, TAB10, anchored, draw_text, draw_title, font, format_significant,
+    format_tick, render as render_figure, tick_step,
 };
 use super::{Comparison, FigureKind, ImageFormat, Layout};
 use crate::error::Result;
-use crate::material::{Material, YieldForm};
+use crate::material::{Fluorophore, Material, YieldForm};
 use crate::measurement::CellKind;
 use crate::parametric::{FluorophoreForms, MaterialForms, SpectralForm};
 use crate::spectrum::Spectrum;
@@ -73,18 +73,9 @@ fn excitation_reference(material: &Material, grid: &[f64]) -> Option<Vec<f64>> {
         .iter()
         .map(|f| f.emission_mean_nm())
         .collect();
-    let v: Vec<f64> = grid
-        .iter()
-        .map(|&l| {
-            material
-                .fluorophores
-                .iter()
-                .zip(&means)
-                .map(|(f, &mean)| f.reradiated_with_mean(l, mean))
-                .sum()
-        })
-        .collect();
-    normalise(v)
+    normalised_sum(material, grid, |n, f, l| {
+        f.reradiated_with_mean(l, means[n])
+    })
 }
 
 /// The combined emission shape Σ (Σλ c·Q(λ)·a(λ))·e(λ), scaled to peak 1 on the emission
@@ -101,18 +92,30 @@ fn emission_reference(material: &Material, ex_grid: &[f64], em_grid: &[f64]) -> 
                 .sum::<f64>()
         })
         .collect();
-    let v: Vec<f64> = em_grid
-        .iter()
-        .map(|&l| {
-            material
-                .fluorophores
-                .iter()
-                .zip(&weights)
-                .map(|(f, w)| w * f.emission.eval_zero_outside(l))
-                .sum()
-        })
-        .collect();
-    normalise(v)
+    normalised_sum(material, em_grid, |n, f, l| {
+        weights[n] * f.emission.eval_zero_outside(l)
+    })
+}
+
+/// Σ over the fluorophores of `term(n, fluorophore, λ)` at every λ of `grid`, scaled to
+/// peak 1 (None when it has no positive peak).
+fn normalised_sum(
+    material: &Material,
+    grid: &[f64],
+    term: impl Fn(usize, &Fluorophore, f64) -> f64,
+) -> Option<Vec<f64>> {
+    let fluorophores = &material.fluorophores;
+    normalise(
+        grid.iter()
+            .map(|&l| {
+                fluorophores
+                    .iter()
+                    .enumerate()
+                    .map(|(n, f)| term(n, f, l))
+                    .sum()
+            })
+            .collect(),
+    )
 }
 
 fn normalise(v: Vec<f64>) -> Option<Vec<f64>> {
@@ -176,7 +179,6 @@ pub(crate) fn render(
             comparison,
         },
         FigureKind::Spectra,
-        SIZE,
         format,
     )
 }
@@ -344,17 +346,12 @@ impl Curves<'_> {
 }
 
 /// Colours of absorption and emission for a material with one fluorophore.
-const SINGLE_COLOURS: (RGBColor, RGBColor) = (RGBColor(31, 119, 180), RGBColor(214, 39, 40));
+const SINGLE_COLOURS: (RGBColor, RGBColor) = (TAB10[0], TAB10[3]);
 
-/// One colour per fluorophore when there are several (absorption solid, emission dashed).
-const COMPONENT_COLOURS: [RGBColor; 6] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(148, 103, 189),
-    RGBColor(214, 39, 40),
-    RGBColor(140, 86, 75),
-    RGBColor(23, 190, 207),
-];
+/// One colour per fluorophore when there are several (absorption solid, emission dashed):
+/// blue, orange, purple, red, brown, cyan.
+const COMPONENT_COLOURS: [RGBColor; 6] =
+    [TAB10[0], TAB10[1], TAB10[4], TAB10[3], TAB10[5], TAB10[9]];
 
 /// Colour of the data profiles and their combined references when there are several
 /// fluorophores (the profiles then follow the sum over components, not one of them).
@@ -380,12 +377,7 @@ impl Draw for SpectraFigure<'_> {
             Some(_) => format!("{}: fitted spectra vs measured data{model}", material.name),
             None => format!("{}: fitted spectra{model}", material.name),
         };
-        draw_text(
-            root,
-            &title,
-            (width as i32 / 2, TITLE_HEIGHT / 2 + 2),
-            &anchored(bold(21.0), HPos::Center, VPos::Center),
-        )?;
+        draw_title(root, &title, (width as i32 / 2, TITLE_HEIGHT / 2 + 2))?;
         let curves = Curves { material, forms };
 
         // Curves, in plot coordinates.
@@ -657,35 +649,20 @@ fn draw_glyph<DB: DrawingBackend>(
     glyph: &Glyph,
     (x, y): (i32, i32),
 ) -> DrawResult<(), DB> {
+    // Line glyphs as dashes: (start, end) pixels from x, and the stroke width.
+    let dashes = |c: &RGBColor, dashes: &[(i32, i32)], width: u32| {
+        dashes.iter().try_for_each(|&(from, to)| {
+            root.draw(&PathElement::new(
+                vec![(x + from, y), (x + to, y)],
+                c.stroke_width(width),
+            ))
+        })
+    };
     match glyph {
-        Glyph::Line(c) => root.draw(&PathElement::new(
-            vec![(x, y), (x + 30, y)],
-            c.stroke_width(3),
-        )),
-        Glyph::Thin(c) => root.draw(&PathElement::new(
-            vec![(x, y), (x + 30, y)],
-            c.stroke_width(1),
-        )),
-        Glyph::Dashed(c) => {
-            root.draw(&PathElement::new(
-                vec![(x, y), (x + 10, y)],
-                c.stroke_width(2),
-            ))?;
-            root.draw(&PathElement::new(
-                vec![(x + 15, y), (x + 25, y)],
-                c.stroke_width(2),
-            ))
-        }
-        Glyph::LongDashed(c) => {
-            root.draw(&PathElement::new(
-                vec![(x, y), (x + 13, y)],
-                c.stroke_width(3),
-            ))?;
-            root.draw(&PathElement::new(
-                vec![(x + 18, y), (x + 31, y)],
-                c.stroke_width(3),
-            ))
-        }
+        Glyph::Line(c) => dashes(c, &[(0, 30)], 3),
+        Glyph::Thin(c) => dashes(c, &[(0, 30)], 1),
+        Glyph::Dashed(c) => dashes(c, &[(0, 10), (15, 25)], 2),
+        Glyph::LongDashed(c) => dashes(c, &[(0, 13), (18, 31)], 3),
         Glyph::Dot(c) => root.draw(&Circle::new((x + 15, y), 3, c.filled())),
         Glyph::Ring(c) => root.draw(&Circle::new((x + 15, y), 4, c.stroke_width(2))),
         Glyph::Triangle(c) => root.draw(&TriangleMarker::new((x + 15, y), 5, c.filled())),

@@ -12,14 +12,13 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
 use super::common::{
-    Draw, DrawResult, anchored, bold, draw_text, font, format_significant, render as render_figure,
+    Draw, DrawResult, anchored, bold, draw_text, draw_title, font, format_significant,
 };
-use super::{Comparison, FigureKind, ImageFormat, Layout};
+use super::{Comparison, Layout};
 use crate::colour::{
     D65_WHITE, Lab, Light, PatchColorimeter, Xyz, adapt_bradford, delta_e2000, srgb_encode,
     xyz_to_lab, xyz_to_linear_srgb,
 };
-use crate::error::Result;
 use crate::material::Material;
 
 /// Size of the colour figure in pixels.
@@ -118,40 +117,23 @@ fn describe_light(name: &str) -> (&str, &str) {
     }
 }
 
-struct ColourFigure<'a> {
-    material: &'a Material,
-    comparison: &'a Comparison,
-}
-
-/// Renders the colour figure.
-pub(crate) fn render(
-    material: &Material,
-    comparison: &Comparison,
-    format: ImageFormat,
-) -> Result<(Vec<u8>, Layout)> {
-    render_figure(
-        &ColourFigure {
-            material,
-            comparison,
-        },
-        FigureKind::Colour,
-        SIZE,
-        format,
-    )
+/// The colour figure: measured and fitted patch colours under each light.
+pub(crate) struct ColourFigure<'a> {
+    pub(crate) material: &'a Material,
+    pub(crate) comparison: &'a Comparison,
 }
 
 impl Draw for ColourFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<Layout, DB> {
         let (width, height) = SIZE;
         let width = width as i32;
-        draw_text(
+        draw_title(
             root,
             &format!(
                 "{}: patch colour under each light, measured | fitted",
                 self.material.name
             ),
             (width / 2, TITLE_HEIGHT / 2 + 2),
-            &anchored(bold(21.0), HPos::Center, VPos::Center),
         )?;
         let pairs = swatch_pairs(self.comparison);
         let column = width / pairs.len().max(1) as i32;

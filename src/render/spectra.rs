@@ -2,6 +2,8 @@
 //! (300–780 nm) in f32, with the sampling tables a path needs at a fluorescent event
 //! (model.md §6) and for choosing the wavelengths a camera path carries.
 
+use std::ops::{Add, Mul, Sub};
+
 use glam::Vec4;
 
 use crate::colour::{Light, cie1931};
@@ -54,6 +56,20 @@ impl Lookup {
     }
 }
 
+/// The entry of a 1 nm `table` (from [`LAMBDA_MIN_NM`]) at `nm`, linear between entries
+/// and clamped to the table's range: for scalar tables and the colour-matching functions.
+#[inline]
+fn interpolate<T>(table: &[T], nm: f32) -> T
+where
+    T: Copy + Add<Output = T> + Sub<Output = T>,
+    f32: Mul<T, Output = T>,
+{
+    let x = (nm - LAMBDA_MIN_NM).clamp(0.0, (TABLE_LEN - 1) as f32);
+    let i = (x as i32 as usize).min(LAST_INTERVAL);
+    let t = x - i as f32;
+    table[i] + t * (table[i + 1] - table[i])
+}
+
 impl Table {
     /// Tabulates `f` at 300, 301, …, 780 nm.
     pub fn from_fn(f: impl Fn(f64) -> f64) -> Table {
@@ -80,12 +96,7 @@ impl Table {
     /// Value at `nm`, linear between entries (clamped to the table's range).
     #[inline]
     pub fn eval(&self, nm: f32) -> f32 {
-        let x = (nm - LAMBDA_MIN_NM).clamp(0.0, (TABLE_LEN - 1) as f32);
-        let i = (x as i32 as usize).min(LAST_INTERVAL);
-        let t = x - i as f32;
-        let v0 = self.values[i];
-        let v1 = self.values[i + 1];
-        v0 + t * (v1 - v0)
+        interpolate(&self.values, nm)
     }
 
     /// Values at four wavelengths at once.
@@ -636,12 +647,7 @@ impl Observer {
     /// (x̄, ȳ, z̄, 0) at `nm`.
     #[inline]
     pub fn cmf4(&self, nm: f32) -> Vec4 {
-        let x = (nm - LAMBDA_MIN_NM).clamp(0.0, (TABLE_LEN - 1) as f32);
-        let i = (x as i32 as usize).min(LAST_INTERVAL);
-        let t = x - i as f32;
-        let lo = self.cmf[i];
-        let hi = self.cmf[i + 1];
-        lo + t * (hi - lo)
+        interpolate(&self.cmf, nm)
     }
 }
 
@@ -649,19 +655,47 @@ impl Observer {
 mod tests {
     use super::*;
 
+    /// A triangle 400–500 nm peaking at 1 at 430 nm (area 50): the lower of its rising
+    /// and falling edges, zero outside.
+    fn triangle(nm: f64) -> f64 {
+        ((nm - 400.0) / 30.0).min((500.0 - nm) / 70.0).max(0.0)
+    }
+
+    /// Draws 200 000 stratified excitation wavelengths from `f` (`next` for its second
+    /// number) and asserts their histogram in 10 nm bins over 400–500 nm against the exact
+    /// bin masses of `density`: midpoint sums of `steps` per bin, over `total`.
+    fn assert_excitation_follows(
+        f: &FluorophoreTables,
+        mut next: impl FnMut() -> f32,
+        density: impl Fn(f64) -> f64,
+        steps: usize,
+        total: f64,
+    ) {
+        let n = 200_000;
+        let mut hist = [0u32; 10];
+        for s in 0..n {
+            let u = (s as f32 + 0.5) / n as f32;
+            let nm = f.sample_excitation(u, &mut next);
+            assert!((400.0..=500.0).contains(&nm), "{nm}");
+            hist[((nm - 400.0) / 10.0).min(9.0) as usize] += 1;
+        }
+        let step = 10.0 / steps as f64;
+        for (b, count) in hist.iter().enumerate() {
+            let lo = 400.0 + 10.0 * b as f64;
+            let mass = (0..steps)
+                .map(|s| density(lo + (s as f64 + 0.5) * step) * step)
+                .sum::<f64>()
+                / total;
+            let got = *count as f64 / n as f64;
+            assert!((got - mass).abs() < 2e-3, "bin {b}: {got} vs {mass}");
+        }
+    }
+
     #[test]
     fn spectral_sampling_follows_absorption() {
-        // A triangle absorption 400–500 nm peaking at 430 nm: the sampled histogram in
-        // 10 nm bins must match the exact bin masses.
-        let a = Table::from_fn(|nm| {
-            if (400.0..=430.0).contains(&nm) {
-                (nm - 400.0) / 30.0
-            } else if (430.0..=500.0).contains(&nm) {
-                (500.0 - nm) / 70.0
-            } else {
-                0.0
-            }
-        });
+        // A triangle absorption: the sampled histogram in 10 nm bins must match the exact
+        // bin masses.
+        let a = Table::from_fn(triangle);
         let cdf = IntervalCdf::new(a.values.windows(2).map(|w| 0.5 * (w[0] + w[1]) as f64));
         let f = FluorophoreTables {
             k: 1.0,
@@ -674,42 +708,15 @@ mod tests {
             lit: None,
             cdf,
         };
-        let n = 200_000;
-        let mut hist = [0u32; 10];
-        for s in 0..n {
-            let u = (s as f32 + 0.5) / n as f32;
-            let nm = f.sample_excitation(u, || panic!("the energy form draws once"));
-            assert!((400.0..=500.0).contains(&nm), "{nm}");
-            hist[((nm - 400.0) / 10.0).min(9.0) as usize] += 1;
-        }
-        let total = 50.0; // area of the triangle
-        for (b, count) in hist.iter().enumerate() {
-            let lo = 400.0 + 10.0 * b as f64;
-            let mass = (0..100)
-                .map(|s| {
-                    let nm = lo + (s as f64 + 0.5) * 0.1;
-                    f.absorption.eval(nm as f32) as f64 * 0.1
-                })
-                .sum::<f64>()
-                / total;
-            let got = *count as f64 / n as f64;
-            assert!((got - mass).abs() < 2e-3, "bin {b}: {got} vs {mass}");
-        }
+        let absorption = |nm: f64| f.absorption.eval(nm as f32) as f64;
+        let once = || panic!("the energy form draws once");
+        assert_excitation_follows(&f, once, absorption, 100, 50.0);
     }
 
     #[test]
     fn photon_form_excitation_sampling_follows_wavelength_times_absorption() {
         // The same triangle in the photon form: density ∝ λ·a(λ), compared per 10 nm bin
         // with the exact masses of λ·a (0.01 nm midpoint sums of the triangle itself).
-        let triangle = |nm: f64| {
-            if (400.0..=430.0).contains(&nm) {
-                (nm - 400.0) / 30.0
-            } else if (430.0..=500.0).contains(&nm) {
-                (500.0 - nm) / 70.0
-            } else {
-                0.0
-            }
-        };
         let grid: Vec<f64> = (0..=481).map(|i| 300.0 + i as f64).collect();
         let fluorophore = crate::material::Fluorophore {
             concentration: 0.5,
@@ -734,27 +741,8 @@ mod tests {
             f.absorption_integral
         );
         let mut rng = crate::render::rng::Rng::new(7, 0);
-        let n = 200_000;
-        let mut hist = [0u32; 10];
-        for s in 0..n {
-            let u = (s as f32 + 0.5) / n as f32;
-            let nm = f.sample_excitation(u, || rng.next_f32());
-            assert!((400.0..=500.0).contains(&nm), "{nm}");
-            hist[((nm - 400.0) / 10.0).min(9.0) as usize] += 1;
-        }
-        let total = 50.0 * centroid;
-        for (b, count) in hist.iter().enumerate() {
-            let lo = 400.0 + 10.0 * b as f64;
-            let mass = (0..1000)
-                .map(|s| {
-                    let nm = lo + (s as f64 + 0.5) * 0.01;
-                    nm * triangle(nm) * 0.01
-                })
-                .sum::<f64>()
-                / total;
-            let got = *count as f64 / n as f64;
-            assert!((got - mass).abs() < 2e-3, "bin {b}: {got} vs {mass}");
-        }
+        let density = |nm: f64| nm * triangle(nm);
+        assert_excitation_follows(&f, || rng.next_f32(), density, 1000, 50.0 * centroid);
     }
 
     #[test]

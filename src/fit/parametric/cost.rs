@@ -142,13 +142,7 @@ impl<'a> Problem<'a> {
         for k in 0..k_count {
             let ap = &theta[layout.absorption(k)];
             let ep = &theta[layout.emission(k)];
-            let mut absorption_jacobian = vec![0.0; self.excitation_u.len() * ap.len()];
-            let raw: Vec<f64> = self
-                .excitation_u
-                .iter()
-                .zip(absorption_jacobian.chunks_exact_mut(ap.len().max(1)))
-                .map(|(&u, g)| bands_value_gradient(ap, u, g))
-                .collect();
+            let (raw, absorption_jacobian) = bands_with_jacobian(ap, &self.excitation_u);
             let (peak_index, peak) =
                 raw.iter().enumerate().fold(
                     (0, f64::MIN),
@@ -156,13 +150,7 @@ impl<'a> Problem<'a> {
                 );
             let peak = peak.max(1e-300);
             let absorption: Vec<f64> = raw.iter().map(|v| v / peak).collect();
-            let mut emission_jacobian = vec![0.0; self.emission_u.len() * ep.len()];
-            let emission: Vec<f64> = self
-                .emission_u
-                .iter()
-                .zip(emission_jacobian.chunks_exact_mut(ep.len().max(1)))
-                .map(|(&u, g)| bands_value_gradient(ep, u, g))
-                .collect();
+            let (emission, emission_jacobian) = bands_with_jacobian(ep, &self.emission_u);
             m.absorption_jacobian.push(absorption_jacobian);
             m.emission_jacobian.push(emission_jacobian);
             let (mut normaliser, mut moment) = (0.0, 0.0);
@@ -651,4 +639,16 @@ impl<'a> Problem<'a> {
     pub fn diagonal_positions(&self) -> Vec<(usize, usize)> {
         self.diagonal.iter().map(|d| (d.row, d.column)).collect()
     }
+}
+
+/// The bands of parameters `params` at every abscissa of `u`, with their derivatives by
+/// the parameters (one row of `params.len()` per abscissa).
+fn bands_with_jacobian(params: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let mut jacobian = vec![0.0; u.len() * params.len()];
+    let values = u
+        .iter()
+        .zip(jacobian.chunks_exact_mut(params.len().max(1)))
+        .map(|(&u, g)| bands_value_gradient(params, u, g))
+        .collect();
+    (values, jacobian)
 }

@@ -176,10 +176,10 @@ pub(super) fn fit_candidate(
                 .map(|t| Ok(convert_yield_form(&problem, &t.spec, &t.theta)))
                 .unwrap_or_else(|| Err(Error::Fit("no energy-form optimum".into()))),
             Start::Nested => match nested {
-                Some(n) => nested_start(&problem, ctx.base, n, ctx.sigma, ctx.focus),
+                Some(n) => nested_start(&problem, ctx, n),
                 None => Err(Error::Fit("no nested model".into())),
             },
-            _ => start(&problem, ctx.base, parent, ctx.sigma, kind, ctx.focus),
+            _ => start(&problem, ctx, parent, kind),
         };
         match theta0.and_then(|t| refine(&problem, &t, options, ctx.tolerance)) {
             Ok((theta, refined)) => {
@@ -224,8 +224,10 @@ pub(super) fn fit_candidate(
         forms.reflectance = None;
     }
     material.conservation = Some(material.conservation_margins());
+    // The samples were just tabulated from the forms: the search validates the chosen
+    // candidate's forms against them once, not every candidate's.
     material
-        .validate()
+        .validate_except_forms()
         .map_err(|e| Error::Fit(format!("{}: candidate {}: {e}", m.name, spec.name())))?;
     let accuracy = assess::accuracy(&material, m, data, &options.lights);
     let delta_e = accuracy.delta_e2000.clone();

@@ -20,7 +20,7 @@ use crate::parametric::{BandDomain, PARAMS_PER_BAND, logit};
 
 use super::assess::bic;
 use super::data::FitData;
-use super::init::{Factors, masked_nmf};
+use super::init::{Factors, by_column, by_row, fit_factor, masked_nmf};
 use super::parametric::{ModelSpec, PHOTON_SUFFIX, Problem, ReflectanceForm};
 use super::representation::START_KAPPA_CAP;
 use super::{FitOptions, FitOutcome, YieldChoice, assess, solve};
@@ -200,13 +200,7 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
             reflectance: Some(r),
             ..
         }) => r,
-        _ => reflectance_form(
-            &base,
-            m,
-            &data,
-            lights,
-            REFLECTANCE_SHARE * budget.unwrap_or(1.0),
-        ),
+        _ => reflectance_form(&base, m, lights, REFLECTANCE_SHARE * budget.unwrap_or(1.0)),
     };
 
     let reference = measured_xyz(m, &base, lights);
@@ -408,7 +402,14 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         None => "lowest BIC on the matrix residual".to_string(),
     };
     let mut material = match index {
-        Some(i) => fitted.swap_remove(i).material,
+        Some(i) => {
+            let chosen = fitted.swap_remove(i);
+            // Every law again, now with the forms compared with their samples.
+            chosen.material.validate().map_err(|e| {
+                Error::Fit(format!("{}: model {}: {e}", m.name, chosen.spec.name()))
+            })?;
+            chosen.material
+        }
         None => {
             let mut material = base;
             if let Some(fit) = material.fit.as_mut() {
@@ -441,7 +442,8 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         seconds: started.elapsed().as_secs_f64(),
     });
     fit.seconds = started.elapsed().as_secs_f64();
-    material.conservation = Some(material.conservation_margins());
+    // The conservation margins came with the candidate (or the grid fit), whose spectra
+    // have not changed since.
     Ok(FitOutcome::Material(Box::new(material)))
 }
 
@@ -475,13 +477,12 @@ fn worst(delta_e: &std::collections::BTreeMap<String, f64>) -> f64 {
 fn reflectance_form(
     base: &Material,
     m: &Measurement,
-    data: &FitData,
     lights: &[crate::colour::Light],
     budget: f64,
 ) -> ReflectanceForm {
     let nm = &base.reflectance.wavelength_nm;
     let r = &base.reflectance.value;
-    let reference = colour_of(base, m, data, lights);
+    let reference = assess::predicted_labs(base, m, lights);
     let weights = diagonal_weights(base);
     for degree in 1..=MAX_REFLECTANCE_DEGREE {
         let Ok(fit) = fit_sigmoid_polynomial(nm, r, Some(&weights), degree) else {
@@ -489,7 +490,7 @@ fn reflectance_form(
         };
         let mut candidate = base.clone();
         candidate.reflectance.value = nm.iter().map(|&l| fit.form.eval(l)).collect();
-        let lab = colour_of(&candidate, m, data, lights);
+        let lab = assess::predicted_labs(&candidate, m, lights);
         let ok = reference
             .iter()
             .zip(&lab)
@@ -509,34 +510,6 @@ fn diagonal_weights(material: &Material) -> Vec<f64> {
         .wavelength_nm
         .iter()
         .map(|&l| (1.0 - material.absorbed(l)).max(0.0).powi(2))
-        .collect()
-}
-
-/// CIELAB of a material's patch on the measurement's grids, per light.
-fn colour_of(
-    material: &Material,
-    m: &Measurement,
-    data: &FitData,
-    lights: &[crate::colour::Light],
-) -> Vec<crate::colour::Lab> {
-    let predicted = crate::model::predict(
-        material,
-        &m.name,
-        &data.excitation_nm,
-        &data.emission_nm,
-        crate::measurement::Units::PerBin,
-        true,
-    );
-    lights
-        .iter()
-        .map(|light| {
-            let pc = crate::colour::PatchColorimeter::cached(
-                light,
-                &data.excitation_nm,
-                &data.emission_nm,
-            );
-            pc.lab(&predicted)
-        })
         .collect()
 }
 

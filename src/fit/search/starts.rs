@@ -81,18 +81,15 @@ pub(super) fn embed(
 /// unexplained (weighted as the parent start's), small.
 pub(super) fn nested_start(
     problem: &Problem<'_>,
-    base: &Material,
+    ctx: &CandidateContext<'_>,
     nested: &Fitted,
-    sigma: f64,
-    focus: &[f64],
 ) -> Result<Vec<f64>> {
     let layout = problem.layout;
     let spec = layout.spec;
     let mut theta = embed(problem, &nested.spec, &nested.theta, NESTED_EXTRA);
     if spec.components > nested.spec.components {
         let existing = (nested.spec, nested.theta.clone());
-        let components =
-            split_components(problem, base, Some(&existing), sigma, Start::Parent, focus);
+        let components = split_components(problem, ctx, Some(&existing), Start::Parent);
         let small = Problem::new(problem.data, nested.spec, &[], &[], 0.0);
         let gm = small.grid_model(&nested.theta);
         let taken: Vec<f64> = (0..problem.data.n_excitation())
@@ -106,32 +103,54 @@ pub(super) fn nested_start(
         for (k, (kappa, absorption, emission)) in
             components.iter().enumerate().skip(nested.spec.components)
         {
-            let room = absorption
-                .iter()
-                .zip(&taken)
-                .filter(|(a, _)| **a > 1e-3)
-                .map(|(a, t)| (1.0 - t).max(0.0) / a)
-                .fold(1.0, f64::min);
+            let room = room(absorption, &taken);
             let kappa = kappa.min(EXTRA_COMPONENT_SHARE * largest).min(0.9 * room);
-            theta[k] = kappa.clamp(1e-6, START_KAPPA_CAP).sqrt().asin();
-            let a = fit_bands(
-                &problem.data.excitation_nm,
-                absorption,
-                spec.domain,
-                spec.absorption_bands,
-            )?;
-            theta[layout.absorption(k)].copy_from_slice(&a.bands.params());
-            let e = fit_bands(
-                &problem.data.emission_nm,
-                emission,
-                spec.domain,
-                spec.emission_bands,
-            )?;
-            theta[layout.emission(k)].copy_from_slice(&e.bands.params());
+            set_component(problem, &mut theta, k, kappa, absorption, emission)?;
         }
     }
     problem.clamp_to_box(&mut theta);
     Ok(theta)
+}
+
+/// How large an added component's c·a may grow where it absorbs (a > 1e-3) before the
+/// fluorophores, `taken` (Σc·a) already, absorb all the light.
+fn room(absorption: &[f64], taken: &[f64]) -> f64 {
+    absorption
+        .iter()
+        .zip(taken)
+        .filter(|(a, _)| **a > 1e-3)
+        .map(|(a, t)| (1.0 - t).max(0.0) / a)
+        .fold(1.0, f64::min)
+}
+
+/// Component `k` of `theta` from its κ and its absorption and emission on the data's
+/// grids, with bands fitted to them.
+fn set_component(
+    problem: &Problem<'_>,
+    theta: &mut [f64],
+    k: usize,
+    kappa: f64,
+    absorption: &[f64],
+    emission: &[f64],
+) -> Result<()> {
+    let (data, layout) = (problem.data, problem.layout);
+    let spec = layout.spec;
+    theta[k] = kappa.clamp(1e-6, START_KAPPA_CAP).sqrt().asin();
+    let a = fit_bands(
+        &data.excitation_nm,
+        absorption,
+        spec.domain,
+        spec.absorption_bands,
+    )?;
+    theta[layout.absorption(k)].copy_from_slice(&a.bands.params());
+    let e = fit_bands(
+        &data.emission_nm,
+        emission,
+        spec.domain,
+        spec.emission_bands,
+    )?;
+    theta[layout.emission(k)].copy_from_slice(&e.bands.params());
+    Ok(())
 }
 
 /// The optimum `theta` of the same structure in the other yield form, as a start in
@@ -213,12 +232,11 @@ pub(super) enum Start {
 /// the components of a masked non-negative factorisation (K > 1).
 pub(super) fn start(
     problem: &Problem<'_>,
-    base: &Material,
+    ctx: &CandidateContext<'_>,
     one_component: Option<&(ModelSpec, Vec<f64>)>,
-    sigma: f64,
     kind: Start,
-    focus: &[f64],
 ) -> Result<Vec<f64>> {
+    let base = ctx.base;
     let data = problem.data;
     let layout = problem.layout;
     let spec = layout.spec;
@@ -240,7 +258,7 @@ pub(super) fn start(
         } else {
             one_component
         };
-        split_components(problem, base, parent, sigma, kind, focus)
+        split_components(problem, ctx, parent, kind)
     };
     // The parent's own parameters, when it has this model's bands: the start then costs
     // what the parent's optimum costs plus a small extra component.
@@ -278,33 +296,14 @@ pub(super) fn start(
                 }
                 None => vec![parent_kappa; absorption.len()],
             };
-            let room = absorption
-                .iter()
-                .zip(&parent_absorbed)
-                .filter(|(a, _)| **a > 1e-3)
-                .map(|(a, taken)| (1.0 - taken).max(0.0) / a)
-                .fold(1.0, f64::min);
+            let room = room(absorption, &parent_absorbed);
             kappa
                 .min(EXTRA_COMPONENT_SHARE * parent_kappa)
                 .min(0.9 * room)
         } else {
             *kappa
         };
-        theta[k] = kappa.clamp(1e-6, START_KAPPA_CAP).sqrt().asin();
-        let a = fit_bands(
-            &data.excitation_nm,
-            absorption,
-            spec.domain,
-            spec.absorption_bands,
-        )?;
-        theta[layout.absorption(k)].copy_from_slice(&a.bands.params());
-        let e = fit_bands(
-            &data.emission_nm,
-            emission,
-            spec.domain,
-            spec.emission_bands,
-        )?;
-        theta[layout.emission(k)].copy_from_slice(&e.bands.params());
+        set_component(problem, &mut theta, k, kappa, absorption, emission)?;
     }
     if let ReflectanceForm::Polynomial(degree) = spec.reflectance
         && !copied
@@ -355,12 +354,11 @@ pub(super) fn start_kappa(f: &crate::Fluorophore, form: YieldForm) -> f64 {
 /// started from the one-component fit and the residual it leaves.
 pub(super) fn split_components(
     problem: &Problem<'_>,
-    base: &Material,
+    ctx: &CandidateContext<'_>,
     one_component: Option<&(ModelSpec, Vec<f64>)>,
-    sigma: f64,
     kind: Start,
-    focus: &[f64],
 ) -> Vec<(f64, Vec<f64>, Vec<f64>)> {
+    let (base, sigma, focus) = (ctx.base, ctx.sigma, ctx.focus);
     let data = problem.data;
     let k_count = problem.layout.spec.components;
     let column_factor: Vec<f64> = data
@@ -526,30 +524,8 @@ pub(super) fn weighted_rank_one(
     }
     let mut row = vec![0.0; n_ex];
     for _ in 0..sweeps {
-        let (mut num, mut den) = (vec![0.0; n_ex], vec![0.0; n_ex]);
-        for (c, w) in data.off_diagonal.iter().zip(weights) {
-            num[c.row] += w * c.value * column[c.column];
-            den[c.row] += w * column[c.column] * column[c.column];
-        }
-        for i in 0..n_ex {
-            row[i] = if den[i] > 0.0 {
-                (num[i] / den[i]).max(0.0)
-            } else {
-                0.0
-            };
-        }
-        let (mut num, mut den) = (vec![0.0; n_em], vec![0.0; n_em]);
-        for (c, w) in data.off_diagonal.iter().zip(weights) {
-            num[c.column] += w * c.value * row[c.row];
-            den[c.column] += w * row[c.row] * row[c.row];
-        }
-        for j in 0..n_em {
-            column[j] = if den[j] > 0.0 {
-                (num[j] / den[j]).max(0.0)
-            } else {
-                0.0
-            };
-        }
+        row = fit_factor(&data.off_diagonal, Some(weights), &column, n_ex, by_row);
+        column = fit_factor(&data.off_diagonal, Some(weights), &row, n_em, by_column);
     }
     (row, column)
 }
