@@ -389,6 +389,23 @@ fn non_negative_parts(vectors: &[Vec<f64>], k: usize, n: usize) -> Vec<f64> {
     out
 }
 
+/// A HALS right-hand side by rows of one mode: out[row·k + c] = Σ_other term(row, other, c),
+/// summed over `other` in order.
+fn mode_rhs(
+    rows: usize,
+    others: usize,
+    k: usize,
+    term: impl Fn(usize, usize, usize) -> f64,
+) -> Vec<f64> {
+    let mut out = vec![0.0; rows * k];
+    for row in 0..rows {
+        for c in 0..k {
+            out[row * k + c] = (0..others).map(|other| term(row, other, c)).sum();
+        }
+    }
+    out
+}
+
 /// One HALS pass over the rows of a factor: `rows[r·K + k]` (row-major) with per-row
 /// Gram `gram(r)` (K×K, row-major) and right-hand side `rhs[r·K + k]`.
 fn hals_rows(rows: &mut [f64], k: usize, rhs: &[f64], gram: impl Fn(usize) -> Vec<f64>) {
@@ -615,25 +632,15 @@ impl<'a> Work<'a> {
                 }
             }
         }
-        let mut rhs = vec![0.0; samples * k];
-        for s in 0..samples {
-            for c in 0..k {
-                rhs[s * k + c] = (0..n_ex)
-                    .map(|ex| f.excitation[c * n_ex + ex] * p[(s * n_ex + ex) * k + c])
-                    .sum();
-            }
-        }
+        let rhs = mode_rhs(samples, n_ex, k, |s, ex, c| {
+            f.excitation[c * n_ex + ex] * p[(s * n_ex + ex) * k + c]
+        });
         hals_rows(&mut f.scores, k, &rhs, |_| gram_a.clone());
         let ata = scores_gram(f, samples);
         // Excitation: Gram (AᵀA) ⊙ h[ex] per row.
-        let mut rhs = vec![0.0; n_ex * k];
-        for ex in 0..n_ex {
-            for c in 0..k {
-                rhs[ex * k + c] = (0..samples)
-                    .map(|s| f.scores[s * k + c] * p[(s * n_ex + ex) * k + c])
-                    .sum();
-            }
-        }
+        let rhs = mode_rhs(n_ex, samples, k, |ex, s, c| {
+            f.scores[s * k + c] * p[(s * n_ex + ex) * k + c]
+        });
         let mut rows = transpose(&f.excitation, k, n_ex);
         hals_rows(&mut rows, k, &rhs, |ex| {
             (0..k * k).map(|i| ata[i] * h[ex * k * k + i]).collect()
