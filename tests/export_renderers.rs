@@ -323,8 +323,38 @@ fn pbrt_reader_enforces_the_buffer_and_stof() {
     assert!(pbrt_read_float_file("300 x\n").is_err());
 }
 
-/// Every pbrt-v4 file parses with pbrt's reader; the baked βT matches the truth; the
-/// named materials name files of the export, relative to its folder.
+/// pbrt-v4's `"spectrum"` parameter given inline, as `ParameterDictionary::
+/// extractSpectrumArray` takes it: numbers between `[` and `]`, an even count of them,
+/// read as (λ, value) pairs with λ strictly increasing; `None` when the parameter names a
+/// file or a named spectrum instead.
+fn pbrt_inline_spectrum(scene: &str, material: &str, parameter: &str) -> Option<Vec<(f64, f64)>> {
+    let start = scene.find(&format!("MakeNamedMaterial \"{material}\""))?;
+    let rest = &scene[start..];
+    let key = format!("\"spectrum {parameter}\"");
+    let after = rest[rest.find(&key)? + key.len()..].trim_start();
+    let body = after.strip_prefix('[')?;
+    let body = &body[..body.find(']').expect("the array is closed")];
+    let numbers: Vec<f64> = body
+        .split_whitespace()
+        .map(|t| t.parse().expect("pbrt reads every token as a number"))
+        .collect();
+    assert!(
+        numbers.len().is_multiple_of(2),
+        "Found odd number of values"
+    );
+    let pairs: Vec<(f64, f64)> = numbers.chunks(2).map(|p| (p[0], p[1])).collect();
+    for w in pairs.windows(2) {
+        assert!(
+            w[1].0 > w[0].0,
+            "Spectrum description invalid: wavelengths not increasing"
+        );
+    }
+    Some(pairs)
+}
+
+/// Every pbrt-v4 file parses with pbrt's readers; the named materials carry the baked βT
+/// inline (no file for pbrt to resolve against the main scene's folder) and match the
+/// truth, as do the `.spd` files beside them.
 #[test]
 fn pbrt_files_parse_and_hold_the_baked_factor() {
     for m in materials() {
@@ -339,32 +369,47 @@ fn pbrt_files_parse_and_hold_the_baked_factor() {
         }
         let scene = file(&files, &format!("{}.pbrt", m.name));
         for light in lights() {
+            let want = truth.beta_t(&light);
+            let material = format!("{}_{}", m.name, light.name);
+            let inline = pbrt_inline_spectrum(scene, &material, "reflectance")
+                .unwrap_or_else(|| panic!("{material}: no inline reflectance"));
             let baked = pbrt_spectrum(file(
                 &files,
                 &format!("{}_baked_{}.spd", m.name, light.name),
             ));
-            let want = truth.beta_t(&light);
-            assert_eq!(baked.len(), want.len());
-            for ((l, v), (wl, wv)) in baked.iter().zip(&want) {
-                assert_eq!(l, wl);
-                assert!(
-                    f32_close(*v, *wv, 1e-12),
-                    "{} {} {l}: {v} vs {wv}",
-                    m.name,
-                    light.name
-                );
+            for spectrum in [&inline, &baked] {
+                assert_eq!(spectrum.len(), want.len());
+                for ((l, v), (wl, wv)) in spectrum.iter().zip(&want) {
+                    assert_eq!(l, wl);
+                    assert!(
+                        f32_close(*v, *wv, 1e-12),
+                        "{} {} {l}: {v} vs {wv}",
+                        m.name,
+                        light.name
+                    );
+                }
             }
-            assert!(scene.contains(&format!(
-                "MakeNamedMaterial \"{}_{}\"\n    \"string type\" \"diffuse\"\n    \"spectrum reflectance\" \"{}_baked_{}.spd\"",
-                m.name, light.name, m.name, light.name
-            )));
         }
+        let albedo = pbrt_inline_spectrum(scene, &format!("{}_albedo", m.name), "reflectance")
+            .expect("the albedo material's reflectance is inline");
+        // Both as pbrt holds them, in f32.
+        let single = |s: &[(f64, f64)]| -> Vec<(f32, f32)> {
+            s.iter().map(|(l, v)| (*l as f32, *v as f32)).collect()
+        };
+        assert_eq!(
+            single(&albedo),
+            single(&pbrt_spectrum(file(
+                &files,
+                &format!("{}_albedo.spd", m.name)
+            )))
+        );
         assert!(scene.contains("clamps its reflectance to [0, 1]"));
-        assert!(scene.contains("put the scene that Includes this file in this folder"));
-        for quoted in scene.split('"').filter(|s| s.ends_with(".spd")) {
-            assert!(!quoted.contains('/'), "{quoted}");
-            file(&files, quoted);
-        }
+        // No parameter of the snippet names a file.
+        assert!(
+            !scene
+                .lines()
+                .any(|l| !l.starts_with('#') && l.contains(".spd"))
+        );
     }
 }
 

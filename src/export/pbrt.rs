@@ -14,8 +14,11 @@
 //! f32 values in shortest form and 0 below f32's normal range
 //! ([`super::spectra::number`]). pbrt-v4 resolves a relative file name against the
 //! directory of the scene file given on its command line (`SetSearchDirectory`), not
-//! against the file that names it: the `.spd` names in `NAME.pbrt` are relative to the
-//! export folder, so the scene that `Include`s it must sit in that folder.
+//! against the file that names it, so `NAME.pbrt` names no file: its materials carry
+//! their spectra inline, as the (λ, value) pairs a `"spectrum"` parameter takes
+//! (`ParameterDictionary::extractSpectrumArray`: an even count, wavelengths strictly
+//! increasing), and it works wherever the scene that `Include`s it sits. The `.spd` files
+//! hold the same spectra for other uses.
 
 use crate::colour::{Light, cie1931, colour_grid};
 use crate::material::{Material, YieldForm};
@@ -152,6 +155,15 @@ fn lobe_suffix(material: &Material, i: usize) -> String {
     }
 }
 
+/// A `"spectrum"` parameter's value inline: `[ λ v λ v … ]`, eight pairs a line.
+fn inline_spectrum(samples: impl Iterator<Item = (f64, f64)>) -> String {
+    let pairs: Vec<String> = samples
+        .map(|(l, v)| format!("{} {}", number(l), number(v)))
+        .collect();
+    let lines: Vec<String> = pairs.chunks(8).map(|c| c.join(" ")).collect();
+    format!("[\n        {}\n    ]", lines.join("\n        "))
+}
+
 fn render_spectra(material: &Material, stem: &str) -> Vec<(String, String)> {
     spectra(material, stem)
         .into_iter()
@@ -175,6 +187,11 @@ fn clamped_luminance(baked: &BakedSpectrum, light: &Light) -> f64 {
 
 /// pbrt-v4: `.spd` files and `NAME.pbrt` (the matrix is added by the caller).
 pub(super) fn pbrt(material: &Material, stem: &str, lights: &[Light]) -> Vec<(String, String)> {
+    let albedo: Vec<(f64, f64)> = spectra(material, stem)
+        .into_iter()
+        .find(|(file, _, _)| *file == format!("{stem}_albedo.spd"))
+        .map(|(_, _, samples)| samples)
+        .unwrap_or_default();
     let mut files = render_spectra(material, stem);
     let name = one_line(&material.name);
     let n = material.fluorophores.len();
@@ -199,9 +216,9 @@ pub(super) fn pbrt(material: &Material, stem: &str, lights: &[Light]) -> Vec<(St
     let photon = photon_note(material, "# ");
     let mut scene = format!(
         "# fluorite {VERSION} export of material \"{name}\" for pbrt-v4: named materials to Include.\n\
-# File names are relative to this folder and pbrt-v4 resolves them against the folder of the\n\
-# scene file given on its command line: put the scene that Includes this file in this folder,\n\
-# and Include it after WorldBegin (MakeNamedMaterial is a world-block statement).\n\
+# The spectra are inline ((wavelength nm, value) pairs), so this file names no other file and\n\
+# works from wherever the including scene sits; Include it after WorldBegin\n\
+# (MakeNamedMaterial is a world-block statement).\n\
 # Stock pbrt-v4 has no fluorescent material. Each \"{stem}_<light>\" material below is a diffuse\n\
 # material whose reflectance is the baked total radiance factor for that light ONLY,\n\
 #   βT(λ) = d(λ) + Σ e(λ)·∫ c·Q(λi)·a(λi)·L(λi) dλi / L(λ),   d = (1 - Σc·a)·r  (dimensionless),\n\
@@ -209,7 +226,8 @@ pub(super) fn pbrt(material: &Material, stem: &str, lights: &[Light]) -> Vec<(St
 # colour is wrong. pbrt-v4's diffuse material clamps its reflectance to [0, 1]\n\
 # (DiffuseMaterial::GetBxDF), so βT above 1 is cut to 1 and that part of the fluorescence is lost.\n\
 # \"{stem}_albedo\" is the plain d: no fluorescence at all.\n\
-# Other files: {stem}_albedo.spd (d), {stem}_reflectance.spd (r),\n\
+# Files beside this one, for other uses: {stem}_baked_<light>.spd (the same βT),\n\
+# {stem}_albedo.spd (d), {stem}_reflectance.spd (r),\n\
 {lobes}\
 # {stem}_reradiation.csv (the full reradiation matrix{summed}, rows excitation, columns emission,\n\
 # for matrix-based renderers; see its header for units).\n\
@@ -243,7 +261,8 @@ pub(super) fn pbrt(material: &Material, stem: &str, lights: &[Light]) -> Vec<(St
         }
         scene.push_str(&format!(
             "\n# valid under light \"{light}\" only; {clamp}\n\
-MakeNamedMaterial \"{stem}_{light_stem}\"\n    \"string type\" \"diffuse\"\n    \"spectrum reflectance\" \"{file}\"\n",
+MakeNamedMaterial \"{stem}_{light_stem}\"\n    \"string type\" \"diffuse\"\n    \"spectrum reflectance\" {}\n",
+            inline_spectrum(baked.wavelength_nm.iter().copied().zip(baked.value.iter().copied())),
             light = one_line(&light.name),
         ));
         files.push((
@@ -252,7 +271,8 @@ MakeNamedMaterial \"{stem}_{light_stem}\"\n    \"string type\" \"diffuse\"\n    
         ));
     }
     scene.push_str(&format!(
-        "\n# the reflected part only (no fluorescence)\nMakeNamedMaterial \"{stem}_albedo\"\n    \"string type\" \"diffuse\"\n    \"spectrum reflectance\" \"{stem}_albedo.spd\"\n"
+        "\n# the reflected part only (no fluorescence)\nMakeNamedMaterial \"{stem}_albedo\"\n    \"string type\" \"diffuse\"\n    \"spectrum reflectance\" {}\n",
+        inline_spectrum(albedo.into_iter())
     ));
     for (i, f) in material.fluorophores.iter().enumerate() {
         let s = lobe_suffix(material, i);
