@@ -1433,15 +1433,10 @@ fn cli_bad_input_is_one_clear_line_and_no_output_file() {
 fn cli_report_prints_noise_per_light_for_both_samplings_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let json = write_material(dir.path(), "dye", &synthetic());
-    let out = fluorite()
-        .args(["render", json.to_str().unwrap(), "--report"])
-        .args(["--spp", "16", "--size", "32x32", "--lights", "d65,f11"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = common::succeed(
+        fluorite()
+            .args(["render", json.to_str().unwrap(), "--report"])
+            .args(["--spp", "16", "--size", "32x32", "--lights", "d65,f11"]),
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
     let rows: Vec<Vec<String>> = stdout
@@ -1476,25 +1471,14 @@ fn cli_sampling_paper_renders_the_same_scene_by_other_rules() {
     let mut pixels = Vec::new();
     for sampling in ["light", "paper"] {
         let png_path = dir.path().join(format!("{sampling}.png"));
-        let out = fluorite()
-            .args(["render", json.to_str().unwrap(), "--sampling", sampling])
-            .args(["--scene", "furnace", "--size", "24x24", "--spp", "64", "-q"])
-            .arg("-o")
-            .arg(&png_path)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+        common::succeed(
+            fluorite()
+                .args(["render", json.to_str().unwrap(), "--sampling", sampling])
+                .args(["--scene", "furnace", "--size", "24x24", "--spp", "64", "-q"])
+                .arg("-o")
+                .arg(&png_path),
         );
-        let decoder = png::Decoder::new(std::io::BufReader::new(
-            std::fs::File::open(&png_path).unwrap(),
-        ));
-        let mut reader = decoder.read_info().unwrap();
-        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-        let info = reader.next_frame(&mut buf).unwrap();
-        let bytes = buf[..info.buffer_size()].to_vec();
+        let (_, _, bytes) = common::decode_png(&std::fs::read(&png_path).unwrap());
         // The centre 8×8 pixels lie on the sphere.
         let mut sum = [0.0f64; 3];
         for y in 8..16 {

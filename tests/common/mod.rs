@@ -85,3 +85,16 @@ pub fn decode_png(bytes: &[u8]) -> (u32, u32, Vec<u8>) {
     buffer.truncate(info.buffer_size());
     (info.width, info.height, buffer)
 }
+
+/// Runs `command` and returns its output, failing the test with its stderr unless it
+/// exits 0.
+pub fn succeed(command: &mut std::process::Command) -> std::process::Output {
+    let out = command.output().expect("the command runs");
+    assert!(
+        out.status.success(),
+        "{:?} failed: {}",
+        command,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
