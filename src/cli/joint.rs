@@ -180,7 +180,7 @@ pub fn run_surface_series(args: &FitArgs, surfaces: &[Measurement]) -> anyhow::R
         .unwrap_or_else(|| PathBuf::from("fits/series"));
     let written = fit.write(&out, "series")?;
     if !args.quiet {
-        print!("{}", fit.summary());
+        print!("{}", crate::cli::printer::series_summary(&fit));
         for path in &written {
             println!("wrote {}", path.display());
         }

@@ -2,11 +2,13 @@
 //! tables, check's report (output formatting apart from the commands and the library, as
 //! ripgrep keeps its printer).
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use fluorite::YieldForm;
 use fluorite::check::{CheckReport, FORM_TOLERANCE, Law, Status};
 use fluorite::fit::FitOutcome;
+use fluorite::fit::series::SeriesFit;
 use fluorite::measurement::Measurement;
 
 /// How the energy form's photon yield peaks, after its range.
@@ -66,20 +68,15 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
                     let _ = writeln!(s, "    skipped {skipped}");
                 }
                 for c in &search.candidates {
-                    let de: Vec<String> = c
-                        .delta_e2000
-                        .iter()
-                        .map(|(l, v)| format!("{l} {v:.2}"))
-                        .collect();
                     let _ = writeln!(
                         s,
                         "    {:<22} {:>4} p   ΔE {}   BIC {:.1}   {:.1} ms{}",
                         c.model,
                         c.parameters,
-                        if de.is_empty() {
+                        if c.delta_e2000.is_empty() {
                             "–".into()
                         } else {
-                            de.join(" ")
+                            per_light(&c.delta_e2000, " ")
                         },
                         c.bic,
                         1e3 * c.seconds,
@@ -165,11 +162,6 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
         report.noise_sigma,
     );
     if !report.delta_e2000.is_empty() {
-        let de: Vec<String> = report
-            .delta_e2000
-            .iter()
-            .map(|(l, v)| format!("{l} {v:.2}"))
-            .collect();
         let reference = if report.reference_filled_cells == 0 {
             "against every cell as measured".to_string()
         } else {
@@ -179,7 +171,11 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
                 100.0 * report.reference_filled_share
             )
         };
-        let _ = writeln!(s, "  ΔE2000: {}   ({reference})", de.join("   "));
+        let _ = writeln!(
+            s,
+            "  ΔE2000: {}   ({reference})",
+            per_light(&report.delta_e2000, "   ")
+        );
     }
     let _ = writeln!(
         s,
@@ -398,6 +394,61 @@ pub fn check_report(report: &CheckReport) -> String {
         for note in &f.notes {
             out.push_str(&format!("  note: {note}\n"));
         }
+    }
+    out
+}
+
+/// ΔE2000 per light as `light value` pairs (two decimals) joined by `separator`.
+fn per_light(delta_e2000: &BTreeMap<String, f64>, separator: &str) -> String {
+    delta_e2000
+        .iter()
+        .map(|(light, de)| format!("{light} {de:.2}"))
+        .collect::<Vec<_>>()
+        .join(separator)
+}
+
+/// What `fit --joint` prints for a concentration series: the shared yield, per file c, k
+/// and accuracy, the noise, the solver and every warning.
+pub fn series_summary(fit: &SeriesFit) -> String {
+    let symbol = match fit.yield_form {
+        YieldForm::Energy => "Q",
+        YieldForm::Photon => "Φ",
+    };
+    let mut out = format!(
+        "concentration series of {} files, {} form: {symbol} = {:.4} ± {:.4}, shared with r, a, e (mean emission {:.1} nm)\n",
+        fit.files.len(),
+        fit.yield_form.name(),
+        fit.quantum_yield,
+        fit.quantum_yield_std_error,
+        fit.emission.mean_wavelength_nm()
+    );
+    for f in &fit.files {
+        out += &format!(
+            "  {}: c = {:.4} ± {:.4}, k = {:.4} ± {:.4}, residual RMS {:.2e}, ΔE2000 {}\n",
+            f.name,
+            f.concentration,
+            f.concentration_std_error,
+            f.k,
+            f.k_std_error,
+            f.residual_rms,
+            per_light(&f.delta_e2000, ", ")
+        );
+    }
+    out += &format!(
+        "  noise σ ≈ {:.2e} (anti-Stokes), residual σ {:.2e}: errors scaled by {:.2e}\n  gauss-newton: {} after {} iterations, {:.3} s\n",
+        fit.noise_sigma,
+        fit.residual_sigma,
+        fit.error_sigma,
+        if fit.converged {
+            "converged"
+        } else {
+            "stopped"
+        },
+        fit.iterations,
+        fit.seconds
+    );
+    for w in &fit.warnings {
+        out += &format!("  warning: {w}\n");
     }
     out
 }

@@ -190,57 +190,6 @@ impl SeriesFit {
         material
     }
 
-    /// What the command line prints: the shared yield, per file c, k and accuracy, the
-    /// noise, the solver and every warning.
-    pub fn summary(&self) -> String {
-        let symbol = match self.yield_form {
-            YieldForm::Energy => "Q",
-            YieldForm::Photon => "Φ",
-        };
-        let mut out = format!(
-            "concentration series of {} files, {} form: {symbol} = {:.4} ± {:.4}, shared with r, a, e (mean emission {:.1} nm)\n",
-            self.files.len(),
-            self.yield_form.name(),
-            self.quantum_yield,
-            self.quantum_yield_std_error,
-            self.emission.mean_wavelength_nm()
-        );
-        for f in &self.files {
-            let colour: Vec<String> = f
-                .delta_e2000
-                .iter()
-                .map(|(light, de)| format!("{light} {de:.2}"))
-                .collect();
-            out += &format!(
-                "  {}: c = {:.4} ± {:.4}, k = {:.4} ± {:.4}, residual RMS {:.2e}, ΔE2000 {}\n",
-                f.name,
-                f.concentration,
-                f.concentration_std_error,
-                f.k,
-                f.k_std_error,
-                f.residual_rms,
-                colour.join(", ")
-            );
-        }
-        out += &format!(
-            "  noise σ ≈ {:.2e} (anti-Stokes), residual σ {:.2e}: errors scaled by {:.2e}\n  gauss-newton: {} after {} iterations, {:.3} s\n",
-            self.noise_sigma,
-            self.residual_sigma,
-            self.error_sigma,
-            if self.converged {
-                "converged"
-            } else {
-                "stopped"
-            },
-            self.iterations,
-            self.seconds
-        );
-        for w in &self.warnings {
-            out += &format!("  warning: {w}\n");
-        }
-        out
-    }
-
     /// Writes the series into folder `dir` (created if missing), all files or none:
     /// `<stem>.json` (this fit, `fluorite-series/1`) and one material per file,
     /// `<file name>.json` (`fluorite-material/1`, for check, plot, export and render).
