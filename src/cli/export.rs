@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use fluorite::colour::Light;
 use fluorite::export::{
-    ExportFormat, ExportOptions, RgbSpace, export, parse_grid, summary, write_files,
+    ExportFormat, ExportOptions, RgbSpace, export_with_notes, parse_grid, write_files,
 };
 use fluorite::{Error, Material, Units};
 
@@ -158,7 +158,8 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
         space,
     };
     // Everything is rendered before anything is written.
-    let files = export(&material, &options)?;
+    let exported = export_with_notes(&material, &options)?;
+    let files = exported.files;
     let names_a_folder = args.out.is_dir() || args.out.as_os_str().to_string_lossy().ends_with('/');
     let targets: Vec<(PathBuf, Vec<u8>)> = if format.is_single_file() && !names_a_folder {
         files
@@ -176,7 +177,7 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     for (path, _) in &targets {
         println!("{}", path.display());
     }
-    for line in summary(&material, &options)? {
+    for line in &exported.notes {
         println!("{line}");
     }
     Ok(ExitCode::SUCCESS)

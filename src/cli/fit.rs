@@ -154,14 +154,20 @@ fn output_paths(args: &FitArgs) -> anyhow::Result<Vec<PathBuf>> {
     Ok(paths)
 }
 
+impl FitArgs {
+    /// The lights `--lights` names.
+    pub fn parsed_lights(&self) -> anyhow::Result<Vec<Light>> {
+        self.lights
+            .iter()
+            .map(|l| Light::parse(l))
+            .collect::<Result<Vec<_>, _>>()
+            .context("--lights")
+    }
+}
+
 /// Runs `fluorite fit`.
 pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
-    let lights = args
-        .lights
-        .iter()
-        .map(|l| Light::parse(l))
-        .collect::<Result<Vec<_>, _>>()
-        .context("--lights")?;
+    let lights = args.parsed_lights()?;
     let options = FitOptions {
         solver: args.solver,
         guard_nm: args.guard,

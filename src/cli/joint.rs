@@ -162,11 +162,7 @@ pub fn run(args: &FitArgs, read_options: &ReadOptions) -> anyhow::Result<ExitCod
 /// Joint fit of radiance-factor surface matrices of one material at several
 /// concentrations (shared r, a, e and yield; c per file).
 pub fn run_surface_series(args: &FitArgs, surfaces: &[Measurement]) -> anyhow::Result<ExitCode> {
-    let lights = args
-        .lights
-        .iter()
-        .map(|l| fluorite::colour::Light::parse(l))
-        .collect::<fluorite::Result<Vec<_>>>()?;
+    let lights = args.parsed_lights()?;
     let options = fluorite::fit::series::SeriesOptions {
         yield_choice: args.yield_choice,
         guard_nm: args.guard,

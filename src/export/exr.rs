@@ -7,7 +7,7 @@
 //! for λo > λi (dimensionless, like a BFC-450 cell; the reference's own Labsphere
 //! example stores those cells as they are). The layout has one wavelength grid for both
 //! axes, so the excitation and emission grids are merged, and it has no channel for
-//! anti-Stokes cells (λo < λi): [`anti_stokes_share`] says how much of the matrix's
+//! anti-Stokes cells (λo < λi): the export reports how much of the matrix's
 //! off-diagonal energy that drops, and the file's header says it too. `R`, `G`, `B`
 //! channels give viewers the patch's linear sRGB under D65 (white = 1).
 
@@ -56,17 +56,6 @@ fn anti_stokes_share_of(m: &Measurement) -> f64 {
     if total > 0.0 { anti / total } else { 0.0 }
 }
 
-/// The share of `material`'s off-diagonal (fluorescent) energy, on the layout `grid`,
-/// that falls in anti-Stokes cells (λo < λi) the layout cannot hold.
-pub fn anti_stokes_share(material: &Material, grid: &[f64]) -> Result<f64> {
-    Ok(anti_stokes_share_of(&matrix(
-        material,
-        grid,
-        grid,
-        Units::PerBin,
-    )?))
-}
-
 /// Header text: OpenEXR strings are Latin-1, so other characters become `?`.
 fn text(s: &str) -> Text {
     let latin1: String = s
@@ -76,8 +65,10 @@ fn text(s: &str) -> Text {
     Text::new_or_none(latin1).unwrap_or_else(|| Text::from("?"))
 }
 
-/// The uniform bispectral EXR of `material` on `grid` (sorted, in nm).
-pub(super) fn exr(material: &Material, grid: &[f64]) -> Result<Vec<u8>> {
+/// The uniform bispectral EXR of `material` on `grid` (sorted, in nm), and the share of
+/// the matrix's off-diagonal (fluorescent) energy in the anti-Stokes cells (λo < λi) the
+/// layout cannot hold.
+pub(super) fn exr(material: &Material, grid: &[f64]) -> Result<(Vec<u8>, f64)> {
     let m = matrix(material, grid, grid, Units::PerBin)?;
     let n = grid.len();
     let uniform = |v: f64| FlatSamples::F32(vec![v as f32; SIDE * SIDE]);
@@ -138,5 +129,5 @@ pub(super) fn exr(material: &Material, grid: &[f64]) -> Result<Vec<u8>> {
         .write()
         .to_buffered(&mut cursor)
         .map_err(|e| Error::invalid("exr", format!("could not encode the image: {e}")))?;
-    Ok(cursor.into_inner())
+    Ok((cursor.into_inner(), share))
 }

@@ -151,6 +151,22 @@ pub struct ExportFile {
 /// Renders `material` in `options.format`, in memory. The material is checked first:
 /// a material that breaks a law of the model is not exported.
 pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<ExportFile>> {
+    Ok(export_with_notes(material, options)?.files)
+}
+
+/// An export's files and what it dropped or approximated, one line each (the anti-Stokes
+/// share the `exr` layout cannot hold, the ΔE2000 of each `rgb` reduction; none for the
+/// other formats), for the command to print.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Exported {
+    /// The files, as [`export`] renders them.
+    pub files: Vec<ExportFile>,
+    /// What the files drop or approximate.
+    pub notes: Vec<String>,
+}
+
+/// [`export`], with the notes of what the files drop or approximate.
+pub fn export_with_notes(material: &Material, options: &ExportOptions) -> Result<Exported> {
     let report = crate::check::check_material(material);
     if !report.valid {
         return Err(Error::invalid(
@@ -179,7 +195,8 @@ pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<Export
         name,
         contents: s.into_bytes(),
     };
-    Ok(match options.format {
+    let mut notes = Vec::new();
+    let files = match options.format {
         ExportFormat::Csv => vec![text(format!("{stem}.csv"), spectra::csv(material))],
         ExportFormat::Matrix => {
             let (ex, em) = grids()?;
@@ -244,48 +261,29 @@ pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<Export
         }
         ExportFormat::Exr => {
             let (ex, em) = grids()?;
-            vec![ExportFile {
-                name: format!("{stem}.exr"),
-                contents: exr::exr(material, &exr::layout_grid(&ex, &em))?,
-            }]
-        }
-        ExportFormat::Rgb => vec![text(
-            format!("{stem}.rgb.json"),
-            rgb::rgb_json(material, &options.lights, options.space)?,
-        )],
-    })
-}
-
-/// What an export drops or approximates, one line each, for the command to print:
-/// the anti-Stokes share the `exr` layout cannot hold, the ΔE2000 of each `rgb`
-/// reduction. Empty for the other formats.
-pub fn summary(material: &Material, options: &ExportOptions) -> Result<Vec<String>> {
-    Ok(match options.format {
-        ExportFormat::Exr => {
-            let (ex, em) = default_grids(material);
-            let grid = exr::layout_grid(
-                options.excitation_nm.as_deref().unwrap_or(&ex),
-                options.emission_nm.as_deref().unwrap_or(&em),
-            );
-            vec![format!(
+            let (contents, share) = exr::exr(material, &exr::layout_grid(&ex, &em))?;
+            notes.push(format!(
                 "{}: anti-Stokes cells (λo < λi), which the spectral EXR layout cannot hold, carry {:.3} % of the off-diagonal energy",
                 material.name,
-                100.0 * exr::anti_stokes_share(material, &grid)?
-            )]
+                100.0 * share
+            ));
+            vec![ExportFile {
+                name: format!("{stem}.exr"),
+                contents,
+            }]
         }
-        ExportFormat::Rgb => options
-            .lights
-            .iter()
-            .map(|light| {
-                let r = rgb::reduce(material, light, options.space)?;
-                Ok(format!(
+        ExportFormat::Rgb => {
+            let (json, reductions) = rgb::rgb_json(material, &options.lights, options.space)?;
+            notes.extend(reductions.iter().map(|r| {
+                format!(
                     "{}: 3×3 under {}: ΔE2000 {:.3} between the reduced and the spectral colour",
                     material.name, r.light, r.delta_e2000
-                ))
-            })
-            .collect::<Result<Vec<String>>>()?,
-        _ => Vec::new(),
-    })
+                )
+            }));
+            vec![text(format!("{stem}.rgb.json"), json)]
+        }
+    };
+    Ok(Exported { files, notes })
 }
 
 /// A file-name-safe stem from a material name.

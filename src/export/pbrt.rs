@@ -164,13 +164,6 @@ fn inline_spectrum(samples: impl Iterator<Item = (f64, f64)>) -> String {
     format!("[\n        {}\n    ]", lines.join("\n        "))
 }
 
-fn render_spectra(material: &Material, stem: &str) -> Vec<(String, String)> {
-    spectra(material, stem)
-        .into_iter()
-        .map(|(file, header, samples)| (file, two_column(&header, samples.into_iter())))
-        .collect()
-}
-
 /// Luminance under `light` of βT clamped to [0, 1] (what pbrt-v4's diffuse renders),
 /// relative to βT's own.
 fn clamped_luminance(baked: &BakedSpectrum, light: &Light) -> f64 {
@@ -187,12 +180,18 @@ fn clamped_luminance(baked: &BakedSpectrum, light: &Light) -> f64 {
 
 /// pbrt-v4: `.spd` files and `NAME.pbrt` (the matrix is added by the caller).
 pub(super) fn pbrt(material: &Material, stem: &str, lights: &[Light]) -> Vec<(String, String)> {
-    let albedo: Vec<(f64, f64)> = spectra(material, stem)
-        .into_iter()
-        .find(|(file, _, _)| *file == format!("{stem}_albedo.spd"))
-        .map(|(_, _, samples)| samples)
+    let spectrum_files = spectra(material, stem);
+    // The albedo material carries d inline too.
+    let albedo_file = format!("{stem}_albedo.spd");
+    let albedo = spectrum_files
+        .iter()
+        .find(|(file, _, _)| *file == albedo_file)
+        .map(|(_, _, samples)| samples.clone())
         .unwrap_or_default();
-    let mut files = render_spectra(material, stem);
+    let mut files: Vec<(String, String)> = spectrum_files
+        .into_iter()
+        .map(|(file, header, samples)| (file, two_column(&header, samples.into_iter())))
+        .collect();
     let name = one_line(&material.name);
     let n = material.fluorophores.len();
     let lobes: String = (0..n)

@@ -159,22 +159,30 @@ pub fn reduce(material: &Material, light: &Light, space: RgbSpace) -> Result<Red
     })
 }
 
-/// The JSON file of the reductions of `material` for `lights` in `space`.
-pub(super) fn rgb_json(material: &Material, lights: &[Light], space: RgbSpace) -> Result<String> {
-    let reductions = lights
+/// The JSON file of the reductions of `material` for `lights` in `space`, and the
+/// reductions.
+pub(super) fn rgb_json(
+    material: &Material,
+    lights: &[Light],
+    space: RgbSpace,
+) -> Result<(String, Vec<Reduction>)> {
+    let reduced = lights
         .iter()
-        .map(|light| {
-            let r = reduce(material, light, space)?;
-            Ok(serde_json::json!({
+        .map(|light| reduce(material, light, space))
+        .collect::<Result<Vec<Reduction>>>()?;
+    let reductions: Vec<serde_json::Value> = reduced
+        .iter()
+        .map(|r| {
+            serde_json::json!({
                 "light": r.light,
                 "matrix": r.matrix,
                 "light_colour": r.light_colour,
                 "reduced": r.reduced,
                 "spectral": r.spectral,
                 "delta_e2000": r.delta_e2000,
-            }))
+            })
         })
-        .collect::<Result<Vec<serde_json::Value>>>()?;
+        .collect();
     let doc = serde_json::json!({
         "format": "fluorite-rgb-reduction/1",
         "fluorite_version": VERSION,
@@ -188,5 +196,5 @@ pub(super) fn rgb_json(material: &Material, lights: &[Light], space: RgbSpace) -
     });
     let mut text = serde_json::to_string_pretty(&doc).expect("JSON values serialise");
     text.push('\n');
-    Ok(text)
+    Ok((text, reduced))
 }
