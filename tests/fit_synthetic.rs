@@ -5,6 +5,21 @@ use fluorite::fit::{FitOptions, FitOutcome, Solver, fit};
 use fluorite::material::Material;
 use fluorite::synth::SynthSpec;
 
+/// The material fitted to the matrix alone (no colour term), as these tests compare
+/// parameters with the generator's truth.
+fn fit_matrix_only(m: &fluorite::Measurement) -> Material {
+    fitted(
+        fit(
+            m,
+            &FitOptions {
+                colour_weight: 0.0,
+                ..FitOptions::default()
+            },
+        )
+        .unwrap(),
+    )
+}
+
 fn fitted(outcome: FitOutcome) -> Material {
     match outcome {
         FitOutcome::Material(m) => *m,
@@ -80,16 +95,7 @@ fn noisy_recovery_within_propagated_noise() {
         spec.missing_fraction = 0.02;
         spec.seed = 7;
         let (m, truth) = spec.generate().unwrap();
-        let material = fitted(
-            fit(
-                &m,
-                &FitOptions {
-                    colour_weight: 0.0,
-                    ..FitOptions::default()
-                },
-            )
-            .unwrap(),
-        );
+        let material = fit_matrix_only(&m);
         let (f, t) = (&material.fluorophores[0], &truth.fluorophores[0]);
         let widths = fluorite::spectrum::bin_widths(&m.emission_nm);
         let guard = m.default_guard_nm();
@@ -186,16 +192,7 @@ fn colour_of_fit_matches_truth_at_measured_noise() {
 fn a_plain_reflector_is_recognised() {
     let spec = SynthSpec::preset("plain").unwrap();
     let (m, truth) = spec.generate().unwrap();
-    let material = fitted(
-        fit(
-            &m,
-            &FitOptions {
-                colour_weight: 0.0,
-                ..FitOptions::default()
-            },
-        )
-        .unwrap(),
-    );
+    let material = fit_matrix_only(&m);
     assert!(material.fluorophores.is_empty(), "no fluorophore expected");
     let report = material.fit.as_ref().unwrap();
     assert!(
@@ -270,16 +267,7 @@ fn the_smallest_feasible_concentration_is_the_default_gauge() {
     let mut spec = SynthSpec::preset("red-pigment").unwrap();
     spec.noise_sigma = 0.0;
     let (m, truth) = spec.generate().unwrap();
-    let material = fitted(
-        fit(
-            &m,
-            &FitOptions {
-                colour_weight: 0.0,
-                ..FitOptions::default()
-            },
-        )
-        .unwrap(),
-    );
+    let material = fit_matrix_only(&m);
     let f = &material.fluorophores[0];
     let [lo, hi] = f.concentration_range.unwrap();
     assert_eq!(f.concentration, lo);
@@ -320,16 +308,7 @@ fn the_iteration_limit_is_reported_not_hidden() {
         report.warnings
     );
     // Given room, the same fit converges and the material is valid.
-    let material = fitted(
-        fit(
-            &m,
-            &FitOptions {
-                colour_weight: 0.0,
-                ..FitOptions::default()
-            },
-        )
-        .unwrap(),
-    );
+    let material = fit_matrix_only(&m);
     assert!(material.fit.as_ref().unwrap().converged);
     material.validate().unwrap();
 }
