@@ -117,24 +117,26 @@ mod tests {
         // A plausible surface: reflectance 0.9 and a little fluorescence.
         let surface = matrix(vec![0.9, 0.05, 0.02, 0.0, 0.9, 0.05], Units::PerBin);
         assert!(classify(&surface).radiance_factor);
-        // Counts.
-        let counts = matrix(vec![900.0, 50.0, 20.0, 0.0, 900.0, 50.0], Units::PerBin);
-        let v = classify(&counts);
-        assert!(
-            !v.radiance_factor && v.reason.contains("largest cell"),
-            "{}",
-            v.reason
-        );
-        // Every cell below 1 but the row reradiates more than arrived.
-        let sum = matrix(vec![0.9, 0.8, 0.7, 0.0, 0.5, 0.1], Units::PerBin);
-        let v = classify(&sum);
-        assert!(
-            !v.radiance_factor && v.reason.contains("400 nm"),
-            "{}",
-            v.reason
-        );
-        // Per nm, the same cells integrate over 10 nm bins.
-        let dens = matrix(vec![0.9, 0.08, 0.0, 0.0, 0.9, 0.0], Units::PerNm);
-        assert!(!classify(&dens).radiance_factor);
+        // (values, units, what the refusal must name)
+        let refused = [
+            // Counts.
+            (
+                vec![900.0, 50.0, 20.0, 0.0, 900.0, 50.0],
+                Units::PerBin,
+                "largest cell",
+            ),
+            // Every cell below 1 but the row reradiates more than arrived.
+            (vec![0.9, 0.8, 0.7, 0.0, 0.5, 0.1], Units::PerBin, "400 nm"),
+            // Per nm, the same cells integrate over 10 nm bins.
+            (vec![0.9, 0.08, 0.0, 0.0, 0.9, 0.0], Units::PerNm, ""),
+        ];
+        for (values, units, named) in refused {
+            let v = classify(&matrix(values.clone(), units));
+            assert!(
+                !v.radiance_factor && v.reason.contains(named),
+                "{values:?} {units:?}: {}",
+                v.reason
+            );
+        }
     }
 }

@@ -445,6 +445,12 @@ pub fn summarise(runs: &[Run]) -> Vec<Summary> {
         .collect()
 }
 
+/// The first three CSV columns of both tables: the condition a run and its summary
+/// belong to (the key [`summarise`] groups by).
+fn condition_columns(sweep: Sweep, value: f64, method: &str) -> String {
+    format!("{},{},{}", sweep.id(), value, method)
+}
+
 /// The CSV header of [`to_csv`].
 pub const CSV_HEADER: &str = "sweep,value,method,runs,success_rate,median_delta_e2000,median_recovery_error,median_ms,flagged_rate,flagged_failures";
 
@@ -455,10 +461,8 @@ pub fn to_csv(summaries: &[Summary]) -> String {
     for s in summaries {
         let _ = writeln!(
             out,
-            "{},{},{},{},{:.4},{:.6e},{:.6e},{:.4},{:.4},{:.4}",
-            s.sweep.id(),
-            s.value,
-            s.method,
+            "{},{},{:.4},{:.6e},{:.6e},{:.4},{:.4},{:.4}",
+            condition_columns(s.sweep, s.value, &s.method),
             s.runs,
             s.success_rate,
             s.median_delta_e,
@@ -480,10 +484,8 @@ pub fn runs_to_csv(runs: &[Run]) -> String {
         let warnings = r.warnings.join(" | ").replace('"', "'");
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{:.6e},{:.6e},{:.4},\"{}\"",
-            r.sweep.id(),
-            r.value,
-            r.method,
+            "{},{},{},{},{},{:.6e},{:.6e},{:.4},\"{}\"",
+            condition_columns(r.sweep, r.value, &r.method),
             r.seed,
             SWEEP_PRESETS[r.seed % SWEEP_PRESETS.len()],
             r.success,
@@ -597,4 +599,44 @@ pub fn report(config: &Config, summaries: &[Summary], command: &str) -> String {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_csv_reads_back_with_a_csv_reader() {
+        let run = Run {
+            sweep: Sweep::Noise,
+            value: 0.002,
+            method: "lbfgs".into(),
+            seed: 3,
+            recovery_error: 0.05,
+            delta_e: 0.4,
+            ms: 1.25,
+            success: true,
+            flagged: true,
+            warnings: vec![
+                "residual is large, check the \"guard\" band".to_string(),
+                "did not converge".to_string(),
+            ],
+        };
+        let text = runs_to_csv(&[run]);
+        let mut reader = csv::Reader::from_reader(text.as_bytes());
+        let columns = reader.headers().unwrap().len();
+        let records: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
+        assert_eq!(records.len(), 1);
+        let record = &records[0];
+        assert_eq!(record.len(), columns);
+        assert_eq!(&record[0], Sweep::Noise.id());
+        assert_eq!(&record[1], "0.002");
+        assert_eq!(&record[2], "lbfgs");
+        assert_eq!(&record[3], "3");
+        // Quotes inside a warning become apostrophes; the comma stays inside the field.
+        assert_eq!(
+            &record[10],
+            "residual is large, check the 'guard' band | did not converge"
+        );
+    }
 }

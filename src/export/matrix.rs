@@ -119,14 +119,10 @@ fn diagonal_formula(material: &Material, times: &str, minus: &str) -> String {
     }
 }
 
-/// The wide CSV export (rows = excitation), with a `#` header fluorite's reader skips.
-pub(super) fn wide(
-    material: &Material,
-    excitation_nm: &[f64],
-    emission_nm: &[f64],
-    units: Units,
-) -> Result<String> {
-    let m = matrix(material, excitation_nm, emission_nm, units)?;
+/// The wide CSV export of `m`, the [`matrix`] `material` predicts (rows = excitation),
+/// with a `#` header fluorite's reader skips.
+pub(super) fn wide(material: &Material, m: &Measurement) -> String {
+    let units = m.units;
     let mut out = format!(
         "# fluorite {VERSION} export of material \"{}\": model reradiation matrix (Jung et al. 2018)\n",
         one_line(&material.name)
@@ -139,19 +135,15 @@ pub(super) fn wide(
     ));
     out.push_str("# rows: excitation wavelength λi (nm); columns: emission wavelength λo (nm)\n");
     out.push_str(&super::spectra::forms_header(material, "# "));
-    out.push_str(&write_wide_csv(&m, RowsAre::Excitation));
-    Ok(out)
+    out.push_str(&write_wide_csv(m, RowsAre::Excitation));
+    out
 }
 
-/// The BFC-450 export (rows = emission, CRLF), its metadata lines stating the quantity.
-pub(super) fn bfc(
-    material: &Material,
-    excitation_nm: &[f64],
-    emission_nm: &[f64],
-    units: Units,
-) -> Result<String> {
-    let m = matrix(material, excitation_nm, emission_nm, units)?;
-    let text = write_bfc(&m)?;
+/// The BFC-450 export of `m`, the [`matrix`] `material` predicts (rows = emission, CRLF),
+/// its metadata lines stating the quantity.
+pub(super) fn bfc(material: &Material, m: &Measurement) -> Result<String> {
+    let units = m.units;
+    let text = write_bfc(m)?;
     // The BFC-450 header has six free metadata lines (`;<none>`); fill them with what the
     // file holds.
     let info = [

@@ -34,7 +34,7 @@ mod spectra;
 use crate::colour::Light;
 use crate::error::{Error, Result};
 use crate::material::Material;
-use crate::measurement::Units;
+use crate::measurement::{Measurement, Units};
 
 pub use crate::files::{write_atomic, write_files};
 pub use baked::{BakedSpectrum, total_radiance_factor};
@@ -191,6 +191,11 @@ pub fn export_with_notes(material: &Material, options: &ExportOptions) -> Result
             options.emission_nm.clone().unwrap_or(em),
         ))
     };
+    // The model's matrix on the export grids, for the formats that write one.
+    let model_matrix = || -> Result<Measurement> {
+        let (ex, em) = grids()?;
+        matrix::matrix(material, &ex, &em, options.units)
+    };
     let text = |name: String, s: String| ExportFile {
         name,
         contents: s.into_bytes(),
@@ -198,20 +203,14 @@ pub fn export_with_notes(material: &Material, options: &ExportOptions) -> Result
     let mut notes = Vec::new();
     let files = match options.format {
         ExportFormat::Csv => vec![text(format!("{stem}.csv"), spectra::csv(material))],
-        ExportFormat::Matrix => {
-            let (ex, em) = grids()?;
-            vec![text(
-                format!("{stem}.matrix.csv"),
-                matrix::wide(material, &ex, &em, options.units)?,
-            )]
-        }
-        ExportFormat::Bfc => {
-            let (ex, em) = grids()?;
-            vec![text(
-                format!("{stem}.BFC"),
-                matrix::bfc(material, &ex, &em, options.units)?,
-            )]
-        }
+        ExportFormat::Matrix => vec![text(
+            format!("{stem}.matrix.csv"),
+            matrix::wide(material, &model_matrix()?),
+        )],
+        ExportFormat::Bfc => vec![text(
+            format!("{stem}.BFC"),
+            matrix::bfc(material, &model_matrix()?)?,
+        )],
         ExportFormat::Mitsuba => {
             let mut files: Vec<ExportFile> = mitsuba::mitsuba(material, &stem, &options.lights)
                 .into_iter()
@@ -220,23 +219,22 @@ pub fn export_with_notes(material: &Material, options: &ExportOptions) -> Result
             // The fork's BSDF holds one fluorophore: with several the full matrix keeps
             // every one of them.
             if material.fluorophores.len() > 1 {
-                let (ex, em) = grids()?;
                 files.push(text(
                     format!("{stem}_reradiation.csv"),
-                    matrix::wide(material, &ex, &em, options.units)?,
+                    matrix::wide(material, &model_matrix()?),
                 ));
             }
             files
         }
         ExportFormat::Pbrt => {
-            let (ex, em) = grids()?;
+            let reradiation = model_matrix()?;
             let mut files: Vec<ExportFile> = pbrt::pbrt(material, &stem, &options.lights)
                 .into_iter()
                 .map(|(n, s)| text(n, s))
                 .collect();
             files.push(text(
                 format!("{stem}_reradiation.csv"),
-                matrix::wide(material, &ex, &em, options.units)?,
+                matrix::wide(material, &reradiation),
             ));
             files
         }

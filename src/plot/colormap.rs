@@ -8,33 +8,17 @@
 
 use plotters::style::RGBColor;
 
-/// Viridis (van der Walt and Smith, matplotlib's default) at nine evenly spaced stops.
-const VIRIDIS_STOPS: [(u8, u8, u8); 9] = [
-    (68, 1, 84),
-    (71, 45, 123),
-    (59, 82, 139),
-    (44, 114, 142),
-    (33, 144, 140),
-    (39, 173, 129),
-    (93, 200, 99),
-    (170, 220, 50),
-    (253, 231, 37),
+/// Viridis (van der Walt and Smith, matplotlib's default) at nine evenly spaced stops,
+/// as 0xRRGGBB.
+const VIRIDIS_STOPS: [u32; 9] = [
+    0x440154, 0x472d7b, 0x3b528b, 0x2c728e, 0x21908c, 0x27ad81, 0x5dc863, 0xaadc32, 0xfde725,
 ];
 
-/// ColorBrewer RdBu (11 classes), ordered from blue (negative) to red (positive), with
-/// the neutral near-white in the middle.
-const DIVERGING_STOPS: [(u8, u8, u8); 11] = [
-    (5, 48, 97),
-    (33, 102, 172),
-    (67, 147, 195),
-    (146, 197, 222),
-    (209, 229, 240),
-    (247, 247, 247),
-    (253, 219, 199),
-    (244, 165, 130),
-    (214, 96, 77),
-    (178, 24, 43),
-    (103, 0, 31),
+/// ColorBrewer RdBu (11 classes) as published, 0xRRGGBB, ordered from blue (negative) to
+/// red (positive), with the neutral near-white in the middle.
+const DIVERGING_STOPS: [u32; 11] = [
+    0x053061, 0x2166ac, 0x4393c3, 0x92c5de, 0xd1e5f0, 0xf7f7f7, 0xfddbc7, 0xf4a582, 0xd6604d,
+    0xb2182b, 0x67001f,
 ];
 
 /// Colour of a diagonal cell (λo = λi): the reflectance, shown in black on every panel
@@ -47,15 +31,19 @@ pub const MASKED: RGBColor = RGBColor(228, 228, 228);
 /// …and its hatch lines.
 pub const HATCH: RGBColor = RGBColor(96, 96, 96);
 
-fn interpolate(stops: &[(u8, u8, u8)], t: f64) -> RGBColor {
+fn interpolate(stops: &[u32], t: f64) -> RGBColor {
     // NaN maps to the low end rather than panicking on a bad index.
     let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
     let position = t * (stops.len() - 1) as f64;
     let lower = (position.floor() as usize).min(stops.len() - 2);
     let frac = position - lower as f64;
     let (a, b) = (stops[lower], stops[lower + 1]);
-    let mix = |x: u8, y: u8| (x as f64 + frac * (y as f64 - x as f64)).round() as u8;
-    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+    // The channel at bit `shift` of each stop, mixed.
+    let mix = |shift: u32| {
+        let (x, y) = (((a >> shift) & 0xff) as f64, ((b >> shift) & 0xff) as f64);
+        (x + frac * (y - x)).round() as u8
+    };
+    RGBColor(mix(16), mix(8), mix(0))
 }
 
 /// The sequential map: `t` in [0, 1] (clamped; NaN counts as 0) from dark purple to yellow.
