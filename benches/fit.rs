@@ -4,8 +4,10 @@
 //! figure is HERPICER.BFC, whose conservation bound binds, and TEXTYELL.BFC, whose does
 //! not); falls back to a synthetic BFC-like matrix otherwise.
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use std::hint::black_box;
-use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use fluorite::colour::{Light, PatchColorimeter};
@@ -23,15 +25,14 @@ fn inputs() -> Vec<Measurement> {
 
 /// The named files of `../shared/data/measured`, or a synthetic BFC-like matrix.
 fn measured(files: &[&str]) -> Vec<Measurement> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/measured");
     let real: Vec<Measurement> = files
         .iter()
-        .filter_map(|f| read(&dir.join(f), &ReadOptions::default()).ok())
+        .filter_map(|f| read(&common::measured(f)?, &ReadOptions::default()).ok())
         .collect();
     if !real.is_empty() {
         return real;
     }
-    eprintln!("../shared/data/measured absent: benchmarking a synthetic BFC-like matrix");
+    eprintln!("benchmarking a synthetic BFC-like matrix instead");
     vec![
         SynthSpec::preset("red-pigment")
             .unwrap()

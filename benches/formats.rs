@@ -1,5 +1,8 @@
 //! Parsing speed of the input formats on a 49 × 41 BFC-450-sized matrix.
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use std::hint::black_box;
 use std::path::Path;
 
@@ -38,13 +41,11 @@ fn bench_formats(c: &mut Criterion) {
             b.iter(|| read_bytes(black_box(text.as_bytes()), Path::new(file), &options).unwrap())
         });
     }
-    let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/measured/HERPICER.BFC");
-    if let Ok(bytes) = std::fs::read(&real) {
+    if let Some(real) = common::measured("HERPICER.BFC") {
+        let bytes = std::fs::read(&real).unwrap();
         c.bench_function("read_HERPICER_BFC", |b| {
             b.iter(|| read_bytes(black_box(&bytes), &real, &options).unwrap())
         });
-    } else {
-        eprintln!("skipped read_HERPICER_BFC: {} is absent", real.display());
     }
 }
 

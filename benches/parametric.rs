@@ -4,8 +4,10 @@
 //!
 //! `cargo bench --bench parametric`.
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use std::hint::black_box;
-use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use fluorite::import::read_spectrum;
@@ -69,20 +71,16 @@ fn bench_parametric(c: &mut Criterion) {
     c.bench_function("fit_sigmoid_polynomial_41_samples_degree_6", |b| {
         b.iter(|| fit_sigmoid_polynomial(black_box(&nm), black_box(&values), None, 6).unwrap())
     });
-    let dye = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/spectra/fluorescein_0.1MNaOH_wave_excitation_emission.csv");
-    match read_spectrum(&dye, Some("emission"), &[]) {
-        Ok(s) => {
-            let range = positive_range(&s.value).unwrap();
-            let (nm, values) = (&s.wavelength_nm[range.clone()], &s.value[range]);
-            c.bench_function("fit_bands_to_tolerance_fluorescein_emission", |b| {
-                b.iter(|| {
-                    fit_bands_to_tolerance(nm, values, BandDomain::Wavenumber, 6, 0.01).unwrap()
-                })
-            });
-        }
-        Err(e) => eprintln!("skipped the dye bench: {e}"),
-    }
+    let Some(dye) = common::shared("spectra/fluorescein_0.1MNaOH_wave_excitation_emission.csv")
+    else {
+        return;
+    };
+    let s = read_spectrum(&dye, Some("emission"), &[]).unwrap();
+    let range = positive_range(&s.value).unwrap();
+    let (nm, values) = (&s.wavelength_nm[range.clone()], &s.value[range]);
+    c.bench_function("fit_bands_to_tolerance_fluorescein_emission", |b| {
+        b.iter(|| fit_bands_to_tolerance(nm, values, BandDomain::Wavenumber, 6, 0.01).unwrap())
+    });
 }
 
 criterion_group! {

@@ -9,8 +9,6 @@ use std::path::PathBuf;
 
 use fluorite::eem::joint::{JointOptions, fit_joint};
 use fluorite::eem::parafac::ParafacOptions;
-use fluorite::eem::{EemOptions, prepare};
-use fluorite::formats::{ReadOptions, read};
 use fluorite::measurement::{Measurement, Units};
 
 /// Squared Pearson correlation, written out here so the test does not lean on the
@@ -33,7 +31,10 @@ fn tucker(u: &[f64], v: &[f64]) -> f64 {
 /// 230–315 nm, QAB, QAC, QAE and QAA left out, four components, scatter masked.
 #[test]
 fn dorrit_four_analytes() {
-    let Some(dir) = common::shared("eem-instrument/dorrit") else {
+    let (Some(dir), Some(set)) = (
+        common::shared("eem-instrument/dorrit"),
+        common::dorrit_classic(),
+    ) else {
         return;
     };
     let truth = std::fs::read_to_string(dir.join("concentrations.csv")).unwrap();
@@ -45,8 +46,7 @@ fn dorrit_four_analytes() {
         .skip(1)
         .map(String::from)
         .collect();
-    let outliers = ["QAB", "QAC", "QAE", "QAA"];
-    let mut samples: Vec<(String, Vec<f64>)> = lines
+    let concentrations: Vec<(String, Vec<f64>)> = lines
         .map(|l| {
             let cells: Vec<&str> = l.split(',').collect();
             (
@@ -54,26 +54,21 @@ fn dorrit_four_analytes() {
                 cells[1..].iter().map(|c| c.parse().unwrap()).collect(),
             )
         })
-        .filter(|(name, _)| !outliers.contains(&name.as_str()))
         .collect();
-    samples.sort_by(|a, b| a.0.cmp(&b.0));
-    let measurements: Vec<Measurement> = samples
+    // Each sample of the set with its known concentrations, in the set's order.
+    let samples: Vec<(String, Vec<f64>)> = set
         .iter()
         .map(|(name, _)| {
-            let path: PathBuf = dir.join(format!("{name}.csv"));
-            let m = read(&path, &ReadOptions::default()).unwrap();
-            prepare(m, &EemOptions::default()).unwrap().0
+            concentrations
+                .iter()
+                .find(|(n, _)| n == name)
+                .unwrap_or_else(|| panic!("{name} has no row in concentrations.csv"))
+                .clone()
         })
         .collect();
-    let options = JointOptions {
-        parafac: ParafacOptions {
-            components: 4,
-            ..ParafacOptions::default()
-        },
-        em_range: Some((250.0, 681.0)),
-        ex_range: Some((230.0, 315.0)),
-        no_split_half: false,
-    };
+    assert_eq!(samples.len(), 23);
+    let measurements: Vec<Measurement> = set.into_iter().map(|(_, m)| m).collect();
+    let options = common::dorrit_classic_options(true);
     let fit = fit_joint(&measurements, &options).unwrap();
     // tensorly 0.9's masked non-negative PARAFAC on the same preparation: 0.996 (Trp),
     // 0.996 (HQ), 0.981 (DOPA), 0.939 (Phe); the thresholds.

@@ -98,3 +98,43 @@ pub fn succeed(command: &mut std::process::Command) -> std::process::Output {
     );
     out
 }
+
+/// The samples the classic Dorrit analysis leaves out (the data README).
+pub const DORRIT_OUTLIERS: [&str; 4] = ["QAB", "QAC", "QAE", "QAA"];
+
+/// The Dorrit EEMs of the classic analysis, prepared with the default EEM options
+/// (scatter masked): (sample name, EEM), sorted by name, [`DORRIT_OUTLIERS`] left out.
+/// None with a printed reason when `../shared` is absent.
+pub fn dorrit_classic() -> Option<Vec<(String, fluorite::measurement::Measurement)>> {
+    use fluorite::eem::{EemOptions, prepare};
+    use fluorite::formats::{ReadOptions, read};
+    let dir = shared("eem-instrument/dorrit")?;
+    Some(
+        files_in(&dir, &["csv"])
+            .into_iter()
+            .filter_map(|path| {
+                let name = path.file_stem()?.to_string_lossy().to_string();
+                let kept = name != "concentrations" && !DORRIT_OUTLIERS.contains(&name.as_str());
+                kept.then_some((name, path))
+            })
+            .map(|(name, path)| {
+                let raw = read(&path, &ReadOptions::default()).unwrap();
+                (name, prepare(raw, &EemOptions::default()).unwrap().0)
+            })
+            .collect(),
+    )
+}
+
+/// The classic Dorrit joint fit: emission 250–681 nm, excitation 230–315 nm, four
+/// components, with or without the split-half diagnostic.
+pub fn dorrit_classic_options(split_half: bool) -> fluorite::eem::joint::JointOptions {
+    fluorite::eem::joint::JointOptions {
+        parafac: fluorite::eem::parafac::ParafacOptions {
+            components: 4,
+            ..Default::default()
+        },
+        em_range: Some((250.0, 681.0)),
+        ex_range: Some((230.0, 315.0)),
+        no_split_half: !split_half,
+    }
+}
