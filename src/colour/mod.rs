@@ -386,6 +386,10 @@ pub fn xyz_to_linear_srgb(xyz: Xyz) -> [f64; 3] {
     ]
 }
 
+/// Luminance weights of linear sRGB: the Y row of its matrix to XYZ as IEC 61966-2-1
+/// publishes it (four decimals, the Rec. 709 primaries), so Y = w · rgb.
+pub const SRGB_LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
+
 /// Linear sRGB component → 8-bit sRGB, clipped to [0, 1] first.
 pub fn srgb_encode(linear: f64) -> u8 {
     let c = linear.clamp(0.0, 1.0);
@@ -682,6 +686,24 @@ mod tests {
                 "{a:?} {b:?}: {de} vs {expected}"
             );
             assert!((delta_e2000(b, a) - expected).abs() < 1e-4);
+        }
+    }
+
+    #[test]
+    fn srgb_luminance_weights_give_back_y() {
+        // Through the XYZ → linear sRGB matrix and back along the published Y row: the
+        // four-decimal weights agree with the matrix to its rounding.
+        for xyz in [
+            D65_WHITE,
+            [0.4124, 0.2126, 0.0193],
+            [0.2, 0.3, 0.9],
+            [0.05, 0.02, 0.4],
+        ] {
+            let rgb = xyz_to_linear_srgb(xyz);
+            let y: f64 = rgb.iter().zip(SRGB_LUMINANCE).map(|(c, w)| c * w).sum();
+            // Each weight is within 8e-5 of the exact inverse's.
+            let bound = 8e-5 * rgb.iter().map(|c| c.abs()).sum::<f64>();
+            assert!((y - xyz[1]).abs() <= bound, "{xyz:?}: {y}");
         }
     }
 

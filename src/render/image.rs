@@ -13,7 +13,7 @@
 
 use std::io::Cursor;
 
-use crate::colour::{D65_WHITE, adapt_bradford, srgb_encode, xyz_to_linear_srgb};
+use crate::colour::{D65_WHITE, SRGB_LUMINANCE, adapt_bradford, srgb_encode, xyz_to_linear_srgb};
 use crate::error::{Error, Result};
 
 use super::Film;
@@ -73,9 +73,6 @@ pub fn check_exposure(ev: f64) -> Result<()> {
     }
     Ok(())
 }
-
-/// Luminance weights of linear sRGB (the Y row of its matrix to XYZ).
-const SRGB_LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// Brings a linear sRGB colour into [0, 1]³ keeping its luminance and hue: a colour out
 /// of range moves straight towards the grey of the same luminance, just as far as needed
