@@ -11,7 +11,7 @@ mod common;
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use fluorite::eem::joint::fit_joint;
+use fluorite::fit::joint::fit_joint;
 use fluorite::measurement::Measurement;
 
 fn bench_joint(c: &mut Criterion) {

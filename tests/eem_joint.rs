@@ -7,8 +7,8 @@ mod common;
 
 use std::path::PathBuf;
 
-use fluorite::eem::joint::{JointOptions, fit_joint};
-use fluorite::eem::parafac::ParafacOptions;
+use fluorite::fit::joint::parafac::ParafacOptions;
+use fluorite::fit::joint::{JointOptions, fit_joint};
 use fluorite::measurement::{Measurement, Units};
 
 /// Squared Pearson correlation, written out here so the test does not lean on the

@@ -1,16 +1,16 @@
 //! `fluorite fit FILES... --joint --components K`: one joint fit of a sample set.
 //! EEMs (uncalibrated solution matrices) get a non-negative PARAFAC
-//! ([`fluorite::eem::joint`]); radiance-factor surface matrices of one material at
+//! ([`fluorite::fit::joint`]); radiance-factor surface matrices of one material at
 //! several concentrations go to [`run_surface_series`].
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
-use fluorite::eem::diagnostics::r_squared;
-use fluorite::eem::joint::{JointFit, JointOptions, fit_joint};
-use fluorite::eem::parafac::ParafacOptions;
 use fluorite::files::write_files;
+use fluorite::fit::joint::diagnostics::r_squared;
+use fluorite::fit::joint::parafac::ParafacOptions;
+use fluorite::fit::joint::{JointFit, JointOptions, fit_joint};
 use fluorite::formats::ReadOptions;
 use fluorite::measurement::Measurement;
 use fluorite::plot::ImageFormat;
@@ -70,7 +70,7 @@ fn parse_components(text: &str) -> Result<ComponentList, String> {
             .map(|c| c.trim().parse::<usize>().map_err(|_| bad()))
             .collect::<Result<_, _>>()?
     };
-    let max = fluorite::eem::parafac::MAX_COMPONENTS;
+    let max = fluorite::fit::joint::parafac::MAX_COMPONENTS;
     if list.is_empty() || list.iter().any(|&k| k == 0 || k > max) {
         return Err(format!("{text:?}: components must be 1 to {max}"));
     }

@@ -10,17 +10,14 @@
 //! 4. inner-filter correction from an absorbance spectrum ([`correct::inner_filter`]);
 //! 5. masking first- and second-order Rayleigh and water-Raman scatter ([`scatter`]).
 //!
-//! Sets of prepared EEMs are fitted jointly by [`joint`] (non-negative PARAFAC,
-//! [`parafac`], judged by [`diagnostics`]).
+//! Sets of prepared EEMs are fitted jointly by [`crate::fit::joint`] (non-negative
+//! PARAFAC, judged by core consistency and split-half).
 //!
 //! A radiance-factor matrix passes through untouched, so surface fits are unchanged.
 //! Every step is recorded in a [`Preprocessing`] report (the fit report's
 //! `preprocessing` block) and as notes on the measurement.
 
 pub mod correct;
-pub mod diagnostics;
-pub mod joint;
-pub mod parafac;
 pub mod scatter;
 pub mod units;
 

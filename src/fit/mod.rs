@@ -19,6 +19,9 @@
 //!   warnings of the failure regimes.
 //! - [`series`]: the joint fit of a surface concentration series (shared r, a, e and
 //!   yield, one c per file), which separates c from Q.
+//! - [`joint`]: the joint fit of a set of prepared EEMs ([`crate::eem`]): non-negative
+//!   PARAFAC, shapes shared by the samples and a score per sample, judged by core
+//!   consistency and split-half.
 
 pub mod assess;
 pub mod checks;
@@ -26,6 +29,7 @@ mod colour_term;
 pub mod data;
 mod grid_material;
 pub mod init;
+pub mod joint;
 pub mod objective;
 mod options;
 pub mod parametric;

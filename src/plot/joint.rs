@@ -8,8 +8,8 @@ use plotters::style::text_anchor::{HPos, VPos};
 use super::common::TAB10;
 use super::common::{Draw, DrawResult, anchored, bold, draw_text, font, render_named};
 use super::{ImageFormat, Layout};
-use crate::eem::joint::JointFit;
 use crate::error::Result;
+use crate::fit::joint::JointFit;
 
 /// Size of the components figure in pixels.
 pub const SIZE: (u32, u32) = (1500, 560);

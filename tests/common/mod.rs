@@ -127,9 +127,9 @@ pub fn dorrit_classic() -> Option<Vec<(String, fluorite::measurement::Measuremen
 
 /// The classic Dorrit joint fit: emission 250–681 nm, excitation 230–315 nm, four
 /// components, with or without the split-half diagnostic.
-pub fn dorrit_classic_options(split_half: bool) -> fluorite::eem::joint::JointOptions {
-    fluorite::eem::joint::JointOptions {
-        parafac: fluorite::eem::parafac::ParafacOptions {
+pub fn dorrit_classic_options(split_half: bool) -> fluorite::fit::joint::JointOptions {
+    fluorite::fit::joint::JointOptions {
+        parafac: fluorite::fit::joint::parafac::ParafacOptions {
             components: 4,
             ..Default::default()
         },

@@ -2,18 +2,21 @@
 //! shapes all samples share, one non-negative score per sample and component — the
 //! non-negative PARAFAC spectroscopists fit with drEEM, staRdom or tensorly, with this
 //! project's normalisations (max a = 1, ∫e dλ = 1; the scores carry the scale) and one
-//! closed-form start ([`super::parafac`]).
+//! closed-form start ([`parafac`]).
+
+pub mod diagnostics;
+pub mod parafac;
 
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::diagnostics::{SplitHalf, core_consistency, split_half};
-use super::parafac::{Factors, ParafacOptions, Tensor, fit};
 use crate::error::{Error, Result};
 use crate::material::{FitReport, FluorophoreShapes, SHAPES_SCHEMA};
 use crate::measurement::Measurement;
 use crate::spectrum::{Spectrum, bin_widths};
+use diagnostics::{SplitHalf, core_consistency, split_half};
+use parafac::{Factors, ParafacOptions, Tensor, fit};
 
 /// Schema tag of a joint model file.
 pub const JOINT_SCHEMA: &str = "fluorite-parafac/1";
