@@ -8,6 +8,7 @@ mod common;
 use std::path::PathBuf;
 
 use fluorite::fit::joint::parafac::ParafacOptions;
+use fluorite::fit::joint::reference::Reference;
 use fluorite::fit::joint::{JointOptions, fit_joint};
 use fluorite::measurement::{Measurement, Units};
 
@@ -202,6 +203,28 @@ fn synthetic_shapes_scores_and_core_consistency() {
         }
     }
     assert!(fit.core_consistency > 90.0, "{}", fit.core_consistency);
+    // The true scores as a reference file: each analyte is matched to the component
+    // whose emission is its own (found above by shape alone), with R² near 1; the
+    // samples are named in another case, and one reference row names no sample.
+    let mut csv = String::from("sample,first,second,third\n");
+    for (s, truth) in scores.iter().enumerate() {
+        csv.push_str(&format!("S{s},{},{},{}\n", truth[0], truth[1], truth[2]));
+    }
+    csv.push_str("blank,0,0,0\n");
+    let reference = Reference::parse(std::path::Path::new("truth.csv"), &csv).unwrap();
+    let matches = reference.best_matches(&fit);
+    for (k, [_, em_true]) in shapes.iter().enumerate() {
+        let own = (0..3)
+            .max_by(|&a, &b| {
+                tucker(&fit.components[a].emission.value, em_true)
+                    .total_cmp(&tucker(&fit.components[b].emission.value, em_true))
+            })
+            .unwrap();
+        let m = &matches[k];
+        assert_eq!(m.component, own + 1, "{m:?}");
+        assert_eq!(m.samples, 24);
+        assert!(m.r_squared > 0.99, "{m:?}");
+    }
     let split = fit.split_half.as_ref().unwrap();
     assert!(split.validated, "{split:?}");
     let over = fit_joint(&measurements, &options(5)).unwrap();

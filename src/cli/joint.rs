@@ -8,14 +8,15 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use fluorite::files::write_files;
-use fluorite::fit::joint::diagnostics::r_squared;
 use fluorite::fit::joint::parafac::ParafacOptions;
-use fluorite::fit::joint::{JointFit, JointOptions, fit_joint};
+use fluorite::fit::joint::reference::Reference;
+use fluorite::fit::joint::{JointOptions, fit_joint};
 use fluorite::formats::ReadOptions;
 use fluorite::measurement::Measurement;
 use fluorite::plot::ImageFormat;
 
 use crate::cli::fit::FitArgs;
+use crate::cli::printer;
 
 /// The joint-fit options of `fluorite fit`.
 #[derive(clap::Args, Debug, Clone)]
@@ -199,7 +200,7 @@ fn run_eem_set(args: &FitArgs, eems: &[Measurement]) -> anyhow::Result<ExitCode>
     let reference = joint
         .reference
         .as_ref()
-        .map(|p| read_reference(p))
+        .map(|p| Reference::read(p))
         .transpose()?;
     if !args.quiet {
         println!(
@@ -257,207 +258,17 @@ fn run_eem_set(args: &FitArgs, eems: &[Measurement]) -> anyhow::Result<ExitCode>
         let figure = fluorite::plot::joint::components(&fit, format)?;
         files.push((dir.join("components.png"), figure));
         write_files(&files)?;
-        let matches = reference.as_ref().map(|r| match_reference(&fit, r));
+        let matches = reference.as_ref().map(|r| r.best_matches(&fit));
         if !args.quiet {
-            let names = reference.as_ref().map(|r| r.analytes.as_slice());
-            print!("{}", summary(&fit, &dir, matches.as_deref(), names));
+            print!("{}", printer::joint_summary(&fit, &dir, matches.as_deref()));
         }
-        rows.push(sweep_row(&fit, matches.as_deref()));
+        rows.push(printer::joint_sweep_row(&fit, matches.as_deref()));
     }
     if ks.len() > 1 || args.table {
-        let table = sweep_table(&rows, reference.as_ref());
+        let table = printer::joint_sweep_table(&rows, reference.as_ref());
         print!("{table}");
         std::fs::create_dir_all(&out)?;
         fluorite::files::write_atomic(&out.join("sweep.md"), table.as_bytes())?;
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Known concentrations: analyte names and, per sample, one value per analyte.
-struct Reference {
-    analytes: Vec<String>,
-    samples: Vec<(String, Vec<f64>)>,
-}
-
-fn read_reference(path: &Path) -> anyhow::Result<Reference> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("--reference {}", path.display()))?;
-    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-    let header = lines
-        .next()
-        .with_context(|| format!("--reference {}: empty file", path.display()))?;
-    let analytes: Vec<String> = header.split(',').skip(1).map(|s| s.trim().into()).collect();
-    let mut samples = Vec::new();
-    for (n, line) in lines.enumerate() {
-        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-        let values = cells[1..]
-            .iter()
-            .map(|c| c.parse::<f64>())
-            .collect::<Result<Vec<f64>, _>>()
-            .map_err(|_| {
-                anyhow::anyhow!(
-                    "{}:{}: expected a sample name and {} numbers (one per analyte of the header)",
-                    path.display(),
-                    n + 2,
-                    analytes.len()
-                )
-            })?;
-        if values.len() != analytes.len() {
-            anyhow::bail!(
-                "{}:{}: {} values for {} analytes",
-                path.display(),
-                n + 2,
-                values.len(),
-                analytes.len()
-            );
-        }
-        samples.push((cells[0].to_string(), values));
-    }
-    Ok(Reference { analytes, samples })
-}
-
-/// Per analyte: the best-matching component (1-based) and its R², over the samples in
-/// both the fit and the reference.
-fn match_reference(fit: &JointFit, r: &Reference) -> Vec<(usize, f64)> {
-    (0..r.analytes.len())
-        .map(|a| {
-            let pairs: Vec<(usize, f64)> = fit
-                .samples
-                .iter()
-                .enumerate()
-                .filter_map(|(s, name)| {
-                    r.samples
-                        .iter()
-                        .find(|(n, _)| n.eq_ignore_ascii_case(name))
-                        .map(|(_, v)| (s, v[a]))
-                })
-                .collect();
-            let truth: Vec<f64> = pairs.iter().map(|p| p.1).collect();
-            (0..fit.components.len())
-                .map(|c| {
-                    let scores: Vec<f64> = pairs.iter().map(|p| fit.scores[p.0][c]).collect();
-                    (c + 1, r_squared(&scores, &truth))
-                })
-                .filter(|p| p.1.is_finite())
-                .max_by(|x, y| x.1.total_cmp(&y.1))
-                .unwrap_or((0, f64::NAN))
-        })
-        .collect()
-}
-
-fn split_text(fit: &JointFit) -> String {
-    match &fit.split_half {
-        Some(s) => format!(
-            "min Tucker congruence {:.3} ({})",
-            s.min_congruence,
-            if s.validated {
-                "validated, ≥ 0.95"
-            } else {
-                "NOT validated, < 0.95"
-            }
-        ),
-        None if fit.samples.len() < 4 => "not run (it needs at least 4 samples)".into(),
-        None => "skipped (--no-split-half)".into(),
-    }
-}
-
-fn summary(
-    fit: &JointFit,
-    dir: &Path,
-    matches: Option<&[(usize, f64)]>,
-    analytes: Option<&[String]>,
-) -> String {
-    let k = fit.components.len();
-    let mut out = format!(
-        "K = {k} → {}/ (model.json, scores.csv, component-*.json, components.png)\n  explained variance {:.4} %, core consistency {:.1} %, split-half {}\n  {} sweeps ({}), fit {:.1} ms (+ {:.1} ms diagnostics); {} cells fitted, {} missing or masked\n",
-        dir.display().to_string().trim_end_matches('/'),
-        100.0 * fit.explained_variance,
-        fit.core_consistency,
-        split_text(fit),
-        fit.iterations,
-        if fit.converged {
-            "converged"
-        } else {
-            "NOT converged: raise --max-iterations"
-        },
-        1e3 * fit.seconds,
-        1e3 * fit.diagnostics_seconds,
-        fit.measured_cells,
-        fit.missing_cells
-    );
-    for (c, comp) in fit.components.iter().enumerate() {
-        out.push_str(&format!(
-            "  component {}: excitation max {} nm, emission max {} nm, {:.1} % of the model\n",
-            c + 1,
-            comp.peak_excitation_nm,
-            comp.peak_emission_nm,
-            100.0 * comp.share
-        ));
-    }
-    if let Some((worst, r)) = fit
-        .samples
-        .iter()
-        .zip(&fit.residual_per_sample)
-        .max_by(|a, b| a.1.total_cmp(b.1))
-    {
-        out.push_str(&format!(
-            "  residual per sample (RMS relative): worst {worst} {:.2} %, median {:.2} % (scores.csv lists all)\n",
-            100.0 * r,
-            100.0 * fluorite::numeric::median(&fit.residual_per_sample)
-        ));
-    }
-    if let (Some(m), Some(names)) = (matches, analytes) {
-        for ((c, r2), name) in m.iter().zip(names) {
-            out.push_str(&format!(
-                "  {name}: best component {c}, R² {r2:.4} (squared Pearson correlation of scores and reference)\n"
-            ));
-        }
-    }
-    out
-}
-
-fn sweep_row(fit: &JointFit, matches: Option<&[(usize, f64)]>) -> Vec<String> {
-    let mut row = vec![
-        fit.components.len().to_string(),
-        format!("{:.3}", 100.0 * fit.explained_variance),
-        format!("{:.1}", fit.core_consistency),
-        fit.split_half
-            .as_ref()
-            .map(|s| format!("{:.3}", s.min_congruence))
-            .unwrap_or_else(|| "–".into()),
-        format!(
-            "{:.2}",
-            100.0 * fluorite::numeric::median(&fit.residual_per_sample)
-        ),
-        fit.iterations.to_string(),
-        format!("{:.1}", 1e3 * fit.seconds),
-    ];
-    if let Some(m) = matches {
-        row.extend(m.iter().map(|(c, r2)| format!("{r2:.3} (C{c})")));
-    }
-    row
-}
-
-fn sweep_table(rows: &[Vec<String>], reference: Option<&Reference>) -> String {
-    let mut header = vec![
-        "K",
-        "explained %",
-        "core consistency %",
-        "split-half min congruence",
-        "median residual %",
-        "sweeps",
-        "fit ms",
-    ]
-    .into_iter()
-    .map(String::from)
-    .collect::<Vec<_>>();
-    if let Some(r) = reference {
-        header.extend(r.analytes.iter().map(|a| format!("R² {a}")));
-    }
-    let mut out = format!("| {} |\n", header.join(" | "));
-    out.push_str(&format!("|{}\n", "---|".repeat(header.len())));
-    for row in rows {
-        out.push_str(&format!("| {} |\n", row.join(" | ")));
-    }
-    out
 }

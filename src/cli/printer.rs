@@ -1,5 +1,5 @@
 //! What `fluorite fit` and `fluorite check` print: fit's per-file summary and Markdown
-//! tables, check's report (output formatting apart from the commands and the library, as
+//! tables (and those of the joint fits), check's report (output formatting apart from the commands and the library, as
 //! ripgrep keeps its printer).
 
 use std::collections::BTreeMap;
@@ -8,6 +8,8 @@ use std::path::Path;
 use fluorite::YieldForm;
 use fluorite::check::{CheckReport, FORM_TOLERANCE, Law, Status};
 use fluorite::fit::FitOutcome;
+use fluorite::fit::joint::JointFit;
+use fluorite::fit::joint::reference::{AnalyteMatch, Reference};
 use fluorite::fit::series::SeriesFit;
 use fluorite::measurement::Measurement;
 
@@ -449,6 +451,127 @@ pub fn series_summary(fit: &SeriesFit) -> String {
     );
     for w in &fit.warnings {
         out += &format!("  warning: {w}\n");
+    }
+    out
+}
+
+/// The split-half verdict in words.
+fn split_text(fit: &JointFit) -> String {
+    match &fit.split_half {
+        Some(s) => format!(
+            "min Tucker congruence {:.3} ({})",
+            s.min_congruence,
+            if s.validated {
+                "validated, ≥ 0.95"
+            } else {
+                "NOT validated, < 0.95"
+            }
+        ),
+        None if fit.samples.len() < 4 => "not run (it needs at least 4 samples)".into(),
+        None => "skipped (--no-split-half)".into(),
+    }
+}
+
+/// What `fit --joint` prints for one EEM fit: where it went, how good it is (explained
+/// variance, core consistency, split-half), its components, residuals and, with a
+/// reference, each analyte's best component.
+pub fn joint_summary(fit: &JointFit, dir: &Path, matches: Option<&[AnalyteMatch]>) -> String {
+    let k = fit.components.len();
+    let mut out = format!(
+        "K = {k} → {}/ (model.json, scores.csv, component-*.json, components.png)\n  explained variance {:.4} %, core consistency {:.1} %, split-half {}\n  {} sweeps ({}), fit {:.1} ms (+ {:.1} ms diagnostics); {} cells fitted, {} missing or masked\n",
+        dir.display().to_string().trim_end_matches('/'),
+        100.0 * fit.explained_variance,
+        fit.core_consistency,
+        split_text(fit),
+        fit.iterations,
+        if fit.converged {
+            "converged"
+        } else {
+            "NOT converged: raise --max-iterations"
+        },
+        1e3 * fit.seconds,
+        1e3 * fit.diagnostics_seconds,
+        fit.measured_cells,
+        fit.missing_cells
+    );
+    for (c, comp) in fit.components.iter().enumerate() {
+        out.push_str(&format!(
+            "  component {}: excitation max {} nm, emission max {} nm, {:.1} % of the model\n",
+            c + 1,
+            comp.peak_excitation_nm,
+            comp.peak_emission_nm,
+            100.0 * comp.share
+        ));
+    }
+    if let Some((worst, r)) = fit
+        .samples
+        .iter()
+        .zip(&fit.residual_per_sample)
+        .max_by(|a, b| a.1.total_cmp(b.1))
+    {
+        out.push_str(&format!(
+            "  residual per sample (RMS relative): worst {worst} {:.2} %, median {:.2} % (scores.csv lists all)\n",
+            100.0 * r,
+            100.0 * fluorite::numeric::median(&fit.residual_per_sample)
+        ));
+    }
+    for m in matches.into_iter().flatten() {
+        out.push_str(&format!(
+            "  {}: best component {}, R² {:.4} (squared Pearson correlation of scores and reference)\n",
+            m.analyte, m.component, m.r_squared
+        ));
+    }
+    out
+}
+
+/// One row of the joint fit's sweep table ([`joint_sweep_table`]).
+pub fn joint_sweep_row(fit: &JointFit, matches: Option<&[AnalyteMatch]>) -> Vec<String> {
+    let mut row = vec![
+        fit.components.len().to_string(),
+        format!("{:.3}", 100.0 * fit.explained_variance),
+        format!("{:.1}", fit.core_consistency),
+        fit.split_half
+            .as_ref()
+            .map(|s| format!("{:.3}", s.min_congruence))
+            .unwrap_or_else(|| "–".into()),
+        format!(
+            "{:.2}",
+            100.0 * fluorite::numeric::median(&fit.residual_per_sample)
+        ),
+        fit.iterations.to_string(),
+        format!("{:.1}", 1e3 * fit.seconds),
+    ];
+    if let Some(m) = matches {
+        row.extend(
+            m.iter()
+                .map(|m| format!("{:.3} (C{})", m.r_squared, m.component)),
+        );
+    }
+    row
+}
+
+/// The Markdown table over the fitted K (`fit --joint --components 2,3,4`): quality per K
+/// and, with a reference, R² per analyte.
+pub fn joint_sweep_table(rows: &[Vec<String>], reference: Option<&Reference>) -> String {
+    let mut header = vec![
+        "K",
+        "explained %",
+        "core consistency %",
+        "split-half min congruence",
+        "median residual %",
+        "sweeps",
+        "fit ms",
+    ]
+    .into_iter()
+    .map(String::from)
+    .collect::<Vec<_>>();
+    if let Some(r) = reference {
+        header.extend(r.analytes.iter().map(|a| format!("R² {a}")));
+    }
+    let mut out = format!("| {} |\n", header.join(" | "));
+    out.push_str(&format!("|{}\n", "---|".repeat(header.len())));
+    for row in rows {
+        out.push_str(&format!("| {} |\n", row.join(" | ")));
     }
     out
 }

@@ -6,6 +6,7 @@
 
 pub mod diagnostics;
 pub mod parafac;
+pub mod reference;
 
 use std::time::Instant;
 
