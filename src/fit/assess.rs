@@ -2,12 +2,52 @@
 
 use std::collections::BTreeMap;
 
-use crate::colour::{Lab, Light, PatchColorimeter, delta_e2000};
+use crate::colour::{Lab, Light, PatchColorimeter, Xyz, delta_e2000};
 use crate::material::{FitReport, Material};
 use crate::measurement::Measurement;
 use crate::model::predict_like;
 
+use super::colour_term::ColourTerm;
 use super::data::{Cell, FitData};
+
+/// How many times the reference colour's noise (RMS ΔE76 over noise draws) a colour
+/// difference may reach and still be the noise's doing: about 95 % of draws stay within
+/// twice the RMS.
+pub const NOISE_COVERAGE: f64 = 2.0;
+
+/// Per light, the RMS ΔE76 that cell noise of level `sigma` alone gives the measured
+/// patch colour `reference` (XYZ per light) on the grids of `data`.
+pub fn colour_noise(data: &FitData, lights: &[Light], reference: &[Xyz], sigma: f64) -> Vec<f64> {
+    ColourTerm::new(data, lights, reference, 0.0, sigma).noise_delta_e
+}
+
+/// Per light, the ΔE2000 a fit must stay within: `bound`, or the difference the
+/// reference's noise explains ([`NOISE_COVERAGE`] × `noise`) where that is larger. A
+/// colour difference the measurement's own noise explains is no evidence of a model
+/// missing something, and fitting it means fitting noise.
+pub fn noise_aware_bounds(bound: f64, lights: &[Light], noise: &[f64]) -> BTreeMap<String, f64> {
+    lights
+        .iter()
+        .zip(noise)
+        .map(|(light, n)| (light.name.clone(), bound.max(NOISE_COVERAGE * n)))
+        .collect()
+}
+
+/// The light under which `delta_e2000` exceeds its bound in `bounds` the most (by ratio),
+/// with its ΔE2000; None when every light is within its bound.
+pub fn worst_excess(
+    delta_e2000: &BTreeMap<String, f64>,
+    bounds: &BTreeMap<String, f64>,
+) -> Option<(String, f64)> {
+    delta_e2000
+        .iter()
+        .filter_map(|(light, de)| {
+            let bound = bounds.get(light)?;
+            (*de > *bound || !de.is_finite()).then_some((light, *de, *de / bound))
+        })
+        .max_by(|a, b| a.2.total_cmp(&b.2))
+        .map(|(light, de, _)| (light.clone(), de))
+}
 
 /// Accuracy figures of a fit.
 #[derive(Debug, Clone, Default)]

@@ -121,15 +121,20 @@ impl FitData {
 
     /// Robust noise level: 1.4826 × the median absolute deviation of the anti-Stokes
     /// cells, which hold only noise on real surfaces. With fewer than ten anti-Stokes cells
-    /// (a layout without them, such as the spectral EXR) it is the roughness of the Stokes
-    /// cells along emission instead: the spread of their second differences, which a
-    /// smooth emission band hardly has (the values' own spread would read the signal as
-    /// noise).
+    /// (a layout without them, such as the spectral EXR), or when they do not spread at
+    /// all (an instrument that writes exact zeros there, or noise-free data), it is the
+    /// roughness of the Stokes cells along emission instead: the spread of their second
+    /// differences, which a smooth emission band hardly has (the values' own spread would
+    /// read the signal as noise). A σ of 0 would make every cell infinitely significant.
     pub fn noise_sigma(&self) -> f64 {
         if self.anti_stokes.len() >= 10 {
-            return robust_sigma(self.anti_stokes.iter().map(|c| c.value));
+            let sigma = robust_sigma(self.anti_stokes.iter().map(|c| c.value));
+            if sigma > 0.0 {
+                return sigma;
+            }
         }
         roughness_sigma(&self.stokes)
+            .filter(|s| *s > 0.0)
             .unwrap_or_else(|| robust_sigma(self.off_diagonal.iter().map(|c| c.value)))
     }
 }
@@ -244,5 +249,28 @@ mod tests {
                 0.05 * (-((450.0 + 5.0 * c.column as f64 - 560.0) / 40.0).powi(2) / 2.0).exp();
         }
         assert!(roughness_sigma(&cells).unwrap() < 2e-4);
+    }
+
+    /// An instrument that writes exact zeros below the diagonal: the anti-Stokes cells do
+    /// not spread, so the noise comes from the Stokes cells' roughness (σ known).
+    #[test]
+    fn exact_zeros_below_the_diagonal_do_not_make_the_noise_zero() {
+        let sigma = 1e-3;
+        let mut spec = crate::synth::SynthSpec::preset("green-dye").unwrap();
+        spec.noise_sigma = sigma;
+        spec.crosstalk = 0.0;
+        let (mut m, _) = spec.generate().unwrap();
+        let n_em = m.emission_nm.len();
+        for (i, excitation) in m.excitation_nm.iter().enumerate() {
+            for (j, emission) in m.emission_nm.iter().enumerate() {
+                if emission < excitation {
+                    m.values[i * n_em + j] = 0.0;
+                }
+            }
+        }
+        let data = FitData::new(&m, 0.0);
+        assert!(data.anti_stokes.len() >= 10);
+        let estimate = data.noise_sigma();
+        assert!((estimate / sigma - 1.0).abs() < 0.3, "{estimate}");
     }
 }
