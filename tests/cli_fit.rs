@@ -274,3 +274,71 @@ fn bad_options_fail_cleanly() {
         &["nonsense", "green-dye"],
     );
 }
+
+/// `fit -q --plot --render` writes the figures and the preview but prints nothing.
+#[test]
+fn quiet_fit_with_plot_and_render_prints_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = fluorite(
+        &["synth", "--out", "data", "--preset", "green-dye"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = fluorite(
+        &[
+            "fit",
+            "data/green-dye.csv",
+            "-o",
+            "out/green-dye.json",
+            "--plot",
+            "--render",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        o.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    for file in ["green-dye.json", "green-dye.png", "green-dye-residuals.png"] {
+        assert!(dir.path().join("out").join(file).is_file(), "{file}");
+    }
+}
+
+/// Flags of single fits are refused by `--joint`, naming the flag, rather than ignored.
+#[test]
+fn joint_fit_refuses_single_fit_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = fluorite(
+        &[
+            "synth",
+            "--out",
+            "s",
+            "--preset",
+            "green-dye",
+            "--concentrations",
+            "0.3,0.8",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    for flag in [&["--plot"][..], &["--quantum-yield", "0.5"], &["--strict"]] {
+        let mut args = vec![
+            "fit",
+            "s/green-dye-c0.3.csv",
+            "s/green-dye-c0.8.csv",
+            "--joint",
+        ];
+        args.extend_from_slice(flag);
+        let o = fluorite(&args, dir.path());
+        assert!(!o.status.success());
+        let message = stderr(&o);
+        assert!(
+            message.contains(flag[0]) && message.contains("single fits"),
+            "{message}"
+        );
+        assert_eq!(message.trim().lines().count(), 1, "{message}");
+    }
+}

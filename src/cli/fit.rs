@@ -248,13 +248,13 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                     printer::model_table_row(&m, &outcome)
                 });
                 if args.plot {
-                    crate::cli::plot::plot_fit(&outcome, &m, out)
+                    crate::cli::plot::plot_fit(&outcome, &m, out, args.quiet)
                         .with_context(|| format!("plotting {}", out.display()))?;
                 }
                 if let FitOutcome::Material(material) = &outcome
                     && args.render
                 {
-                    crate::cli::render::preview(material, out)
+                    crate::cli::render::preview(material, out, args.quiet)
                         .with_context(|| format!("rendering {}", out.display()))?;
                 }
             }

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
+use fluorite::eem::UnitsChoice;
 use fluorite::files::write_files;
 use fluorite::fit::joint::parafac::ParafacOptions;
 use fluorite::fit::joint::reference::Reference;
@@ -58,6 +59,9 @@ pub struct NmRange(pub f64, pub f64);
 
 fn parse_components(text: &str) -> Result<ComponentList, String> {
     let bad = || format!("{text:?}: give a count (4), a list (2,3,4,5) or a range (1..6)");
+    let max = fluorite::fit::joint::parafac::MAX_COMPONENTS;
+    let out_of_range = || format!("{text:?}: components must be 1 to {max}");
+    let within = |k: usize| (1..=max).contains(&k);
     let list: Vec<usize> = if let Some((lo, hi)) = text.split_once("..") {
         let lo: usize = lo.trim().parse().map_err(|_| bad())?;
         let hi: usize = hi
@@ -65,15 +69,18 @@ fn parse_components(text: &str) -> Result<ComponentList, String> {
             .trim_start_matches('=')
             .parse()
             .map_err(|_| bad())?;
+        // Checked before the range is built: `1..4000000000` must not allocate.
+        if !(within(lo) && within(hi)) {
+            return Err(out_of_range());
+        }
         (lo..=hi).collect()
     } else {
         text.split(',')
             .map(|c| c.trim().parse::<usize>().map_err(|_| bad()))
             .collect::<Result<_, _>>()?
     };
-    let max = fluorite::fit::joint::parafac::MAX_COMPONENTS;
-    if list.is_empty() || list.iter().any(|&k| k == 0 || k > max) {
-        return Err(format!("{text:?}: components must be 1 to {max}"));
+    if list.is_empty() || !list.iter().all(|&k| within(k)) {
+        return Err(out_of_range());
     }
     Ok(ComponentList(list))
 }
@@ -105,6 +112,21 @@ fn stem(p: &Path) -> String {
 /// Runs a joint fit of `args.inputs` (`fit --joint`).
 pub fn run(args: &FitArgs, read_options: &ReadOptions) -> anyhow::Result<ExitCode> {
     let joint = &args.joint;
+    // Flags of single fits that a joint fit has no use for: refused, not ignored.
+    let single_fit_only = [
+        ("--quantum-yield", args.quantum_yield.is_some()),
+        ("--concentration", args.concentration.is_some()),
+        ("--model", args.model.is_some()),
+        ("--max-delta-e", args.max_delta_e.is_some()),
+        ("--plot", args.plot),
+        ("--render", args.render),
+        ("--strict", args.strict),
+    ];
+    if let Some((flag, _)) = single_fit_only.iter().find(|(_, given)| *given) {
+        anyhow::bail!(
+            "{flag} applies to single fits, not to --joint (a joint fit writes its own figure and report); leave it out or fit the files one by one"
+        );
+    }
     for name in &joint.exclude {
         if !args
             .inputs
@@ -204,12 +226,21 @@ fn run_eem_set(args: &FitArgs, eems: &[Measurement]) -> anyhow::Result<ExitCode>
         .transpose()?;
     if !args.quiet {
         println!(
-            "joint fit of {} EEMs ({}), scatter masked and units inferred per file as `fit` does",
+            "joint fit of {} EEMs ({}), {} and units {} per file as `fit` does",
             eems.len(),
             eems.iter()
                 .map(|m| m.name.as_str())
                 .collect::<Vec<_>>()
-                .join(", ")
+                .join(", "),
+            if args.eem.keep_scatter {
+                "scatter kept"
+            } else {
+                "scatter masked"
+            },
+            match args.eem.units {
+                UnitsChoice::Auto => "inferred",
+                UnitsChoice::RadianceFactor | UnitsChoice::Arbitrary => "as --units says",
+            }
         );
     }
     let mut rows = Vec::new();
@@ -271,4 +302,26 @@ fn run_eem_set(args: &FitArgs, eems: &[Measurement]) -> anyhow::Result<ExitCode>
         fluorite::files::write_atomic(&out.join("sweep.md"), table.as_bytes())?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn component_lists_are_bounded_before_they_are_built() {
+        assert_eq!(parse_components("2..4").unwrap().0, [2, 3, 4]);
+        assert_eq!(parse_components("1..=2").unwrap().0, [1, 2]);
+        assert_eq!(parse_components("3,5").unwrap().0, [3, 5]);
+        for text in [
+            "1..18446744073709551615",
+            "1..4000000000",
+            "0..3",
+            "4..2",
+            "0",
+            "",
+        ] {
+            assert!(parse_components(text).is_err(), "{text}");
+        }
+    }
 }

@@ -62,11 +62,13 @@ pub fn run(args: PlotArgs) -> anyhow::Result<ExitCode> {
 
 /// Plots a fit just made, handed over in memory (`fit --plot`): the material, or an EEM's
 /// shapes, beside the JSON it was written to, named after it, against the measurement it
-/// was fitted to (as prepared: masked scatter is drawn as masked).
+/// was fitted to (as prepared: masked scatter is drawn as masked). `quiet` (`fit -q`)
+/// prints nothing but what was skipped.
 pub fn plot_fit(
     outcome: &FitOutcome,
     measurement: &fluorite::Measurement,
     material_path: &Path,
+    quiet: bool,
 ) -> anyhow::Result<()> {
     let shapes_material;
     let material = match outcome {
@@ -83,7 +85,11 @@ pub fn plot_fit(
         None,
         ImageFormat::Png,
     )
-    .map(|_| ())
+    .map(|written| {
+        if !quiet {
+            print_written(&written);
+        }
+    })
 }
 
 /// Loads, renders every figure in memory, then writes them all; prints each written path
@@ -99,12 +105,20 @@ fn plot_files(
     let data = data_path
         .map(|p| formats::read(p, read_options))
         .transpose()?;
-    write_figures(&material, data.as_ref(), material_path, output_dir, format)
+    let written = write_figures(&material, data.as_ref(), material_path, output_dir, format)?;
+    print_written(&written);
+    Ok(written)
+}
+
+fn print_written(written: &[PathBuf]) {
+    for path in written {
+        println!("wrote {}", path.display());
+    }
 }
 
 /// Renders every figure of `material` (against `data`) in memory, then writes them all
-/// into `output_dir` or beside `material_path`, named after it; prints each written path
-/// and what was skipped.
+/// into `output_dir` or beside `material_path`, named after it; prints what was skipped
+/// and returns the written paths.
 fn write_figures(
     material: &Material,
     data: Option<&fluorite::Measurement>,
@@ -140,9 +154,6 @@ fn write_figures(
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| material.name.clone());
     let written = plot::write_plots(&plots, &dir, &stem)?;
-    for path in &written {
-        println!("wrote {}", path.display());
-    }
     for reason in &plots.skipped {
         eprintln!("fluorite: skipped {reason}");
     }

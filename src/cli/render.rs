@@ -262,8 +262,9 @@ fn render_picture(
 
 /// Renders the default preview of a material just fitted, handed over in memory (`fit
 /// --render`):
-/// `<stem>.png` next to the material JSON, daylight (D65), default size and samples.
-pub fn preview(material: &Material, material_path: &Path) -> anyhow::Result<()> {
+/// `<stem>.png` next to the material JSON, daylight (D65), default size and samples;
+/// `quiet` (`fit -q`) prints nothing.
+pub fn preview(material: &Material, material_path: &Path, quiet: bool) -> anyhow::Result<()> {
     let (width, height) = parse_size(DEFAULT_SIZE)?;
     let picture = Picture {
         light: Light::parse("d65")?,
@@ -278,7 +279,7 @@ pub fn preview(material: &Material, material_path: &Path) -> anyhow::Result<()> 
         exposure: DEFAULT_EXPOSURE_EV,
         exr: false,
         adapt: true,
-        quiet: false,
+        quiet,
         output: material_path.with_extension("png"),
     };
     render_picture(material, material_path, &picture)
