@@ -79,7 +79,7 @@ pub struct FitArgs {
     pub max_delta_e: Option<f64>,
     /// Weight of the patch spectra under --lights against the matrix residual in
     /// parametric fits (0: matrix only).
-    #[arg(long, default_value_t = fluorite::fit::search::DEFAULT_COLOUR_WEIGHT)]
+    #[arg(long, default_value_t = fluorite::fit::DEFAULT_COLOUR_WEIGHT)]
     pub colour_weight: f64,
     /// Exit with code 1 when a fit did not converge or carries warnings.
     #[arg(long)]

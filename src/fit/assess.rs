@@ -10,6 +10,20 @@ use crate::model::predict_like;
 use super::colour_term::ColourTerm;
 use super::data::{Cell, FitData};
 
+/// Residual RMS above this many noise σ is flagged (single fits and series alike).
+pub const RESIDUAL_NOISE_FACTOR: f64 = 3.0;
+
+/// `--yield auto` takes the photon form only when its objective is lower than the energy
+/// form's by more than this fraction (plus ½σ²): forms that fit equally keep the paper's.
+const YIELD_FORM_MARGIN: f64 = 1e-3;
+
+/// Whether the photon form's objective `photon_cost` (½·RSS) beats the energy form's
+/// `energy_cost` clearly enough to take it, at noise level `sigma`: by more than 0.1 % of
+/// the energy form's objective plus ½σ².
+pub fn photon_form_fits_better(energy_cost: f64, photon_cost: f64, sigma: f64) -> bool {
+    photon_cost < energy_cost - (YIELD_FORM_MARGIN * energy_cost + 0.5 * sigma * sigma)
+}
+
 /// How many times the reference colour's noise (RMS ΔE76 over noise draws) a colour
 /// difference may reach and still be the noise's doing: about 95 % of draws stay within
 /// twice the RMS.

@@ -19,6 +19,11 @@ pub struct RankOne {
     pub cost_history: Vec<f64>,
 }
 
+/// Sweep limit of the rank-1 start. Fluorescent surfaces converge in about ten sweeps;
+/// pure noise (σ₁ ≈ σ₂) converges slowly, and the significance test needs only the
+/// explained energy, which is near its limit long before.
+pub const MAX_SWEEPS: usize = 200;
+
 /// Masked non-negative rank-1 fit by alternating least squares. With exact rank-1 data
 /// it recovers the factors to machine precision in a few sweeps; with noise it converges
 /// linearly at the rate (σ₂/σ₁)², fast for fluorescent surfaces whose matrix is nearly

@@ -53,7 +53,6 @@ use crate::spectrum::Spectrum;
 use data::{FitData, fill_missing};
 use objective::{DiagonalRegime, Objective};
 use representation::{GridSpectra, Representation, Tabulated};
-pub use search::{ModelChoice, ModelRequest};
 
 use options::validate_options;
 pub use options::*;

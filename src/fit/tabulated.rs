@@ -24,15 +24,8 @@ fn patch_reference(m: &Measurement, lights: &[Light]) -> Vec<crate::colour::Xyz>
 /// How many noise-matrix singular values a rank-1 fit must beat to count as signal:
 /// pure noise of level σ on an m×n grid lets a rank-1 fit explain about σ²(√m + √n)².
 const SIGNIFICANCE_FACTOR: f64 = 4.0;
-/// Residual RMS above this many noise σ is flagged.
-const RESIDUAL_NOISE_FACTOR: f64 = 3.0;
 /// Rows whose fitted cells hold less than this share of the emission are unobservable.
 const OBSERVABILITY_THRESHOLD: f64 = 0.05;
-
-/// Sweep limit of the rank-1 start. Fluorescent surfaces converge in about ten sweeps;
-/// pure noise (σ₁ ≈ σ₂) converges slowly, and the significance test needs only the
-/// explained energy, which is near its limit long before.
-pub(super) const MAX_SWEEPS: usize = 200;
 
 /// How much costlier than the closed-form estimate a refined result may end before the
 /// start is blamed (absorbs round-off of costs that agree).
@@ -41,10 +34,6 @@ const POOR_START_MARGIN: f64 = 1e-6;
 /// A refined κ at least this high counts as the photon law binding (`--yield auto`): the
 /// smallest feasible c is 1, so the fluorescence is held at its limit.
 const PHOTON_BINDS_KAPPA: f64 = 0.999;
-
-/// `--yield auto` takes the photon form only when its objective is lower than the energy
-/// form's by more than this fraction (plus ½σ²): forms that fit equally keep the paper's.
-const YIELD_FORM_MARGIN: f64 = 1e-3;
 
 /// One yield form fitted: the objective, the refinement and where it ended.
 struct FormFit<'a> {
@@ -170,7 +159,7 @@ pub(super) fn fit_checked(
     let mut warnings = Vec::new();
 
     // 1. Closed-form start.
-    let start = init::rank_one(&data, MAX_SWEEPS);
+    let start = init::rank_one(&data, init::MAX_SWEEPS);
     let total_energy: f64 = data.off_diagonal.iter().map(|c| c.value * c.value).sum();
     let explained = total_energy
         - 2.0
@@ -308,8 +297,7 @@ pub(super) fn fit_checked(
                 Some(fitted) => fitted,
                 None => refine(YieldForm::Photon)?,
             };
-            let margin = YIELD_FORM_MARGIN * chosen.cost + 0.5 * noise_sigma * noise_sigma;
-            if photon.cost < chosen.cost - margin {
+            if assess::photon_form_fits_better(chosen.cost, photon.cost, noise_sigma) {
                 yield_reason = format!(
                     "photon form (constant Φ): in the energy form the photon law binds (c ≥ {:.3} needed for the cells, so the fluorescence is scaled down) and the photon form fits better (objective {:.4e} against {:.4e})",
                     chosen.kappa_unbounded, photon.cost, chosen.cost
@@ -424,7 +412,7 @@ pub(super) fn fit_checked(
             .iter()
             .filter(|v| v.is_finite())
             .fold(0.0f64, |a, v| a.max(v.abs()));
-    if accuracy.rms_off_diagonal > (RESIDUAL_NOISE_FACTOR * noise_sigma).max(signal_floor) {
+    if accuracy.rms_off_diagonal > (assess::RESIDUAL_NOISE_FACTOR * noise_sigma).max(signal_floor) {
         warnings.push(format!(
             "off-diagonal residual RMS {:.2e} is {:.1}× the noise level σ = {:.2e} (anti-Stokes side): the matrix holds structure one fluorophore with a constant yield does not explain",
             accuracy.rms_off_diagonal,
@@ -570,7 +558,7 @@ fn noise_colour_check(
 /// The factor dividing arbitrary-scale data so that the rank-1 start has κ = ½.
 fn arbitrary_data_scale(m: &Measurement, guard_nm: f64) -> f64 {
     let data = FitData::new(m, guard_nm);
-    let start = init::rank_one(&data, MAX_SWEEPS);
+    let start = init::rank_one(&data, init::MAX_SWEEPS);
     let kappa = start_spectra(&Objective::new(&data, YieldForm::Energy), &start).kappa_unbounded;
     if kappa.is_finite() && kappa > 0.0 {
         kappa / 0.5

@@ -23,7 +23,7 @@ use super::data::FitData;
 use super::init::{Factors, by_column, by_row, fit_factor, masked_nmf};
 use super::parametric::{ModelSpec, PHOTON_SUFFIX, Problem, ReflectanceForm};
 use super::representation::START_KAPPA_CAP;
-use super::{FitOptions, FitOutcome, YieldChoice, assess, solve};
+use super::{FitOptions, FitOutcome, ModelChoice, ModelRequest, YieldChoice, assess, solve};
 
 mod candidate;
 mod model_name;
@@ -31,20 +31,10 @@ mod starts;
 
 use candidate::*;
 
-pub use model_name::{ModelChoice, ModelRequest};
 use starts::*;
 
 /// The axis bands are Gaussian in unless the model name says otherwise.
 pub const DEFAULT_DOMAIN: BandDomain = crate::parametric::fit::DEFAULT_BAND_DOMAIN;
-
-/// Weight of the colour term ½·w·Σ ΔE76² (one term per light, see [`Problem::new`])
-/// against the matrix's ½·Σ r². At 0.01 a ΔE of 1 under one light costs as much as a
-/// residual of 0.1 in one cell. Measured on the six real surfaces (`fluorite fit
-/// ../shared/data/measured/* --max-delta-e 1 --colour-weight w --table`): with 0 (matrix
-/// only) four meet the bound, with larger models (18–52 parameters, 3–10 candidates); 0.01
-/// and 0.1 both meet it on five with the same models, mostly the first candidate. 0.01 is
-/// the smaller weight that does, so the matrix term still decides the shapes.
-pub const DEFAULT_COLOUR_WEIGHT: f64 = 0.01;
 
 /// Highest degree of a sigmoid-polynomial reflectance the search tries before it falls
 /// back to a tabulated reflectance.

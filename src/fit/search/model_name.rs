@@ -2,35 +2,6 @@
 
 use super::*;
 
-/// What model to fit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum ModelChoice {
-    /// One sample per grid wavelength, one fluorophore (the default).
-    #[default]
-    Tabulated,
-    /// The smallest parametric model meeting the rule.
-    Auto,
-    /// A given parametric model.
-    Fixed(ModelRequest),
-}
-
-/// A parametric model as requested: the reflectance may be left to the search.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ModelRequest {
-    /// Fluorescent components K.
-    pub components: usize,
-    /// Bands per absorption spectrum.
-    pub absorption_bands: usize,
-    /// Bands per emission spectrum.
-    pub emission_bands: usize,
-    /// The reflectance; `None` lets the fit choose the degree.
-    pub reflectance: Option<ReflectanceForm>,
-    /// The band axis.
-    pub domain: BandDomain,
-    /// The yield form (`/photon` in the name); `None` leaves it to `--yield`.
-    pub yield_form: Option<YieldForm>,
-}
-
 impl FromStr for ModelChoice {
     type Err = Error;
 

@@ -39,9 +39,6 @@ pub const SERIES_SCHEMA: &str = "fluorite-series/1";
 /// diagonals then barely differ and c, Q come with large errors.
 const SMALL_SPREAD: f64 = 2.0;
 
-/// Residual RMS above this many noise σ is flagged.
-const RESIDUAL_NOISE_FACTOR: f64 = 3.0;
-
 /// Singular values of JᵀJ below this fraction of the largest count as flat directions
 /// in the pseudo-inverse (parameters the data do not constrain get no error from them).
 const PSEUDO_INVERSE_RTOL: f64 = 1e-14;
@@ -333,11 +330,6 @@ pub fn fit_concentration_series(
     Ok(fit)
 }
 
-/// `--yield auto`: the photon form when its objective ½·RSS is lower than the energy
-/// form's by more than this fraction (plus ½σ²), as single fits choose; forms that fit
-/// equally keep the paper's.
-const YIELD_FORM_MARGIN: f64 = 1e-3;
-
 /// The better of the two forms' fits (each with its residual sum of squares), with the
 /// reason; either alone when the other failed.
 fn choose_form(
@@ -346,9 +338,9 @@ fn choose_form(
 ) -> Result<SeriesFit> {
     let (mut fit, reason) = match (energy, photon) {
         (Ok((energy, e)), Ok((photon, p))) => {
-            let margin = YIELD_FORM_MARGIN * 0.5 * e + 0.5 * energy.error_sigma.powi(2);
             let objectives = format!("objective ½·RSS {:.4e} against {:.4e}", 0.5 * p, 0.5 * e);
-            if 0.5 * p < 0.5 * e - margin {
+            // The rule single fits choose by.
+            if assess::photon_form_fits_better(0.5 * e, 0.5 * p, energy.error_sigma) {
                 let reason = format!("photon form (constant Φ): it fits better ({objectives})");
                 (photon, reason)
             } else {
@@ -545,7 +537,7 @@ fn warnings(fit: &SeriesFit, refined: &solve::Refined, names: &[String]) -> Vec<
     // Exact (synthetic) data have a noise estimate of rounding error; below a floor
     // relative to the signal a residual is not worth a warning.
     let signal = fit.reflectance.max().max(1e-300);
-    if fit.residual_sigma > (RESIDUAL_NOISE_FACTOR * fit.noise_sigma).max(1e-7 * signal) {
+    if fit.residual_sigma > (assess::RESIDUAL_NOISE_FACTOR * fit.noise_sigma).max(1e-7 * signal) {
         out.push(format!(
             "residual σ {:.2e} is {:.1}× the noise σ {:.2e}: the files hold structure one material with shared spectra does not explain (another material, another instrument setting, or several fluorophores); the errors are scaled by the residual",
             fit.residual_sigma,

@@ -12,9 +12,8 @@
 use super::model::{SeriesModel, SeriesParameters};
 use crate::error::{Error, Result};
 use crate::fit::data::FitData;
-use crate::fit::init::rank_one;
+use crate::fit::init::{MAX_SWEEPS, rank_one};
 use crate::fit::representation::START_KAPPA_CAP;
-use crate::fit::tabulated::MAX_SWEEPS;
 use crate::material::YieldForm;
 
 /// The shapes the start takes from the strongest file.
