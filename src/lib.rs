@@ -2,9 +2,11 @@
 //! (the BBRRDF of Jung, Hanika, Marschner and Dachsbacher 2018) from measured
 //! bispectral reradiation matrices.
 //!
-//! Data flow one way: [`formats`] read a [`Measurement`]; [`fit`] turns it into a
-//! [`Material`]; downstream modules ([`model`], [`colour`], [`export`], [`plot`],
-//! [`render`]) read only the material (and, for comparisons, the measurement).
+//! Data flow one way: [`formats`] read a [`Measurement`] ([`eem`] prepares raw instrument
+//! EEMs); [`fit`] turns it into a [`Material`] (or, for sets of files, a joint fit);
+//! downstream modules ([`model`], [`colour`], [`check`], [`export`], [`plot`], [`render`])
+//! read the material and the fit's results (and, for comparisons, the measurement), and
+//! never read a measurement or run a fit themselves.
 
 pub mod check;
 pub mod colour;

@@ -1,15 +1,32 @@
-//! The one optimiser runner: every iterative solve in fluorite (the tabulated and
-//! parametric fits, the concentration series, the 1-D band fits) runs through [`run`],
-//! which builds the argmin executor, records the cost after every iteration and reads the
-//! result back as a [`Refined`]. Solvers are argmin's, or fluorite's own argmin
-//! [`Solver`](argmin::core::Solver)s (the Levenberg-Marquardt of
-//! [`crate::parametric`]).
+//! The one optimiser runner: every iterative solve of a model to a matrix or a spectrum in
+//! fluorite (the tabulated and parametric fits, the concentration series, the 1-D band
+//! fits) runs through [`run`], which builds the argmin executor, records the cost after
+//! every iteration and reads the result back as a [`Refined`]; each is given one
+//! [`Stopping`] rule. Solvers are argmin's, or fluorite's own argmin
+//! [`Solver`](argmin::core::Solver)s (the Levenberg-Marquardt of [`crate::parametric`]).
+//! The joint PARAFAC of EEM sets ([`crate::fit::joint::parafac`]) is the one exception:
+//! its sweeps are closed-form non-negative least-squares updates of whole factor matrices
+//! with an extrapolation step, not the iterates of a solver argmin runs, so it keeps its
+//! own loop and its own relative-loss tolerance.
 
 use std::sync::{Arc, Mutex};
 
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, KV, State, TerminationReason, TerminationStatus};
 use nalgebra::DVector;
+
+/// When a solve stops: the one rule type every solver is given (L-BFGS reads both
+/// tolerances; Gauss-Newton, Nelder-Mead and Levenberg-Marquardt the cost change).
+#[derive(Debug, Clone, Copy)]
+pub struct Stopping {
+    /// Iteration limit.
+    pub max_iterations: u64,
+    /// Gradient-norm tolerance (L-BFGS), relative to the data's scale.
+    pub gradient_tolerance: f64,
+    /// Cost-change tolerance, relative to the data's scale (Levenberg-Marquardt: the
+    /// relative cost gain of a step).
+    pub cost_tolerance: f64,
+}
 
 /// What a refinement run produced.
 #[derive(Debug, Clone)]

@@ -1,5 +1,6 @@
 //! Command-line interface: one file per subcommand, each parsing its arguments and
-//! calling the library.
+//! calling the library (`eem` holds `fit`'s raw-EEM flags, `joint` its `--joint` path);
+//! `printer` formats what `fit` and `check` print.
 
 mod bands;
 mod bench;

@@ -1,6 +1,6 @@
 //! What `fluorite fit` and `fluorite check` print: fit's per-file summary and Markdown
-//! tables (and those of the joint fits), check's report (output formatting apart from the commands and the library, as
-//! ripgrep keeps its printer).
+//! tables, the joint and series fits' reports, check's report (output formatting apart
+//! from the commands and the library, as ripgrep keeps its printer).
 
 use std::collections::BTreeMap;
 use std::path::Path;

@@ -287,7 +287,8 @@ pub fn preview(material: &Material, material_path: &Path, quiet: bool) -> anyhow
 
 /// Image size of a picture when `--size` is not given.
 const DEFAULT_SIZE: &str = "640x400";
-/// Image size of `--report` when `--size` is not given (the furnace figure).
+/// Image size of `--report` when `--size` is not given (a furnace patch: small, as noise
+/// per pixel is what it measures).
 const REPORT_SIZE: &str = "128x128";
 /// Renders per rule and light in `--report`; the time is their median.
 const REPORT_RUNS: usize = 5;

@@ -9,7 +9,8 @@
 //! - [`objective`] and [`representation`]: the grid model's cost, gradient and Jacobian
 //!   in either yield form, with the colour term; the parameterisation that keeps every
 //!   iterate feasible.
-//! - [`solve`]: one argmin runner for L-BFGS, Gauss-Newton and Nelder-Mead.
+//! - [`solve`]: L-BFGS, Gauss-Newton and Nelder-Mead, each run by the one optimiser
+//!   runner ([`crate::optimise::run`]).
 //! - `tabulated`: the grid pipeline (start, refinement in one or both yield forms, the
 //!   noise bootstrap); `grid_material`: its spectra turned into a material, a plain
 //!   reflector or shapes.
@@ -21,7 +22,7 @@
 //!   yield, one c per file), which separates c from Q.
 //! - [`joint`]: the joint fit of a set of prepared EEMs ([`crate::eem`]): non-negative
 //!   PARAFAC, shapes shared by the samples and a score per sample, judged by core
-//!   consistency and split-half.
+//!   consistency and split-half, and matched to known concentrations.
 
 pub mod assess;
 pub mod checks;

@@ -118,7 +118,8 @@ pub struct FitOptions {
     /// less than this fraction of the starting cost, or the gradient norm falls below
     /// this fraction of the data's norm.
     pub tolerance: f64,
-    /// Lights for the ΔE2000 report.
+    /// Lights of the ΔE2000 report, of the colour term the fits weigh, and of the search's
+    /// bound.
     pub lights: Vec<Light>,
     /// Starting point of the iterative solvers.
     pub start: Start,
@@ -127,8 +128,9 @@ pub struct FitOptions {
     /// The search's bound: the first model with ΔE2000 at most this under every light in
     /// `lights` is chosen (without it the search takes the lowest BIC).
     pub max_delta_e: Option<f64>,
-    /// Weight of the patch spectra under `lights` against the matrix residual in the
-    /// objective of parametric models.
+    /// Weight of the patch colour under `lights` against the matrix residual in the
+    /// objective (grid and parametric models alike; the grid fit scales it by the share of
+    /// its start's residual that noise does not explain).
     pub colour_weight: f64,
 }
 

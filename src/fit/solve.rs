@@ -14,22 +14,11 @@ use argmin::solver::quasinewton::LBFGS;
 use nalgebra::{DMatrix, DVector};
 
 pub use crate::optimise::Refined;
-use crate::optimise::run;
+use crate::optimise::{Stopping, run};
 
 use super::Solver;
 use super::objective::Objective;
 use super::representation::{GridSpectra, Representation};
-
-/// Stopping rules for the iterative solvers.
-#[derive(Debug, Clone, Copy)]
-pub struct Stopping {
-    /// Iteration limit.
-    pub max_iterations: u64,
-    /// Gradient-norm tolerance (L-BFGS), relative to the data's scale.
-    pub gradient_tolerance: f64,
-    /// Cost-change tolerance, relative to the data's scale.
-    pub cost_tolerance: f64,
-}
 
 /// A point θ with its cost and θ-gradient.
 type Evaluation = (Vec<f64>, f64, Vec<f64>);

@@ -70,7 +70,7 @@ fn refine_form<'a>(
     // problem's scale: a worse start must not loosen the criterion).
     let start_cost = objective.cost_gradient(&start_spectra).0;
     let scale_cost = objective.cost_gradient(&closed_form).0;
-    let stopping = solve::Stopping {
+    let stopping = crate::optimise::Stopping {
         max_iterations: options.max_iterations,
         gradient_tolerance: options.tolerance * energy_scale.sqrt().max(1e-300),
         cost_tolerance: options.tolerance * scale_cost.max(1e-300),

@@ -16,7 +16,7 @@ use super::{
 };
 use crate::error::{Error, Result};
 
-use super::lm::{LeastSquares, SEED_STOP_GAIN, STOP_GAIN, levenberg_marquardt};
+use super::lm::{LeastSquares, SEED_STOPPING, STOPPING, levenberg_marquardt};
 
 /// The band domain fits use unless told otherwise: wavenumber, because real dyes need
 /// fewer bands in it.
@@ -198,7 +198,7 @@ pub fn fit_sigmoid_polynomial(
         root_weight: &root_weight,
         count,
     };
-    let cost = levenberg_marquardt(&problem, &mut coefficients, STOP_GAIN, SOLVER_ITERATIONS);
+    let cost = levenberg_marquardt(&problem, &mut coefficients, STOPPING);
     if !(cost.is_finite() && coefficients.iter().all(|c| c.is_finite())) {
         return Err(Error::Fit(
             "the reflectance fit diverged (non-finite coefficients); check that the values are a reflectance in about [0, 1]"
@@ -214,9 +214,6 @@ pub fn fit_sigmoid_polynomial(
         rms: cost.sqrt(),
     })
 }
-
-/// Iteration limit of the solver; each fit converges in far fewer on spectra.
-const SOLVER_ITERATIONS: usize = 200;
 
 /// Checks that `nm` and `values` are usable samples: as many of each, at least
 /// `min_samples`, finite, wavelengths positive and strictly increasing.
@@ -312,7 +309,7 @@ fn grow_bands(
             trial.extend_from_slice(&band);
             problem.set_heights(&mut trial);
             problem.project(&mut trial);
-            let cost = levenberg_marquardt(&problem, &mut trial, SEED_STOP_GAIN, SOLVER_ITERATIONS);
+            let cost = levenberg_marquardt(&problem, &mut trial, SEED_STOPPING);
             if best.as_ref().is_none_or(|(c, _)| cost < *c) {
                 best = Some((cost, trial));
             }
@@ -323,7 +320,7 @@ fn grow_bands(
         // The next count grows from the loosely converged seed, and every fit returned
         // is polished from it, so fit_bands(…, n) equals the n-th fit of any search.
         let mut polished = seed.clone();
-        levenberg_marquardt(&problem, &mut polished, STOP_GAIN, SOLVER_ITERATIONS);
+        levenberg_marquardt(&problem, &mut polished, STOPPING);
         params = seed;
         let fit = problem.result(&polished)?;
         let accepted = done(&fit);

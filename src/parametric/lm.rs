@@ -5,6 +5,7 @@ use argmin::core::{IterState, KV, Problem, Solver, State, TerminationReason, Ter
 use nalgebra::{DMatrix, DVector};
 
 use crate::numeric::dot;
+use crate::optimise::Stopping;
 
 /// A nonlinear least-squares problem: minimise Σᵢ rᵢ(p)².
 pub(super) trait LeastSquares {
@@ -256,22 +257,26 @@ impl<P: LeastSquares> Solver<P, LmState> for LevenbergMarquardt {
 
 /// Minimises Σ r² from `params` (updated in place) by [`LevenbergMarquardt`] through the
 /// one optimiser runner ([`crate::optimise::run`]); returns the final Σ r². Stops when a
-/// step gains less than `stop_gain` times the cost, when the damping shows no step can
-/// gain, or after `max_iterations` linear solves.
+/// step gains less than `stopping.cost_tolerance` times the cost, when the damping shows
+/// no step can gain, or after `stopping.max_iterations` linear solves.
 pub(super) fn levenberg_marquardt(
     problem: &impl LeastSquares,
     params: &mut [f64],
-    stop_gain: f64,
-    max_iterations: usize,
+    stopping: Stopping,
 ) -> f64 {
-    let solver = LevenbergMarquardt::new(problem.residual_count(), params.len(), stop_gain);
+    let solver = LevenbergMarquardt::new(
+        problem.residual_count(),
+        params.len(),
+        stopping.cost_tolerance,
+    );
+    let max_iterations = stopping.max_iterations;
     let start = DVector::from_column_slice(params);
     // The solver reports a bad start (NaN cost) as its own stop, so the runner fails only
     // on argmin's internal errors; the start is then kept.
     let refined = crate::optimise::run(
         problem,
         solver,
-        |state: LmState| state.param(start).max_iters(max_iterations as u64),
+        |state: LmState| state.param(start).max_iters(max_iterations),
         params,
         "Levenberg-Marquardt",
     );
@@ -288,10 +293,18 @@ pub(super) fn levenberg_marquardt(
     residuals.iter().map(|r| r * r).sum()
 }
 
-/// The relative cost gain below which a fit stops: parameters are then settled far below
-/// any spectrum's measurement noise.
-pub(super) const STOP_GAIN: f64 = 1e-10;
+/// How a fit stops: when a step gains less than 1e-10 of the cost (parameters are then
+/// settled far below any spectrum's measurement noise), after at most 200 linear solves
+/// (each fit converges in far fewer on spectra).
+pub(super) const STOPPING: Stopping = Stopping {
+    max_iterations: 200,
+    gradient_tolerance: 0.0,
+    cost_tolerance: 1e-10,
+};
 
-/// The relative cost gain below which a fit that only seeds the next band count stops:
-/// the next band's start hardly depends on the last digits.
-pub(super) const SEED_STOP_GAIN: f64 = 1e-4;
+/// How a fit that only seeds the next band count stops: at a relative gain of 1e-4 (the
+/// next band's start hardly depends on the last digits).
+pub(super) const SEED_STOPPING: Stopping = Stopping {
+    cost_tolerance: 1e-4,
+    ..STOPPING
+};

@@ -9,6 +9,9 @@
 //!    ([`swatches`]);
 //! 4. convergence — solver cost per iteration ([`convergence`]).
 //!
+//! Beside them: the joint fit's components and scores ([`joint`]) and the charts of the
+//! bench and stability commands ([`evaluation`]).
+//!
 //! Every figure is rendered into memory first ([`plot`]); only when all of them succeeded
 //! are they written ([`write_plots`]), each through a temporary file renamed into place,
 //! so a failed run leaves no partial output.

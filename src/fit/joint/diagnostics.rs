@@ -1,6 +1,7 @@
 //! What users of drEEM and staRdom judge a PARAFAC model by: core consistency
 //! (CORCONDIA, Bro & Kiers 2003), split-half validation with Tucker congruence, and the
-//! squared correlation of scores against known concentrations.
+//! squared correlation ([`r_squared`]) that [`super::reference`] uses to match scores to
+//! known concentrations.
 
 use serde::{Deserialize, Serialize};
 

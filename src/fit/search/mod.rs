@@ -535,7 +535,7 @@ fn refine(
             (ceiling, vec![0.0; theta.len()])
         }
     };
-    let stopping = solve::Stopping {
+    let stopping = crate::optimise::Stopping {
         max_iterations: options.max_iterations.max(2000),
         gradient_tolerance: tolerance * FIRST_STEP,
         cost_tolerance: tolerance * start_cost.max(1e-300) * scale,

@@ -1,4 +1,4 @@
-//! Joint fit of a surface concentration series (issue 16, part 5): several reradiation
+//! Joint fit of a surface concentration series: several reradiation
 //! matrices of one material at different concentrations, with shared r, a, e and yield
 //! and one concentration c_j per file.
 //!
@@ -7,7 +7,7 @@
 //! d_j = (1 − c_j·a)·r fall where the material absorbs as c_j rises, while k_j = c_j·Q
 //! rises in proportion; that separates c_j from Q. The fit stacks every file's cells into
 //! one least-squares problem ([`model`]), starts it in closed form ([`start`]) and refines
-//! it with the project's one Gauss-Newton runner ([`crate::fit::solve`]). Standard errors
+//! it by Gauss-Newton ([`crate::fit::solve`], through the one runner [`crate::optimise::run`]). Standard errors
 //! come from the Gauss-Newton Jacobian at the optimum: covariance σ²·(JᵀJ)⁺ in the
 //! physical parameters, with σ the larger of the anti-Stokes noise estimate the single
 //! fits report and the residual RMS (so misfit widens the errors).
@@ -384,7 +384,7 @@ fn fit_form(
         .map(|c| c.value * c.value)
         .sum::<f64>()
         .sqrt();
-    let stopping = solve::Stopping {
+    let stopping = crate::optimise::Stopping {
         max_iterations: options.max_iterations,
         gradient_tolerance: 0.0,
         cost_tolerance: options.tolerance * data_norm.max(1e-300),
