@@ -214,9 +214,14 @@ pub fn filled_reference(
     FilledReference { cells, light_share }
 }
 
-/// Bayesian information criterion on the matrix residual, BIC = RSS/σ² + p·ln n (σ the
-/// anti-Stokes noise level; lower is better among fits of the same data).
-pub fn bic(rss: f64, sigma: f64, parameters: usize, residuals: usize) -> f64 {
+/// Bayesian information criterion of a fit of `data` with `parameters` parameters whose
+/// matrix residual (off-diagonal and diagonal cells) sums to `rss`: BIC = RSS/σ² + p·ln n,
+/// n the cells fitted, σ the noise level (floored at 1e-12, so noise-free data rank by
+/// RSS); lower is better among fits of the same data. The grid fit and every search
+/// candidate are ranked by this one recipe.
+pub fn bic(rss: f64, sigma: f64, parameters: usize, data: &FitData) -> f64 {
+    let residuals = data.off_diagonal.len() + data.diagonal.len();
+    let sigma = sigma.max(1e-12);
     rss / (sigma * sigma) + parameters as f64 * (residuals.max(1) as f64).ln()
 }
 

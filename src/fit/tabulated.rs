@@ -424,12 +424,7 @@ pub(super) fn fit_checked(
     accuracy.record_in(fit);
     let rss = accuracy.rms_off_diagonal.powi(2) * data.off_diagonal.len() as f64
         + accuracy.rmse_diagonal.powi(2) * data.diagonal.len() as f64;
-    fit.bic = Some(assess::bic(
-        rss,
-        noise_sigma.max(1e-12),
-        fit.parameter_count,
-        data.off_diagonal.len() + data.diagonal.len(),
-    ));
+    fit.bic = Some(assess::bic(rss, noise_sigma, fit.parameter_count, &data));
     fit.warnings = warnings;
     fit.seconds = started.elapsed().as_secs_f64();
     let lowered = material.lower_reflectance_to_energy_bound();

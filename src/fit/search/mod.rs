@@ -257,7 +257,7 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
                     let problem =
                         Problem::new(&data, spec, lights, &reference, options.colour_weight);
                     let rss = problem.residual_sum_of_squares(&f.theta);
-                    let bic = bic(rss, sigma, parameters, problem.residual_count());
+                    let bic = bic(rss, sigma, parameters, &data);
                     let fit = f.material.fit.as_ref();
                     candidates.push(Candidate {
                         model: spec.name(),
