@@ -27,6 +27,16 @@ fn refusal(material: &Material, options: &ExportOptions) -> String {
     }
 }
 
+/// Asserts that the one-dye material's export with `options` is refused by a message
+/// starting with `start` and ending with the format's name.
+fn assert_refused_for_the_format(options: &ExportOptions, start: &str) {
+    let e = refusal(&one_dye(), options);
+    assert!(
+        e.starts_with(start) && e.ends_with(&format!("not to {}", options.format.name())),
+        "{e}"
+    );
+}
+
 const ALL: [ExportFormat; 9] = [
     ExportFormat::Csv,
     ExportFormat::Matrix,
@@ -66,12 +76,7 @@ fn grids_and_per_nm_are_refused_without_a_matrix() {
     };
     for format in [ExportFormat::Csv, ExportFormat::Pearray, ExportFormat::Rgb] {
         for options in [with_grids(format), emission_only(format), per_nm(format)] {
-            let e = refusal(&one_dye(), &options);
-            assert!(
-                e.starts_with("--grid/--per-nm: apply to the matrix formats")
-                    && e.ends_with(&format!("not to {}", format.name())),
-                "{e}"
-            );
+            assert_refused_for_the_format(&options, "--grid/--per-nm: apply to the matrix formats");
         }
     }
     // Mitsuba writes the matrix only beside the fork's one-fluorophore scene.
@@ -114,11 +119,9 @@ fn lights_are_refused_where_nothing_is_lit() {
             lights: vec![light("a")],
             ..ExportOptions::new(format)
         };
-        let e = refusal(&one_dye(), &options);
-        assert!(
-            e.starts_with("--light: applies to mitsuba, pbrt, pearray and rgb")
-                && e.ends_with(&format!("not to {}", format.name())),
-            "{e}"
+        assert_refused_for_the_format(
+            &options,
+            "--light: applies to mitsuba, pbrt, pearray and rgb",
         );
     }
     // Explicit D65, the default, is still an option the format would ignore.
@@ -148,12 +151,7 @@ fn a_colour_space_is_refused_without_the_rgb_reduction() {
             space: Some(RgbSpace::Xyz),
             ..ExportOptions::new(format)
         };
-        let e = refusal(&one_dye(), &options);
-        assert!(
-            e.starts_with("--space: applies to the rgb reduction")
-                && e.ends_with(&format!("not to {}", format.name())),
-            "{e}"
-        );
+        assert_refused_for_the_format(&options, "--space: applies to the rgb reduction");
     }
 }
 

@@ -63,23 +63,21 @@ impl EemOptions {
                 ));
             }
         }
-        if let Some(b) = scatter
-            .bandwidth_nm
-            .filter(|b| !(b.is_finite() && *b > 0.0))
-        {
-            return Err(Error::invalid(
-                format!("--bandwidth {b}"),
+        for (value, flag, fix) in [
+            (
+                scatter.bandwidth_nm,
+                "--bandwidth",
                 "must be a positive width in nm (e.g. 5 for 5 nm slits)",
-            ));
-        }
-        if let Some(shift) = scatter
-            .raman_shift_cm
-            .filter(|s| !(s.is_finite() && *s > 0.0))
-        {
-            return Err(Error::invalid(
-                format!("--raman-shift {shift}"),
+            ),
+            (
+                scatter.raman_shift_cm,
+                "--raman-shift",
                 "must be a positive wavenumber in cm⁻¹ (water: 3400)",
-            ));
+            ),
+        ] {
+            if let Some(v) = value.filter(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(Error::invalid(format!("{flag} {v}"), fix));
+            }
         }
         if let Some((blank, path)) = &self.blank {
             blank.validate().map_err(|e| {
