@@ -227,9 +227,15 @@ fn lights() -> Vec<Light> {
         .collect()
 }
 
+/// The files of `m` in `format`, under D65 and A for the formats that use lights (the
+/// others refuse lights).
 fn render(m: &Material, format: ExportFormat) -> Vec<(String, String)> {
     let options = ExportOptions {
-        lights: lights(),
+        lights: if format.uses_lights() {
+            lights()
+        } else {
+            Vec::new()
+        },
         ..ExportOptions::new(format)
     };
     common::exported(m, &options)

@@ -7,7 +7,9 @@ use std::time::Instant;
 
 use fluorite::Error;
 use fluorite::import::{read_spectrum, spectrum_columns};
-use fluorite::parametric::fit::{BandFit, fit_bands_to_tolerance, positive_range};
+use fluorite::parametric::fit::{
+    BandFit, check_band_search, fit_bands_to_tolerance, positive_range,
+};
 use fluorite::parametric::{BandDomain, GaussianBands};
 use serde::Serialize;
 
@@ -83,19 +85,8 @@ struct CurveResult {
 
 /// Runs `fluorite bands`.
 pub fn run(args: BandsArgs) -> anyhow::Result<ExitCode> {
-    if !(args.tolerance.is_finite() && args.tolerance > 0.0) {
-        return Err(Error::invalid(
-            "--tolerance",
-            format!(
-                "is {}; give a positive fraction of the peak, such as 0.01",
-                args.tolerance
-            ),
-        )
-        .into());
-    }
-    if args.max_bands == 0 {
-        return Err(Error::invalid("--max-bands", "is 0; allow at least one band").into());
-    }
+    // The library decides which searches are possible; errors name its parameters.
+    check_band_search(args.max_bands, args.tolerance).map_err(named_as_flags)?;
     let mut results = Vec::new();
     for path in &args.files {
         let file = path
@@ -115,7 +106,7 @@ pub fn run(args: BandsArgs) -> anyhow::Result<ExitCode> {
                 let start = Instant::now();
                 let fits =
                     fit_bands_to_tolerance(nm, values, domain, args.max_bands, args.tolerance)
-                        .map_err(|e| anyhow::anyhow!("{file}: {curve}: {e}"))?;
+                        .map_err(|e| anyhow::anyhow!("{file}: {curve}: {}", named_as_flags(e)))?;
                 let fit_ms = start.elapsed().as_secs_f64() * 1e3;
                 file_results.push(curve_result(
                     &file,
@@ -139,6 +130,21 @@ pub fn run(args: BandsArgs) -> anyhow::Result<ExitCode> {
         print_totals(&results);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `e` with the library's parameter names replaced by the flags that set them.
+fn named_as_flags(e: Error) -> Error {
+    match e {
+        Error::Invalid { parameter, message } => {
+            let flag = match parameter.as_str() {
+                "max_bands" => "--max-bands",
+                "tolerance_rel_rms" => "--tolerance",
+                _ => parameter.as_str(),
+            };
+            Error::invalid(flag, message)
+        }
+        other => other,
+    }
 }
 
 fn curve_result(

@@ -87,14 +87,10 @@ impl EemArgs {
             let (line, nm) = item.split_once('=').with_context(|| {
                 format!("--scatter-width {item:?}: expected LINE=NM, e.g. rayleigh2=12 or all=10")
             })?;
-            let nm: f64 = nm
-                .trim()
-                .parse()
-                .ok()
-                .filter(|v: &f64| v.is_finite() && *v >= 0.0)
-                .with_context(|| {
-                    format!("--scatter-width {item:?}: {nm:?} is not a width in nm (a number ≥ 0)")
-                })?;
+            // The library checks the width (EemOptions::validate); a word is not one.
+            let nm: f64 = nm.trim().parse().ok().with_context(|| {
+                format!("--scatter-width {item:?}: {nm:?} is not a width in nm (a number ≥ 0)")
+            })?;
             let line = line.trim().to_ascii_lowercase();
             let mut matched = false;
             for (k, l) in ScatterLine::ALL.iter().enumerate() {
@@ -108,17 +104,6 @@ impl EemArgs {
                     "--scatter-width {item:?}: unknown line {line:?}; use rayleigh1, raman1, rayleigh2, raman2 or all"
                 );
             }
-        }
-        if let Some(b) = self.bandwidth.filter(|b| !(b.is_finite() && *b > 0.0)) {
-            anyhow::bail!(
-                "--bandwidth {b}: must be a positive width in nm (e.g. 5 for 5 nm slits)"
-            );
-        }
-        if !(self.raman_shift.is_finite() && self.raman_shift > 0.0) {
-            anyhow::bail!(
-                "--raman-shift {}: must be a positive wavenumber in cm⁻¹ (water: 3400)",
-                self.raman_shift
-            );
         }
         Ok(EemOptions {
             units: self.units,

@@ -59,92 +59,15 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
     let both = grid(&args.grid, "--grid")?;
     let excitation = grid(&args.excitation_grid, "--excitation-grid")?.or(both.clone());
     let emission = grid(&args.emission_grid, "--emission-grid")?.or(both);
-    let matrix_options = excitation.is_some() || emission.is_some() || args.per_nm;
-    let refuse = |what: &str| {
-        Error::invalid(
-            "--grid/--per-nm",
-            format!("apply to the matrix formats (matrix, bfc, pbrt, art, exr), not to {what}"),
-        )
-    };
-    let has_matrix = matches!(
-        format,
-        ExportFormat::Matrix
-            | ExportFormat::Bfc
-            | ExportFormat::Pbrt
-            | ExportFormat::Art
-            | ExportFormat::Exr
-    );
-    // The EXR layout's cells are per emission bin, as its reference implementation reads.
-    if format == ExportFormat::Exr && args.per_nm {
-        return Err(Error::invalid(
-            "--per-nm",
-            "does not apply to exr: the layout's reradiation cells are per emission bin",
-        )
-        .into());
-    }
-    let uses_lights = matches!(
-        format,
-        ExportFormat::Mitsuba | ExportFormat::Pbrt | ExportFormat::Pearray | ExportFormat::Rgb
-    );
-    if !uses_lights && args.light.is_some() {
-        return Err(Error::invalid(
-            "--light",
-            format!(
-                "applies to mitsuba, pbrt, pearray and rgb (baked spectra, reductions), not to {}",
-                args.to
-            ),
-        )
-        .into());
-    }
-    if format != ExportFormat::Rgb && args.space.is_some() {
-        return Err(Error::invalid(
-            "--space",
-            format!("applies to the rgb reduction, not to {}", args.to),
-        )
-        .into());
-    }
-    let space = args
-        .space
-        .as_deref()
-        .map(RgbSpace::parse)
-        .transpose()?
-        .unwrap_or_default();
-    // Mitsuba exports carry the matrix only for several fluorophores: decided once the
-    // material is read.
-    if !has_matrix && format != ExportFormat::Mitsuba && matrix_options {
-        return Err(refuse(&args.to).into());
-    }
+    let space = args.space.as_deref().map(RgbSpace::parse).transpose()?;
     let lights = args
         .light
         .as_deref()
-        .unwrap_or("d65")
-        .split(',')
-        .map(|l| {
-            Light::parse(l.trim()).map_err(|e| match e {
-                Error::Invalid { message, .. } => Error::invalid("--light", message),
-                other => other,
-            })
-        })
-        .collect::<fluorite::Result<Vec<_>>>()?;
-    if let Some(twice) = lights
-        .iter()
-        .enumerate()
-        .find(|(i, l)| lights[..*i].iter().any(|o| o.name == l.name))
-    {
-        return Err(Error::invalid(
-            "--light",
-            format!("names {} twice; give each light once", twice.1.name),
-        )
-        .into());
-    }
+        .map(|list| list.split(',').map(|l| parse_light(l.trim())).collect())
+        .transpose()?
+        .unwrap_or_default();
     let material = Material::load(&args.material)?;
-    if format == ExportFormat::Mitsuba && material.fluorophores.len() < 2 && matrix_options {
-        return Err(refuse(&format!(
-            "{} with fewer than two fluorophores (only then does it include the matrix)",
-            args.to
-        ))
-        .into());
-    }
+    // Which options apply to which format is the library's to decide.
     let options = ExportOptions {
         format,
         excitation_nm: excitation,
@@ -181,6 +104,14 @@ pub fn run(args: ExportArgs) -> anyhow::Result<ExitCode> {
         println!("{line}");
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A light of `--light`, its errors naming the flag.
+fn parse_light(name_or_path: &str) -> fluorite::Result<Light> {
+    Light::parse(name_or_path).map_err(|e| match e {
+        Error::Invalid { message, .. } => Error::invalid("--light", message),
+        other => other,
+    })
 }
 
 fn create_folder(dir: &Path) -> fluorite::Result<()> {

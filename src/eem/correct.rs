@@ -81,21 +81,55 @@ impl Absorbance {
         })
     }
 
-    /// Linear interpolation at `nm`; `None` outside the measured range.
+    /// Refuses a spectrum [`inner_filter`] cannot use: fewer than two wavelengths, not
+    /// one absorbance per wavelength, wavelengths not positive and strictly increasing,
+    /// or an absorbance that is not finite. `source` (the file) is named in errors.
+    pub fn validate(&self, source: &Path) -> Result<()> {
+        let parameter = format!("--absorbance {}", source.display());
+        let (n, k) = (self.wavelength_nm.len(), self.absorbance.len());
+        if n < 2 || n != k {
+            return Err(Error::invalid(
+                parameter,
+                format!(
+                    "holds {n} wavelengths and {k} absorbances; give one absorbance per wavelength, at two wavelengths or more covering the excitation and emission wavelengths"
+                ),
+            ));
+        }
+        crate::spectrum::check_grid(&self.wavelength_nm, &format!("{parameter}: wavelength_nm"))?;
+        if let Some((l, a)) = self
+            .wavelength_nm
+            .iter()
+            .zip(&self.absorbance)
+            .find(|(_, a)| !a.is_finite())
+        {
+            return Err(Error::invalid(
+                parameter,
+                format!("absorbance at {l} nm is {a}; give a finite absorbance per cm"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Linear interpolation at `nm`; `None` outside the measured range and for a
+    /// spectrum [`Absorbance::validate`] refuses for its size (empty, lengths differing).
     pub fn at(&self, nm: f64) -> Option<f64> {
-        let w = &self.wavelength_nm;
-        if nm < w[0] - 1e-9 || nm > w[w.len() - 1] + 1e-9 {
+        let (w, a) = (&self.wavelength_nm, &self.absorbance);
+        if w.len() != a.len() {
+            return None;
+        }
+        let (first, last) = span(w)?;
+        if nm < first - 1e-9 || nm > last + 1e-9 {
             return None;
         }
         let k = w.partition_point(|&x| x < nm);
         if k == 0 {
-            return Some(self.absorbance[0]);
+            return Some(a[0]);
         }
         if k >= w.len() {
-            return Some(self.absorbance[w.len() - 1]);
+            return Some(a[w.len() - 1]);
         }
         let t = (nm - w[k - 1]) / (w[k] - w[k - 1]);
-        Some(self.absorbance[k - 1] + t * (self.absorbance[k] - self.absorbance[k - 1]))
+        Some(a[k - 1] + t * (a[k] - a[k - 1]))
     }
 }
 
@@ -125,8 +159,34 @@ fn same_grid(a: &[f64], b: &[f64]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6)
 }
 
+/// The first and last wavelength of a grid; `None` when it is empty.
+fn span(g: &[f64]) -> Option<(f64, f64)> {
+    Some((*g.first()?, *g.last()?))
+}
+
 fn describe(g: &[f64]) -> String {
-    format!("{}–{} nm ({} wavelengths)", g[0], g[g.len() - 1], g.len())
+    match span(g) {
+        Some((first, last)) => format!("{first}–{last} nm ({} wavelengths)", g.len()),
+        None => "no wavelengths".to_string(),
+    }
+}
+
+/// The excitation and emission spans of `m`; refuses a matrix without wavelengths or
+/// whose values do not fill its grids (the corrections visit every cell).
+fn spans(m: &Measurement) -> Result<((f64, f64), (f64, f64))> {
+    let cells = m.excitation_nm.len() * m.emission_nm.len();
+    match (span(&m.excitation_nm), span(&m.emission_nm)) {
+        (Some(excitation), Some(emission)) if m.values.len() == cells => Ok((excitation, emission)),
+        _ => Err(Error::invalid(
+            format!("{}: values", m.name),
+            format!(
+                "holds {} cells for {} excitation × {} emission wavelengths; a correction needs a complete matrix",
+                m.values.len(),
+                m.excitation_nm.len(),
+                m.emission_nm.len()
+            ),
+        )),
+    }
 }
 
 /// Subtracts `blank` cell by cell. Grids must match; a cell the blank does not hold
@@ -136,6 +196,8 @@ pub fn subtract_blank(
     blank: &Measurement,
     source: &Path,
 ) -> Result<BlankReport> {
+    spans(m)?;
+    spans(blank)?;
     if !same_grid(&m.excitation_nm, &blank.excitation_nm)
         || !same_grid(&m.emission_nm, &blank.emission_nm)
     {
@@ -174,10 +236,10 @@ pub fn inner_filter(
     a: &Absorbance,
     source: &Path,
 ) -> Result<InnerFilterReport> {
-    let range = |g: &[f64]| (g[0], g[g.len() - 1]);
-    let (lo, hi) = range(&a.wavelength_nm);
-    let (ex_lo, ex_hi) = range(&m.excitation_nm);
-    let (em_lo, em_hi) = range(&m.emission_nm);
+    let ((ex_lo, ex_hi), (em_lo, em_hi)) = spans(m)?;
+    a.validate(source)?;
+    // Validated: two wavelengths or more (an empty span would fail the coverage test).
+    let (lo, hi) = span(&a.wavelength_nm).unwrap_or((f64::INFINITY, f64::NEG_INFINITY));
     let need_lo = ex_lo.min(em_lo);
     let need_hi = ex_hi.max(em_hi);
     if lo > need_lo + 1e-9 || hi < need_hi - 1e-9 {

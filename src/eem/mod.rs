@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::measurement::Measurement;
 use correct::{Absorbance, BlankReport, InnerFilterReport};
-use scatter::{MaskedBand, ScatterOptions};
+use scatter::{MaskedBand, ScatterLine, ScatterOptions};
 pub use units::UnitsChoice;
 
 /// How to prepare a matrix; the default infers everything and masks scatter.
@@ -46,6 +46,49 @@ pub struct EemOptions {
     pub keep_scatter: bool,
     /// Scatter band widths, instrument bandwidth and Raman shift.
     pub scatter: ScatterOptions,
+}
+
+impl EemOptions {
+    /// Refuses options [`prepare`] cannot use: a scatter half-width that is not a width in
+    /// nm (≥ 0), a bandwidth or Raman shift that is not positive, a blank that is no
+    /// matrix and an absorbance spectrum that is no spectrum. Errors name the
+    /// `fluorite fit` flag.
+    pub fn validate(&self) -> Result<()> {
+        let scatter = &self.scatter;
+        for (line, width) in ScatterLine::ALL.iter().zip(&scatter.half_width_nm) {
+            if let Some(w) = width.filter(|w| !(w.is_finite() && *w >= 0.0)) {
+                return Err(Error::invalid(
+                    format!("--scatter-width \"{}={w}\"", line.name()),
+                    format!("\"{w}\" is not a width in nm (a number ≥ 0)"),
+                ));
+            }
+        }
+        for (value, flag, fix) in [
+            (
+                scatter.bandwidth_nm,
+                "--bandwidth",
+                "must be a positive width in nm (e.g. 5 for 5 nm slits)",
+            ),
+            (
+                scatter.raman_shift_cm,
+                "--raman-shift",
+                "must be a positive wavenumber in cm⁻¹ (water: 3400)",
+            ),
+        ] {
+            if let Some(v) = value.filter(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(Error::invalid(format!("{flag} {v}"), fix));
+            }
+        }
+        if let Some((blank, path)) = &self.blank {
+            blank.validate().map_err(|e| {
+                Error::invalid(format!("--blank {}", path.display()), e.to_string())
+            })?;
+        }
+        if let Some((absorbance, path)) = &self.absorbance {
+            absorbance.validate(path)?;
+        }
+        Ok(())
+    }
 }
 
 /// What [`prepare`] did to a matrix (written into the fit report).
@@ -151,11 +194,15 @@ impl Preprocessing {
 
 /// Decides the units of `m` and, for an uncalibrated EEM, cleans it (see the module
 /// doc). Returns the matrix to fit and, unless it is a radiance-factor matrix left
-/// untouched, what was done (also appended to the matrix's notes).
+/// untouched, what was done (also appended to the matrix's notes). The options
+/// ([`EemOptions::validate`]) and the matrix ([`Measurement::validate`]) are checked
+/// first.
 pub fn prepare(
     mut m: Measurement,
     options: &EemOptions,
 ) -> Result<(Measurement, Option<Preprocessing>)> {
+    options.validate()?;
+    m.validate()?;
     let verdict = units::classify(&m);
     let arbitrary = match options.units {
         UnitsChoice::Auto => !verdict.radiance_factor || m.arbitrary_scale,

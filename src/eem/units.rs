@@ -46,8 +46,19 @@ pub struct UnitsVerdict {
     pub reason: String,
 }
 
-/// Judges whether `m`'s values can be radiance factors (see the module doc).
+/// Judges whether `m`'s values can be radiance factors (see the module doc). A matrix
+/// [`Measurement::validate`] refuses (no wavelengths, values not filling the grids, no
+/// measured cell) cannot be: its verdict says why, with NaN figures.
 pub fn classify(m: &Measurement) -> UnitsVerdict {
+    if let Err(e) = m.validate() {
+        return UnitsVerdict {
+            radiance_factor: false,
+            max_cell: f64::NAN,
+            max_row_sum: f64::NAN,
+            max_row_nm: f64::NAN,
+            reason: format!("values cannot be judged: {e}"),
+        };
+    }
     let widths = m.emission_bin_widths();
     let diagonal = m.diagonal();
     let mut max_cell = f64::NEG_INFINITY;

@@ -26,20 +26,21 @@ pub mod exr;
 mod grid;
 mod matrix;
 mod mitsuba;
+mod options;
 mod pbrt;
 mod pearray;
 pub mod rgb;
 mod spectra;
 
-use crate::colour::Light;
 use crate::error::{Error, Result};
 use crate::material::Material;
-use crate::measurement::{Measurement, Units};
+use crate::measurement::Measurement;
 
 pub use crate::files::{write_atomic, write_files};
 pub use baked::{BakedSpectrum, total_radiance_factor};
 pub use grid::parse_grid;
 pub use matrix::{default_grids, matrix};
+pub use options::ExportOptions;
 pub use rgb::RgbSpace;
 
 /// The forms a material can be exported to.
@@ -81,61 +82,60 @@ impl ExportFormat {
         )
     }
 
+    /// The format's name, as `--to` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            ExportFormat::Csv => "csv",
+            ExportFormat::Matrix => "matrix",
+            ExportFormat::Bfc => "bfc",
+            ExportFormat::Mitsuba => "mitsuba",
+            ExportFormat::Pbrt => "pbrt",
+            ExportFormat::Pearray => "pearray",
+            ExportFormat::Art => "art",
+            ExportFormat::Exr => "exr",
+            ExportFormat::Rgb => "rgb",
+        }
+    }
+
+    /// Whether the format always writes the reradiation matrix, so that the grids and
+    /// the units of [`ExportOptions`] apply (mitsuba writes it only for materials with
+    /// several fluorophores).
+    pub fn writes_matrix(self) -> bool {
+        matches!(
+            self,
+            ExportFormat::Matrix
+                | ExportFormat::Bfc
+                | ExportFormat::Pbrt
+                | ExportFormat::Art
+                | ExportFormat::Exr
+        )
+    }
+
+    /// Whether the format uses lights: baked spectra (mitsuba, pbrt), the fluorophore kept
+    /// by a target that holds one (pearray) or one reduction per light (rgb).
+    pub fn uses_lights(self) -> bool {
+        matches!(
+            self,
+            ExportFormat::Mitsuba | ExportFormat::Pbrt | ExportFormat::Pearray | ExportFormat::Rgb
+        )
+    }
+
     /// Parses a format name (`csv`, `matrix`, `bfc`, `mitsuba`, `pbrt`, `pearray`, `art`,
     /// `exr`, `rgb`).
     pub fn parse(name: &str) -> Result<ExportFormat> {
-        match name.to_ascii_lowercase().as_str() {
-            "csv" => Ok(ExportFormat::Csv),
-            "matrix" => Ok(ExportFormat::Matrix),
-            "bfc" => Ok(ExportFormat::Bfc),
-            "mitsuba" => Ok(ExportFormat::Mitsuba),
-            "pbrt" => Ok(ExportFormat::Pbrt),
-            "pearray" => Ok(ExportFormat::Pearray),
-            "art" => Ok(ExportFormat::Art),
-            "exr" => Ok(ExportFormat::Exr),
-            "rgb" => Ok(ExportFormat::Rgb),
-            _ => Err(Error::invalid(
-                "--to",
-                format!(
-                    "\"{name}\" is not a known format; choose csv, matrix, bfc, mitsuba, pbrt, pearray, art, exr or rgb"
-                ),
-            )),
-        }
-    }
-}
-
-/// How to export.
-#[derive(Debug, Clone)]
-pub struct ExportOptions {
-    /// The target format.
-    pub format: ExportFormat,
-    /// Excitation grid of the matrix formats (default: the material's absorption and
-    /// reflectance samples).
-    pub excitation_nm: Option<Vec<f64>>,
-    /// Emission grid of the matrix formats (default: the material's emission and
-    /// reflectance samples).
-    pub emission_nm: Option<Vec<f64>>,
-    /// Matrix values per emission bin (the default, like a BFC-450) or per nm.
-    pub units: Units,
-    /// The lights baked exports are valid for (mitsuba, pbrt; the first also picks the
-    /// fluorophore kept by targets that hold one) and of the `rgb` reduction (one matrix
-    /// each). Default: D65.
-    pub lights: Vec<Light>,
-    /// The colour space of the `rgb` reduction.
-    pub space: RgbSpace,
-}
-
-impl ExportOptions {
-    /// Options for `format` with default grids, per bin.
-    pub fn new(format: ExportFormat) -> Self {
-        ExportOptions {
-            format,
-            excitation_nm: None,
-            emission_nm: None,
-            units: Units::PerBin,
-            lights: Light::builtin("d65").into_iter().collect(),
-            space: RgbSpace::default(),
-        }
+        let lower = name.to_ascii_lowercase();
+        <ExportFormat as clap::ValueEnum>::value_variants()
+            .iter()
+            .copied()
+            .find(|format| format.name() == lower)
+            .ok_or_else(|| {
+                Error::invalid(
+                    "--to",
+                    format!(
+                        "\"{name}\" is not a known format; choose csv, matrix, bfc, mitsuba, pbrt, pearray, art, exr or rgb"
+                    ),
+                )
+            })
     }
 }
 
@@ -148,8 +148,9 @@ pub struct ExportFile {
     pub contents: Vec<u8>,
 }
 
-/// Renders `material` in `options.format`, in memory. The material is checked first:
-/// a material that breaks a law of the model is not exported.
+/// Renders `material` in `options.format`, in memory. The options are checked first (an
+/// option the format does not use is an error, [`ExportOptions::validate`]), then the
+/// material: a material that breaks a law of the model is not exported.
 pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<ExportFile>> {
     Ok(export_with_notes(material, options)?.files)
 }
@@ -165,8 +166,11 @@ pub struct Exported {
     pub notes: Vec<String>,
 }
 
-/// [`export`], with the notes of what the files drop or approximate.
+/// [`export`], with the notes of what the files drop or approximate. Options the format
+/// does not use are refused first ([`ExportOptions::validate`]).
 pub fn export_with_notes(material: &Material, options: &ExportOptions) -> Result<Exported> {
+    options.validate(material)?;
+    let lights = options.lights_or_d65();
     let report = crate::check::check_material(material);
     if !report.valid {
         return Err(Error::invalid(
@@ -212,7 +216,7 @@ pub fn export_with_notes(material: &Material, options: &ExportOptions) -> Result
             matrix::bfc(material, &model_matrix()?)?,
         )],
         ExportFormat::Mitsuba => {
-            let mut files: Vec<ExportFile> = mitsuba::mitsuba(material, &stem, &options.lights)
+            let mut files: Vec<ExportFile> = mitsuba::mitsuba(material, &stem, &lights)
                 .into_iter()
                 .map(|(n, s)| text(n, s))
                 .collect();
@@ -228,7 +232,7 @@ pub fn export_with_notes(material: &Material, options: &ExportOptions) -> Result
         }
         ExportFormat::Pbrt => {
             let reradiation = model_matrix()?;
-            let mut files: Vec<ExportFile> = pbrt::pbrt(material, &stem, &options.lights)
+            let mut files: Vec<ExportFile> = pbrt::pbrt(material, &stem, &lights)
                 .into_iter()
                 .map(|(n, s)| text(n, s))
                 .collect();
@@ -238,17 +242,11 @@ pub fn export_with_notes(material: &Material, options: &ExportOptions) -> Result
             ));
             files
         }
-        ExportFormat::Pearray => pearray::pearray(material, &stem, &options.lights)
+        ExportFormat::Pearray => pearray::pearray(material, &stem, &lights)
             .into_iter()
             .map(|(n, s)| text(n, s))
             .collect(),
         ExportFormat::Art => {
-            if options.units == Units::PerNm {
-                return Err(Error::invalid(
-                    "--per-nm",
-                    "ART archives hold radiance factors per emission bin, like the BFC-450; leave --per-nm out",
-                ));
-            }
             let (n, s) = art::art(
                 material,
                 &stem,
@@ -271,7 +269,8 @@ pub fn export_with_notes(material: &Material, options: &ExportOptions) -> Result
             }]
         }
         ExportFormat::Rgb => {
-            let (json, reductions) = rgb::rgb_json(material, &options.lights, options.space)?;
+            let (json, reductions) =
+                rgb::rgb_json(material, &lights, options.space.unwrap_or_default())?;
             notes.extend(reductions.iter().map(|r| {
                 format!(
                     "{}: 3×3 under {}: ΔE2000 {:.3} between the reduced and the spectral colour",

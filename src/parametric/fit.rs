@@ -72,7 +72,8 @@ pub fn fit_bands(
 }
 
 /// Fits 1, 2, … up to `max_bands` bands (as [`fit_bands`] does) and stops at the first
-/// fit whose [`BandFit::rel_rms`] is at most `tolerance_rel_rms`.
+/// fit whose [`BandFit::rel_rms`] is at most `tolerance_rel_rms` (positive; see
+/// [`check_band_search`]).
 ///
 /// Returns every fit tried, in order of band count; the last is the chosen one. When no
 /// count meets the tolerance the last is the `max_bands` fit, so check its `rel_rms`.
@@ -85,20 +86,28 @@ pub fn fit_bands_to_tolerance(
     max_bands: usize,
     tolerance_rel_rms: f64,
 ) -> Result<Vec<BandFit>> {
-    if max_bands == 0 {
-        return Err(Error::invalid("max_bands", "is 0; allow at least one band"));
-    }
-    if !(tolerance_rel_rms.is_finite() && tolerance_rel_rms >= 0.0) {
-        return Err(Error::invalid(
-            "tolerance_rel_rms",
-            format!(
-                "is {tolerance_rel_rms}; give a non-negative fraction of the peak, such as 0.01"
-            ),
-        ));
-    }
+    check_band_search(max_bands, tolerance_rel_rms)?;
     grow_bands(nm, values, domain, max_bands, "max_bands", |fit| {
         fit.rel_rms <= tolerance_rel_rms
     })
+}
+
+/// Refuses a band search [`fit_bands_to_tolerance`] cannot run: no band allowed
+/// (`max_bands` 0) or a tolerance that is not a positive fraction of the peak (0 asks for
+/// an exact fit, which no count reaches in floating point; to get every count up to
+/// `max_bands`, give a tolerance far below the data's noise). Errors name the parameters
+/// `max_bands` and `tolerance_rel_rms`.
+pub fn check_band_search(max_bands: usize, tolerance_rel_rms: f64) -> Result<()> {
+    if max_bands == 0 {
+        return Err(Error::invalid("max_bands", "is 0; allow at least one band"));
+    }
+    if !(tolerance_rel_rms.is_finite() && tolerance_rel_rms > 0.0) {
+        return Err(Error::invalid(
+            "tolerance_rel_rms",
+            format!("is {tolerance_rel_rms}; give a positive fraction of the peak, such as 0.01"),
+        ));
+    }
+    Ok(())
 }
 
 /// The indices from the first to the last positive value (`None` when none is positive):
