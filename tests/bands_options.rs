@@ -1,6 +1,8 @@
 //! The band search's limits are the library's (`check_band_search`); `fluorite bands`
 //! names its own flags, not the library's parameter names, in the same refusals.
 
+mod common;
+
 use std::process::Command;
 
 use fluorite::parametric::BandDomain;
@@ -75,15 +77,13 @@ fn the_command_names_its_flags() {
             "curve.csv: emission: --max-bands: is 11, which needs at least 33 samples",
         ),
     ] {
-        let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
-            .args(["bands", "curve.csv"])
-            .args(&flags)
-            .current_dir(&dir)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "{flags:?}: {stderr}");
-        assert_eq!(stderr.trim().lines().count(), 1, "{flags:?}: {stderr}");
+        let (code, stderr) = common::refused(
+            Command::new(env!("CARGO_BIN_EXE_fluorite"))
+                .args(["bands", "curve.csv"])
+                .args(&flags)
+                .current_dir(&dir),
+        );
+        assert_eq!(code, Some(2), "{flags:?}: {stderr}");
         assert!(stderr.contains(expected), "{flags:?}: {stderr}");
         assert!(
             !stderr.contains("max_bands") && !stderr.contains("tolerance_rel_rms"),

@@ -2,6 +2,8 @@
 //! (`eem::prepare`, `EemOptions::validate`), naming the `fluorite fit` flag, and never
 //! panics on them; the command prints the same messages.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -241,15 +243,12 @@ fn the_command_prints_the_library_messages() {
             "--scatter-width \"raman1=wide\": \"wide\" is not a width in nm (a number ≥ 0)",
         ),
     ] {
-        let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
-            .args(["fit", "eem.csv"])
-            .args(&flags)
-            .current_dir(&dir)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{flags:?}");
-        assert_eq!(stderr.trim().lines().count(), 1, "{flags:?}: {stderr}");
+        let (_, stderr) = common::refused(
+            Command::new(env!("CARGO_BIN_EXE_fluorite"))
+                .args(["fit", "eem.csv"])
+                .args(&flags)
+                .current_dir(&dir),
+        );
         assert!(stderr.contains(expected), "{flags:?}: {stderr}");
     }
     std::fs::remove_dir_all(&dir).unwrap();

@@ -99,6 +99,16 @@ pub fn succeed(command: &mut std::process::Command) -> std::process::Output {
     out
 }
 
+/// Runs `command`, which must fail with a one-line message on stderr (no backtrace);
+/// returns its exit code and that message.
+pub fn refused(command: &mut std::process::Command) -> (Option<i32>, String) {
+    let out = command.output().expect("the command runs");
+    let stderr = String::from_utf8_lossy(&out.stderr).trim().to_string();
+    assert!(!out.status.success(), "{command:?} succeeded");
+    assert_eq!(stderr.lines().count(), 1, "{command:?}: {stderr}");
+    (out.status.code(), stderr)
+}
+
 /// The samples the classic Dorrit analysis leaves out (the data README).
 pub const DORRIT_OUTLIERS: [&str; 4] = ["QAB", "QAC", "QAE", "QAA"];
 
