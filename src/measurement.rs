@@ -198,6 +198,19 @@ impl Measurement {
         bin_widths(&self.emission_nm)
     }
 
+    /// This matrix with its missing cells (not finite) taken from `model`, a matrix on the
+    /// same grids in the same units (a fit's prediction): the patch whose colour is judged,
+    /// every measured cell as measured.
+    pub fn filled_from(&self, model: &Measurement) -> Measurement {
+        let mut out = self.clone();
+        for (v, f) in out.values.iter_mut().zip(&model.values) {
+            if !v.is_finite() {
+                *v = *f;
+            }
+        }
+        out
+    }
+
     /// The same matrix expressed per emission bin (values multiplied by the bin width
     /// when stored per nm). The diagonal is a plain reflectance factor in both units and
     /// is left alone.

@@ -218,8 +218,7 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                 for _ in 1..args.timing_runs {
                     times.push(fit(&m, &options)?.report().seconds);
                 }
-                times.sort_by(f64::total_cmp);
-                outcome.set_seconds(times[times.len() / 2]);
+                outcome.set_seconds(fluorite::numeric::median(&times));
             }
             write_atomic(out, outcome.to_json().as_bytes())?;
             Ok((m, outcome))

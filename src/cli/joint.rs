@@ -265,8 +265,7 @@ fn run_eem_set(args: &FitArgs, eems: &[Measurement]) -> anyhow::Result<ExitCode>
             for _ in 1..args.timing_runs {
                 times.push(fit_joint(eems, &quick)?.seconds);
             }
-            times.sort_by(f64::total_cmp);
-            fit.seconds = times[times.len() / 2];
+            fit.seconds = fluorite::numeric::median(&times);
         }
         let dir = if ks.len() > 1 {
             out.join(format!("k{k}"))

@@ -219,11 +219,11 @@ pub fn model_table_row(m: &Measurement, outcome: &FitOutcome) -> String {
     let delta_e = delta_e_cells(report);
     let laws = match outcome {
         FitOutcome::Material(material) => {
-            let failed = fluorite::check::check_material(material).failed();
-            if failed.is_empty() {
+            let report = fluorite::check::check_material(material);
+            if report.failed().is_empty() {
                 "all hold".to_string()
             } else {
-                format!("FAILED: {failed:?}")
+                format!("FAILED: {}", report.failed_names())
             }
         }
         FitOutcome::Shapes(_) => "–".into(),

@@ -160,13 +160,7 @@ pub fn accuracy(
 /// only cells the file does not hold (missing) are taken from `fitted_per_bin`. A
 /// reference that borrowed any measured cell from the fit would let the fit grade itself.
 pub fn measured_patch(m: &Measurement, fitted_per_bin: &Measurement) -> Measurement {
-    let mut measured = m.to_per_bin();
-    for (v, f) in measured.values.iter_mut().zip(&fitted_per_bin.values) {
-        if !v.is_finite() {
-            *v = *f;
-        }
-    }
-    measured
+    m.to_per_bin().filled_from(fitted_per_bin)
 }
 
 /// How much of the colour reference was not measured: the cells filled from the model

@@ -259,14 +259,9 @@ impl Table {
     }
 }
 
-/// Median spacing of a set of wavelengths (0 for fewer than two).
+/// Median spacing of a set of wavelengths in any order (0 for fewer than two).
 fn typical_step(items: &[Located]) -> f64 {
     let mut nm: Vec<f64> = items.iter().map(|l| l.nm).collect();
     nm.sort_by(f64::total_cmp);
-    let mut steps: Vec<f64> = nm.windows(2).map(|w| w[1] - w[0]).collect();
-    if steps.is_empty() {
-        return 0.0;
-    }
-    steps.sort_by(f64::total_cmp);
-    steps[steps.len() / 2]
+    crate::numeric::median_step(&nm)
 }

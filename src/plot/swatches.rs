@@ -78,13 +78,8 @@ pub fn missing_cells(c: &Comparison) -> usize {
 
 /// The measured and fitted patch colours under each standard light.
 pub fn swatch_pairs(c: &Comparison) -> Vec<SwatchPair> {
-    let mut measured = c.measured.clone();
-    for (v, f) in measured.values.iter_mut().zip(&c.fitted.values) {
-        if v.is_nan() {
-            *v = *f;
-        }
-    }
-    let measured = measured.to_per_bin();
+    // The patch the fit's colour is judged on (every measured cell as measured).
+    let measured = c.measured.filled_from(&c.fitted).to_per_bin();
     let fitted = c.fitted.to_per_bin();
     Light::standard()
         .iter()
