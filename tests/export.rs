@@ -16,14 +16,6 @@ mod common;
 
 const VERSION: &str = env!("CARGO_PKG_VERSION");
 
-fn temp_dir(tag: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("fluorite-test-export-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 fn fitted(outcome: FitOutcome) -> Material {
     match outcome {
         FitOutcome::Material(m) => *m,
@@ -88,7 +80,7 @@ fn uniform(start: f64, end: f64, step: f64) -> Vec<f64> {
 /// real one.
 #[test]
 fn matrix_round_trip_on_the_measurement_grid() {
-    let dir = temp_dir("roundtrip");
+    let dir = common::temp_dir("roundtrip");
     let mut materials = vec![synthetic_fit("green-dye"), synthetic_fit("red-pigment")];
     for name in ["HERPICER.BFC", "postit_yellow.csv"] {
         if let Some(p) = common::measured(name) {
@@ -142,7 +134,7 @@ fn matrix_round_trip_on_the_measurement_grid() {
 /// and checks d = (1 − c·a)·r to 1e-6.
 #[test]
 fn matrix_on_a_finer_grid_reproduces_within_the_interpolation_error() {
-    let dir = temp_dir("fine");
+    let dir = common::temp_dir("fine");
     let mut materials = vec![synthetic_fit("green-dye"), synthetic_fit("brightener")];
     if let Some(p) = common::measured("HERPICER.BFC") {
         let m = read(&p, &ReadOptions::default()).unwrap();
@@ -547,7 +539,7 @@ fn walk(dir: &Path) -> Vec<PathBuf> {
 
 #[test]
 fn bad_input_is_a_one_line_error_and_writes_nothing() {
-    let dir = temp_dir("bad");
+    let dir = common::temp_dir("bad");
     truth().save(&dir.join("m.json")).unwrap();
     std::fs::write(dir.join("blocker"), "a file, not a folder").unwrap();
     std::fs::write(
@@ -918,7 +910,7 @@ fn forms_are_sampled_and_their_parameters_kept() {
 
 #[test]
 fn mitsuba_takes_a_grid_only_when_it_writes_the_matrix() {
-    let dir = temp_dir("mitsuba-grid");
+    let dir = common::temp_dir("mitsuba-grid");
     truth().save(&dir.join("one.json")).unwrap();
     two_dyes().save(&dir.join("two.json")).unwrap();
     let (code, stderr) = run(

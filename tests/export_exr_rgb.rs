@@ -5,6 +5,8 @@
 //! dense computation of the notebook's formula (afichet/fluorescence-rgb,
 //! `reduce_matrix_ours`).
 
+mod common;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -20,16 +22,6 @@ use fluorite::formats::{ReadOptions, read};
 use fluorite::material::Material;
 use fluorite::spectrum::Spectrum;
 use fluorite::synth::SynthSpec;
-
-fn temp_dir(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "fluorite-test-exr-rgb-{tag}-{}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 fn truth(preset: &str) -> Material {
     SynthSpec::preset(preset).unwrap().truth().unwrap()
@@ -211,7 +203,7 @@ fn exr_channels_follow_the_reference_grammar_and_hold_the_model() {
 /// interpolated (1 − c·a)·r depends on it.)
 #[test]
 fn exr_fits_back_to_the_synthetic_truth() {
-    let dir = temp_dir("fitback");
+    let dir = common::temp_dir("fitback");
     for preset in ["green-dye", "red-pigment"] {
         let first = truth(preset);
         let path = dir.join(format!("{preset}.exr"));
@@ -295,7 +287,7 @@ fn write_exr(path: &Path, channels: &[(&str, [f32; 2])]) {
 /// from a longer to a shorter wavelength are refused with the file named.
 #[test]
 fn exr_reader_means_pixels_and_refuses_what_is_no_bispectral_matrix() {
-    let dir = temp_dir("reader");
+    let dir = common::temp_dir("reader");
     let path = dir.join("two-pixels.exr");
     write_exr(
         &path,
@@ -580,7 +572,7 @@ fn fluorescent_reduction_matches_a_dense_computation() {
 /// file; `--per-nm` and `--light` with exr are refused and write nothing.
 #[test]
 fn rgb_export_writes_one_matrix_per_light_and_prints_the_delta_e() {
-    let dir = temp_dir("cli");
+    let dir = common::temp_dir("cli");
     let material = dir.join("m.json");
     std::fs::write(&material, truth("green-dye").to_json()).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
@@ -671,7 +663,7 @@ fn rgb_export_writes_one_matrix_per_light_and_prints_the_delta_e() {
 /// of the original material's.
 #[test]
 fn fitted_materials_round_trip_through_exr() {
-    let dir = temp_dir("fitted");
+    let dir = common::temp_dir("fitted");
     let folder = Path::new(env!("CARGO_MANIFEST_DIR")).join("fits/measured");
     let mut paths: Vec<PathBuf> = std::fs::read_dir(&folder)
         .unwrap()

@@ -1,7 +1,9 @@
 //! `import-spectra`: the dye spectra in ../shared/data/spectra become valid materials
 //! whose a and e are the source curves, normalised.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::Path;
 use std::process::Command;
 
 use fluorite::YieldForm;
@@ -13,16 +15,6 @@ const DYES: [&str; 3] = [
     "Rhodamine6G_EtOH_wave_excitation_emission.csv",
     "QuinineSulfate_0.5MH2SO4_wave_excitation_emission.csv",
 ];
-
-fn spectra_dir() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/spectra");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("skipped: {} is absent", dir.display());
-        None
-    }
-}
 
 /// An independent reader of `wavelength_nm,excitation,emission`.
 fn source(path: &Path) -> Vec<[f64; 3]> {
@@ -75,7 +67,9 @@ fn options(path: &Path, q: f64) -> ImportOptions {
 
 #[test]
 fn dyes_become_valid_materials_matching_their_spectra() {
-    let Some(dir) = spectra_dir() else { return };
+    let Some(dir) = common::shared("spectra") else {
+        return;
+    };
     for dye in DYES {
         let path = dir.join(dye);
         let rows = source(&path);
@@ -123,7 +117,9 @@ fn dyes_become_valid_materials_matching_their_spectra() {
 
 #[test]
 fn cli_writes_a_checked_material_or_nothing() {
-    let Some(dir) = spectra_dir() else { return };
+    let Some(dir) = common::shared("spectra") else {
+        return;
+    };
     let out = std::env::temp_dir().join(format!("fluorite-test-import-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     std::fs::create_dir_all(&out).unwrap();
@@ -190,7 +186,9 @@ fn mean_emission(rows: &[[f64; 3]]) -> f64 {
 
 #[test]
 fn a_published_photon_yield_builds_a_photon_form_material() {
-    let Some(dir) = spectra_dir() else { return };
+    let Some(dir) = common::shared("spectra") else {
+        return;
+    };
     for dye in DYES {
         let path = dir.join(dye);
         let rows = source(&path);
@@ -242,7 +240,9 @@ fn a_published_photon_yield_builds_a_photon_form_material() {
 
 #[test]
 fn cli_takes_a_photon_yield() {
-    let Some(dir) = spectra_dir() else { return };
+    let Some(dir) = common::shared("spectra") else {
+        return;
+    };
     let out = tempfile::tempdir().unwrap();
     let dye = dir.join(DYES[0]);
     let bin = env!("CARGO_BIN_EXE_fluorite");

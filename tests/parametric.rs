@@ -2,7 +2,8 @@
 //! input, and the dye study behind `DEFAULT_BAND_DOMAIN` (../shared/data/spectra,
 //! skipped with a message when absent).
 
-use std::path::{Path, PathBuf};
+mod common;
+
 
 use fluorite::import::read_spectrum;
 use fluorite::parametric::fit::{
@@ -377,19 +378,6 @@ const TOLERANCE: f64 = 0.01;
 /// The second tolerance reported.
 const LOOSE_TOLERANCE: f64 = 0.02;
 
-fn spectra_dir() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/spectra");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "skipped: {} is absent (CI always has ../shared)",
-            dir.display()
-        );
-        None
-    }
-}
-
 /// Bands needed per (file, curve) at `TOLERANCE` and `LOOSE_TOLERANCE`, wavenumber then
 /// wavelength, as measured by `fluorite bands ../shared/data/spectra/*.csv`.
 const DYE_BANDS: [(&str, &str, [usize; 2], [usize; 2]); 6] = [
@@ -436,7 +424,7 @@ const DYE_BANDS: [(&str, &str, [usize; 2], [usize; 2]); 6] = [
 /// reason for `DEFAULT_BAND_DOMAIN`).
 #[test]
 fn dye_spectra_need_the_measured_band_counts() {
-    let Some(dir) = spectra_dir() else {
+    let Some(dir) = common::shared("spectra") else {
         return;
     };
     let mut totals = [[0usize; 2]; 2];

@@ -20,6 +20,19 @@ pub fn shared(sub: &str) -> Option<PathBuf> {
     }
 }
 
+/// A fresh, empty folder for `tag` of this test binary, under the system's temporary
+/// folder (named after the binary, the tag and the process, so parallel tests never meet).
+pub fn temp_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!(
+        "fluorite-test-{}-{tag}-{}",
+        env!("CARGO_CRATE_NAME"),
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 /// One file of `../shared/data/measured`.
 pub fn measured(name: &str) -> Option<PathBuf> {
     shared(&format!("measured/{name}"))
