@@ -576,6 +576,33 @@ pub fn joint_sweep_table(rows: &[Vec<String>], reference: Option<&Reference>) ->
     out
 }
 
+/// The head of `render --report`: what was measured, and the table's header.
+pub fn furnace_header(settings: &fluorite::render::RenderSettings, runs: usize) -> String {
+    format!(
+        "Furnace, {}×{}, {} spp, seed {}: relative std of Y over the sphere's pixels; median time of {runs} renders.\n\n| material | light | noise, paper | time | noise, light-aware | time | light-aware noise at the paper's time |\n|---|---|---|---|---|---|---|\n",
+        settings.width, settings.height, settings.samples_per_pixel, settings.seed
+    )
+}
+
+/// One row of `render --report`: the paper's sampling against the light-aware one.
+pub fn furnace_row(
+    material: &fluorite::Material,
+    light: &fluorite::colour::Light,
+    paper: &fluorite::render::report::NoiseReport,
+    light_aware: &fluorite::render::report::NoiseReport,
+) -> String {
+    format!(
+        "| {} | {} | {:.3} | {:.3} s | {:.3} | {:.3} s | {:.3} |\n",
+        material.name,
+        light.name,
+        paper.noise,
+        paper.seconds,
+        light_aware.noise,
+        light_aware.seconds,
+        light_aware.noise_at_time_of(paper)
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

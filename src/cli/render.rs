@@ -9,10 +9,10 @@ use anyhow::Context;
 use fluorite::Material;
 use fluorite::colour::Light;
 use fluorite::error::Error;
-use fluorite::render::image::{
-    check_exposure, encode_exr, encode_png, film_to_linear_srgb, to_srgb8, xyz_to_srgb_matrix,
-};
+use fluorite::render::image::{Develop, check_exposure, develop};
 use fluorite::render::report::furnace_noise;
+
+use crate::cli::printer;
 use fluorite::render::{
     DEFAULT_EXPOSURE_EV, RenderSettings, Scene, SceneKind, SpectralSampling, render,
 };
@@ -208,8 +208,6 @@ fn render_picture(
         bar.finish_and_clear();
     }
 
-    let matrix = xyz_to_srgb_matrix(scene.light(), picture.adapt);
-    let linear = film_to_linear_srgb(&film, &matrix);
     let description = format!(
         "{} under {}{}, scene {:?}, {} spp, seed {}, exposure {:+} EV{}",
         material.name,
@@ -229,17 +227,17 @@ fn render_picture(
             ", not adapted"
         }
     );
-    let png = encode_png(width, height, &to_srgb8(&linear, *exposure), &description)?;
-    let exr = if picture.exr {
-        // Scene-referred: the film's radiance in linear sRGB primaries, never adapted.
-        let scene_referred = film_to_linear_srgb(&film, &xyz_to_srgb_matrix(scene.light(), false));
-        Some((
-            output.with_extension("exr"),
-            encode_exr(width, height, &scene_referred)?,
-        ))
-    } else {
-        None
-    };
+    let (png, exr) = develop(
+        &film,
+        scene.light(),
+        &Develop {
+            adapt: picture.adapt,
+            exposure_ev: *exposure,
+            description,
+            exr: picture.exr,
+        },
+    )?;
+    let exr = exr.map(|bytes| (output.with_extension("exr"), bytes));
     let mut files = vec![(output.clone(), png)];
     files.extend(exr.iter().cloned());
     fluorite::files::write_files(&files)?;
@@ -314,32 +312,12 @@ fn report(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         .map(|p| Material::load(p).map(|m| (p, m)))
         .collect::<fluorite::Result<Vec<_>>>()?;
     let rules = [SpectralSampling::Paper, SpectralSampling::LightAware];
-    println!(
-        "Furnace, {width}×{height}, {} spp, seed {}: relative std of Y over the sphere's pixels; median time of {REPORT_RUNS} renders.",
-        settings.samples_per_pixel, settings.seed
-    );
-    println!();
-    println!(
-        "| material | light | noise, paper | time | noise, light-aware | time | light-aware noise at the paper's time |"
-    );
-    println!("|---|---|---|---|---|---|---|");
+    print!("{}", printer::furnace_header(&settings, REPORT_RUNS));
     for (path, material) in &materials {
         for light in &lights {
             let r = furnace_noise(material, light, &settings, &rules, REPORT_RUNS)
                 .with_context(|| format!("cannot report on {}", path.display()))?;
-            let (paper, lit) = (&r[0], &r[1]);
-            // Noise falls as 1/√samples, hence as 1/√time.
-            let equal_time = lit.noise * (lit.seconds / paper.seconds).sqrt();
-            println!(
-                "| {} | {} | {:.3} | {:.3} s | {:.3} | {:.3} s | {:.3} |",
-                material.name,
-                light.name,
-                paper.noise,
-                paper.seconds,
-                lit.noise,
-                lit.seconds,
-                equal_time
-            );
+            print!("{}", printer::furnace_row(material, light, &r[0], &r[1]));
         }
     }
     Ok(ExitCode::SUCCESS)

@@ -157,6 +157,44 @@ pub fn encode_exr(width: u32, height: u32, linear: &[[f32; 3]]) -> Result<Vec<u8
     Ok(cursor.into_inner())
 }
 
+/// How a rendered film becomes images.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Develop {
+    /// Adapt the light's white to D65 in the display image (Bradford), as an eye adapted
+    /// to the light sees it.
+    pub adapt: bool,
+    /// Exposure of the display image, in stops.
+    pub exposure_ev: f64,
+    /// What the picture shows, for the PNG's description.
+    pub description: String,
+    /// Also encode a scene-referred EXR (linear sRGB primaries, never adapted).
+    pub exr: bool,
+}
+
+/// The display-referred PNG of `film`, rendered under `light`, and with
+/// [`Develop::exr`] the scene-referred EXR beside it.
+pub fn develop(
+    film: &Film,
+    light: &LightSpectrum,
+    develop: &Develop,
+) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
+    check_exposure(develop.exposure_ev)?;
+    let linear = film_to_linear_srgb(film, &xyz_to_srgb_matrix(light, develop.adapt));
+    let png = encode_png(
+        film.width,
+        film.height,
+        &to_srgb8(&linear, develop.exposure_ev),
+        &develop.description,
+    )?;
+    let exr = if develop.exr {
+        let scene_referred = film_to_linear_srgb(film, &xyz_to_srgb_matrix(light, false));
+        Some(encode_exr(film.width, film.height, &scene_referred)?)
+    } else {
+        None
+    };
+    Ok((png, exr))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

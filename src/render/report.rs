@@ -71,6 +71,14 @@ pub fn luminance_spread(film: &Film, pixels: &[usize]) -> Option<(f64, f64)> {
     Some((mean, variance.sqrt() / mean.abs()))
 }
 
+impl NoiseReport {
+    /// This rule's noise had it run as long as `other`: noise falls as 1/√samples, hence
+    /// as 1/√time.
+    pub fn noise_at_time_of(&self, other: &NoiseReport) -> f64 {
+        self.noise * (self.seconds / other.seconds).sqrt()
+    }
+}
+
 /// Renders `material`'s furnace under `light` with `settings` `runs` times (at least
 /// once) per sampling rule in `rules`, and reports the noise of the first render and the
 /// median time.
