@@ -274,18 +274,8 @@ fn run_eem_set(args: &FitArgs, eems: &[Measurement]) -> anyhow::Result<ExitCode>
         };
         std::fs::create_dir_all(&dir)
             .with_context(|| format!("cannot create output folder {}", dir.display()))?;
-        let mut files = vec![
-            (dir.join("model.json"), fit.to_json().into_bytes()),
-            (dir.join("scores.csv"), fit.scores_csv().into_bytes()),
-        ];
-        for c in 0..k {
-            files.push((
-                dir.join(format!("component-{}.json", c + 1)),
-                fit.fluorophore(c).to_json().into_bytes(),
-            ));
-        }
-        let format = ImageFormat::Png;
-        let figure = fluorite::plot::joint::components(&fit, format)?;
+        let mut files = fit.files(&dir);
+        let figure = fluorite::plot::joint::components(&fit, ImageFormat::Png)?;
         files.push((dir.join("components.png"), figure));
         write_files(&files)?;
         let matches = reference.as_ref().map(|r| r.best_matches(&fit));

@@ -8,6 +8,7 @@ pub mod diagnostics;
 pub mod parafac;
 pub mod reference;
 
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
@@ -322,6 +323,23 @@ impl JointFit {
         let mut s = serde_json::to_string_pretty(self).expect("joint fit serialises");
         s.push('\n');
         s
+    }
+
+    /// The files a joint fit writes into `dir`, as (path, bytes): `model.json` (this fit),
+    /// `scores.csv` and one fluorophore per component, `component-<k>.json` (1-based).
+    /// Figures (`plot::joint`) join them before all are written at once.
+    pub fn files(&self, dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+        let mut files = vec![
+            (dir.join("model.json"), self.to_json().into_bytes()),
+            (dir.join("scores.csv"), self.scores_csv().into_bytes()),
+        ];
+        for c in 0..self.components.len() {
+            files.push((
+                dir.join(format!("component-{}.json", c + 1)),
+                self.fluorophore(c).to_json().into_bytes(),
+            ));
+        }
+        files
     }
 
     /// The score table: one row per sample, one column per component.
