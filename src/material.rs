@@ -220,6 +220,22 @@ impl Fluorophore {
             .then(|| self.photon_yield_with_mean(shortest, mean))
     }
 
+    /// The largest value of the form's yield that conserves photons at every absorbed
+    /// wavelength and lies in [0, 1]: min(1, λmin/λ̄e) for a constant energy yield Q,
+    /// whose photon yield Q·λ̄e/λ is largest at the shortest absorbed wavelength λmin;
+    /// 1 for a constant photon yield Φ. 1 also when nothing bounds Q (a vanishes
+    /// everywhere, or the emission has no mean).
+    pub fn yield_limit(&self) -> f64 {
+        match self.yield_form {
+            YieldForm::Photon => 1.0,
+            YieldForm::Energy => self
+                .shortest_absorbed_nm()
+                .map(|shortest| shortest / self.emission_mean_nm())
+                .filter(|limit| limit.is_finite())
+                .map_or(1.0, |limit| limit.min(1.0)),
+        }
+    }
+
     /// λ̄e = ∫λ·e dλ, the mean emission wavelength (nm).
     pub fn emission_mean_nm(&self) -> f64 {
         self.emission.mean_wavelength_nm()
@@ -364,10 +380,12 @@ pub struct Candidate {
     pub objective: Option<f64>,
 }
 
-/// Conservation margins of a material (the `conservation` block).
+/// Conservation margins of a material (the `conservation` block): the worst values of the
+/// energy and photon laws as `check` finds them ([`Material::conservation_margins`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct Conservation {
-    /// max over λ of ρ(λ) = (1 − Σc·a)·r + Σc·Q(λ)·a; must be ≤ 1.
+    /// max over λ of ρ(λ) = (1 − Σc·a)·r + Σc·Q(λ)·a·∫e (∫e = 1 in a valid material, but
+    /// the albedo is computed with the emission's actual area); must be ≤ 1.
     pub max_energy_albedo: f64,
     /// max over fluorophores and absorbed λ of the photon yield (Q·λ̄e/λ in the energy
     /// form, Φ in the photon form); must be ≤ 1.
@@ -407,7 +425,9 @@ impl Material {
         (1.0 - self.absorbed(nm)) * self.reflectance.eval_clamped(nm)
     }
 
-    /// ρ(λ): total energy albedo for excitation at `nm`.
+    /// ρ(λ) = (1 − Σc·a)·r + Σc·Q(λ)·a·∫e: the total energy albedo for excitation at
+    /// `nm`, the quantity of the energy law (∫e is 1 in a valid material; the emission's
+    /// actual area is used, so a check of an unnormalised file sees what it emits).
     pub fn energy_albedo(&self, nm: f64) -> f64 {
         self.energy_albedo_with(nm, &self.emission_moments())
     }
@@ -422,13 +442,16 @@ impl Material {
     }
 
     /// ρ(λ) with the emission moments of [`Material::emission_moments`] given (they cost a
-    /// pass over each emission).
+    /// pass over each emission). An emission without area (∫e = 0, which the emission
+    /// law reports) adds nothing, though its mean, and so the photon form's Q(λ), is
+    /// undefined.
     pub fn energy_albedo_with(&self, nm: f64, emission_moments: &[(f64, f64)]) -> f64 {
         self.diagonal(nm)
             + self
                 .fluorophores
                 .iter()
                 .zip(emission_moments)
+                .filter(|(_, (integral, _))| *integral != 0.0)
                 .map(|(f, &(integral, mean))| f.reradiated_with_mean(nm, mean) * integral)
                 .sum::<f64>()
     }
@@ -472,28 +495,6 @@ impl Material {
         all.sort_by(f64::total_cmp);
         all.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
         all
-    }
-
-    /// Computes the conservation margins. The albedo is piecewise linear-times-linear
-    /// between samples, so it is evaluated at every sample and at midpoints.
-    pub fn conservation_margins(&self) -> Conservation {
-        let samples = self.sample_wavelengths();
-        let mut points = samples.clone();
-        points.extend(samples.windows(2).map(|w| 0.5 * (w[0] + w[1])));
-        let moments = self.emission_moments();
-        let max_energy_albedo = points
-            .iter()
-            .map(|&l| self.energy_albedo_with(l, &moments))
-            .fold(0.0, f64::max);
-        let max_photon_ratio = self
-            .fluorophores
-            .iter()
-            .filter_map(Fluorophore::max_photon_yield)
-            .fold(0.0, f64::max);
-        Conservation {
-            max_energy_albedo,
-            max_photon_ratio,
-        }
     }
 
     /// Reads and validates a material file.

@@ -348,31 +348,48 @@ impl SynthSpec {
         let e = normalised(e, area, "emission", on_grid)?;
         let absorption = Spectrum::new(self.excitation_nm.clone(), a, "absorption")?;
         let emission = Spectrum::new(self.emission_nm.clone(), e, "emission")?;
-        let shortest = absorption
-            .value
-            .iter()
-            .position(|&x| x > 0.0)
-            .map(|i| self.excitation_nm[i.saturating_sub(1)])
-            .unwrap_or(self.excitation_nm[0]);
-        // The photon limit of the form's yield: λmin/λ̄e for a constant energy yield Q,
-        // 1 for a constant photon yield Φ.
-        let limit = match component.yield_form {
-            YieldForm::Energy => (shortest / emission.mean_wavelength_nm()).min(1.0),
-            YieldForm::Photon => 1.0,
-        };
-        let fluorophore = Fluorophore {
+        let mut fluorophore = Fluorophore {
             concentration: component.concentration,
-            quantum_yield: component.yield_fraction_of_limit * limit,
+            quantum_yield: 0.0,
             yield_form: component.yield_form,
             concentration_range: None,
             absorption,
             emission,
         };
+        fluorophore.quantum_yield = component.yield_fraction_of_limit * fluorophore.yield_limit();
         Ok((fluorophore, peak, area))
     }
 
-    /// The synthetic measurement (per 10 nm-style bin) and its ground truth.
+    /// Checks the measurement's parameters: noise σ and crosstalk finite and ≥ 0, the
+    /// missing fraction in [0, 1). Errors name the field and the `fluorite synth` flag
+    /// that sets it. (The truth's parameters are checked by [`SynthSpec::truth`], with
+    /// the material's laws.)
+    pub fn validate(&self) -> Result<()> {
+        for (value, field) in [
+            (self.noise_sigma, "noise_sigma (--noise)"),
+            (self.crosstalk, "crosstalk (--crosstalk)"),
+        ] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(Error::invalid(
+                    field,
+                    format!("is {value}; give a non-negative number"),
+                ));
+            }
+        }
+        let missing = self.missing_fraction;
+        if !(0.0..1.0).contains(&missing) {
+            return Err(Error::invalid(
+                "missing_fraction (--missing)",
+                format!("is {missing}; give a fraction in [0, 1)"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The synthetic measurement (per 10 nm-style bin) and its ground truth; fails when
+    /// [`SynthSpec::validate`] does.
     pub fn generate(&self) -> Result<(Measurement, Material)> {
+        self.validate()?;
         let truth = self.truth()?;
         let mut m = predict(
             &truth,
@@ -407,11 +424,13 @@ impl SynthSpec {
 impl SynthSpec {
     /// A concentration series of this spec: one measurement and truth per entry of
     /// `concentrations` (the first component's c; spectra, reflectance and yield shared),
-    /// named `<name>-c<c>`, each with its own noise draw (seed + index).
+    /// named `<name>-c<c>`, each with its own noise draw (seed + index). Fails when
+    /// [`SynthSpec::validate`] does.
     pub fn concentration_series(
         &self,
         concentrations: &[f64],
     ) -> Result<Vec<(SynthSpec, Measurement, Material)>> {
+        self.validate()?;
         if concentrations.is_empty() {
             return Err(Error::invalid(
                 "--concentrations",

@@ -373,3 +373,122 @@ fn a_photon_form_component_gives_a_photon_form_truth_and_matrix() {
         spec.yield_fraction_of_limit
     );
 }
+
+/// Impossible noise, crosstalk or missing fractions are errors of the library naming the
+/// field and the `fluorite synth` flag, from `generate` and `concentration_series` alike;
+/// the CLI reports them and writes nothing.
+#[test]
+fn impossible_measurement_parameters_are_errors() {
+    type Set = fn(&mut SynthSpec, f64);
+    let cases: [(Set, f64, &str, &str); 6] = [
+        (
+            |s, v| s.noise_sigma = v,
+            -0.1,
+            "noise_sigma (--noise)",
+            "give a non-negative number",
+        ),
+        (
+            |s, v| s.noise_sigma = v,
+            f64::NAN,
+            "noise_sigma (--noise)",
+            "is NaN",
+        ),
+        (
+            |s, v| s.crosstalk = v,
+            -1e-3,
+            "crosstalk (--crosstalk)",
+            "give a non-negative number",
+        ),
+        (
+            |s, v| s.crosstalk = v,
+            f64::INFINITY,
+            "crosstalk (--crosstalk)",
+            "is inf",
+        ),
+        (
+            |s, v| s.missing_fraction = v,
+            1.0,
+            "missing_fraction (--missing)",
+            "give a fraction in [0, 1)",
+        ),
+        (
+            |s, v| s.missing_fraction = v,
+            -0.5,
+            "missing_fraction (--missing)",
+            "is -0.5",
+        ),
+    ];
+    for (set, value, field, says) in cases {
+        let mut spec = SynthSpec::preset("green-dye").unwrap();
+        set(&mut spec, value);
+        for err in [
+            spec.validate().unwrap_err(),
+            spec.generate().unwrap_err(),
+            spec.concentration_series(&[0.5, 1.0]).unwrap_err(),
+        ] {
+            let err = err.to_string();
+            assert!(err.starts_with(&format!("{field}: ")), "{err}");
+            assert!(err.contains(says), "{err}");
+        }
+    }
+    // The bounds themselves are allowed.
+    let mut spec = SynthSpec::preset("green-dye").unwrap();
+    spec.noise_sigma = 0.0;
+    spec.crosstalk = 0.0;
+    spec.missing_fraction = 0.0;
+    spec.validate().unwrap();
+
+    let dir = std::env::temp_dir().join(format!("fluorite-synth-flags-{}", std::process::id()));
+    for (flag, value, says) in [
+        (
+            "--noise",
+            "-0.1",
+            "--noise): is -0.1; give a non-negative number",
+        ),
+        (
+            "--crosstalk",
+            "NaN",
+            "--crosstalk): is NaN; give a non-negative number",
+        ),
+        (
+            "--missing",
+            "1",
+            "--missing): is 1; give a fraction in [0, 1)",
+        ),
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .args(["synth", "--out"])
+            .arg(&dir)
+            .args(["--preset", "green-dye,plain", &format!("{flag}={value}")])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.contains(says), "{stderr}");
+        assert!(!dir.exists(), "{flag} {value}: nothing is written");
+    }
+}
+
+/// All of a run's files or none: a folder in the way of the last preset's spec file
+/// leaves every target unwritten.
+#[test]
+fn synth_writes_all_files_or_none() {
+    let dir = std::env::temp_dir().join(format!("fluorite-synth-all-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("plain.synth.json")).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .args(["synth", "--out"])
+        .arg(&dir)
+        .args(["--preset", "green-dye,plain"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(
+        left,
+        ["plain.synth.json"],
+        "only the folder in the way remains"
+    );
+}

@@ -333,7 +333,7 @@ pub(super) fn check_to(m: &RawMaterial, depth: FormsDepth) -> CheckReport {
             fluorophores: m
                 .fluorophores
                 .iter()
-                .map(|f| crate::material::Fluorophore {
+                .map(|f| Fluorophore {
                     concentration: f.concentration,
                     quantum_yield: f.quantum_yield,
                     yield_form: f.yield_form,
@@ -371,7 +371,7 @@ pub(super) fn check_to(m: &RawMaterial, depth: FormsDepth) -> CheckReport {
         }
         for (n, f) in material.fluorophores.iter().enumerate() {
             let mean = f.emission_mean_nm();
-            let absorbed = absorbed_range(&f.absorption);
+            let absorbed = absorbed_range(f);
             let mut summary = FluorophoreSummary {
                 yield_form: f.yield_form,
                 yield_value: f.quantum_yield,
@@ -392,32 +392,23 @@ pub(super) fn check_to(m: &RawMaterial, depth: FormsDepth) -> CheckReport {
                     f.energy_yield_with_mean(lo, mean),
                     f.energy_yield_with_mean(hi, mean),
                 ]);
-                // The photon yield is largest at the shortest absorbed wavelength (it is
-                // constant in the photon form).
-                let ratio = f.photon_yield_with_mean(lo, mean);
+            }
+            // The photon yield is largest at the shortest absorbed wavelength (it is
+            // constant in the photon form).
+            if let (Some(ratio), Some([lo, _])) = (f.max_photon_yield(), absorbed) {
                 let y = f.quantum_yield;
-                let (nm, message) = match f.yield_form {
-                    YieldForm::Energy => (
-                        Some(lo),
-                        format!(
+                let nm = (f.yield_form == YieldForm::Energy).then_some(lo);
+                photons.observe(1.0 - ratio, ratio, format_args!("fluorophores[{n}]"), nm, || {
+                    match f.yield_form {
+                        YieldForm::Energy => format!(
                             "fluorophores[{n}] emits Q·λ̄e/λ = {ratio:.6} photons per absorbed photon at {lo} nm (Q = {y}, λ̄e = {mean:.2} nm); photon conservation allows Q ≤ {:.6} (or a constant photon yield Φ ≤ 1: \"yield_form\": \"photon\")",
-                            lo / mean
+                            f.yield_limit()
                         ),
-                    ),
-                    YieldForm::Photon => (
-                        None,
-                        format!(
+                        YieldForm::Photon => format!(
                             "fluorophores[{n}] emits Φ = {y} photons per absorbed photon at every absorbed wavelength; photon conservation allows Φ ≤ 1"
                         ),
-                    ),
-                };
-                photons.observe(
-                    1.0 - ratio,
-                    ratio,
-                    format_args!("fluorophores[{n}]"),
-                    nm,
-                    || message,
-                );
+                    }
+                });
             }
             summaries.push(summary);
         }
@@ -560,13 +551,28 @@ fn check_forms(m: &RawMaterial, notes: bool) -> (Tracker, Option<FormsSummary>) 
 
 /// Shortest and longest wavelength where a > 0: a is linear between samples, so a
 /// zero sample next to a positive one bounds the absorbed interval (its infimum or
-/// supremum), as in [`crate::material::Fluorophore::shortest_absorbed_nm`].
-fn absorbed_range(a: &Spectrum) -> Option<[f64; 2]> {
-    let first = a.value.iter().position(|&v| v > 0.0)?;
+/// supremum), as [`Fluorophore::shortest_absorbed_nm`] finds the shortest.
+fn absorbed_range(f: &Fluorophore) -> Option<[f64; 2]> {
+    let lo = f.shortest_absorbed_nm()?;
+    let a = &f.absorption;
     let last = a.value.iter().rposition(|&v| v > 0.0)?;
-    let lo = a.wavelength_nm[first.saturating_sub(1)];
     let hi = a.wavelength_nm[(last + 1).min(a.len() - 1)];
     Some([lo, hi])
+}
+
+/// The conservation block of `material` from the energy law's extrema (as
+/// [`energy_extrema`] returns them) and the photon law's worst value per fluorophore
+/// ([`Fluorophore::max_photon_yield`], what the photon law observes): 0 where nothing is
+/// observed (no fluorophore).
+fn conservation(material: &Material, extrema: &[(f64, f64)]) -> Conservation {
+    Conservation {
+        max_energy_albedo: extrema.iter().map(|&(_, rho)| rho).fold(0.0, f64::max),
+        max_photon_ratio: material
+            .fluorophores
+            .iter()
+            .filter_map(Fluorophore::max_photon_yield)
+            .fold(0.0, f64::max),
+    }
 }
 
 /// The local maxima of ρ(λ) on `grid` (every spectrum's samples): between samples every
@@ -580,18 +586,7 @@ fn absorbed_range(a: &Spectrum) -> Option<[f64; 2]> {
 /// dense evaluation needed). Three values per interval (ends and midpoint) determine it.
 fn energy_extrema(material: &Material, grid: &[f64]) -> Vec<(f64, f64)> {
     let moments = material.emission_moments();
-    // ρ(λ); an emission without area (∫e = 0, reported by its own law) adds nothing,
-    // though its mean (and so the photon form's Q(λ)) is undefined.
-    let albedo = |l: f64| {
-        material.diagonal(l)
-            + material
-                .fluorophores
-                .iter()
-                .zip(&moments)
-                .filter(|(_, (integral, _))| *integral != 0.0)
-                .map(|(f, &(integral, mean))| f.reradiated_with_mean(l, mean) * integral)
-                .sum::<f64>()
-    };
+    let albedo = |l: f64| material.energy_albedo_with(l, &moments);
     let mut out: Vec<(f64, f64)> = grid.iter().map(|&l| (l, albedo(l))).collect();
     for k in 1..grid.len() {
         let ((l0, f0), (l1, f1)) = (out[k - 1], out[k]);
@@ -612,6 +607,14 @@ fn energy_extrema(material: &Material, grid: &[f64]) -> Vec<(f64, f64)> {
 
 /// The material's own checks, made by the law engine above: one place defines each law.
 impl Material {
+    /// The conservation block: the worst values of the energy and photon laws, found as
+    /// the law engine finds them (ρ at every sample and every interval's vertex, so its
+    /// exact maximum; each fluorophore's photon yield at its shortest absorbed
+    /// wavelength). Written into every material, it agrees with what `check` reports.
+    pub fn conservation_margins(&self) -> Conservation {
+        conservation(self, &energy_extrema(self, &self.sample_wavelengths()))
+    }
+
     /// Checks every law of the model (every [`Law`]: well-formed spectra, a, r, c and the
     /// yield in [0, 1], max a = 1, ∫e = 1, the forms, Σc·a ≤ 1, energy and photons) and
     /// returns the first broken one, in [`Law::ALL`] order, as an error naming where it

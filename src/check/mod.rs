@@ -17,7 +17,7 @@ use serde::Serialize;
 use serde_json::Value;
 
 use crate::error::{Error, Result};
-use crate::material::{Material, SCHEMA, YieldForm};
+use crate::material::{Conservation, Fluorophore, Material, SCHEMA, YieldForm};
 use crate::parametric::MaterialForms;
 use crate::spectrum::{Spectrum, bin_widths};
 

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
-use fluorite::files::write_atomic;
+use fluorite::files::write_files;
 use fluorite::formats::{RowsAre, write_wide_csv};
 use fluorite::synth::{PRESETS, SynthSpec};
 
@@ -52,18 +52,6 @@ pub fn run(args: SynthArgs) -> anyhow::Result<ExitCode> {
     } else {
         args.preset.clone()
     };
-    for (value, name) in [(args.noise, "--noise"), (args.crosstalk, "--crosstalk")] {
-        if let Some(v) = value
-            && !(v.is_finite() && v >= 0.0)
-        {
-            anyhow::bail!("{name}: is {v}; give a non-negative number");
-        }
-    }
-    if let Some(v) = args.missing
-        && !(0.0..1.0).contains(&v)
-    {
-        anyhow::bail!("--missing: is {v}; give a fraction in [0, 1)");
-    }
     // Build everything first so a bad preset writes nothing.
     let mut outputs = Vec::new();
     for preset in &presets {
@@ -88,14 +76,22 @@ pub fn run(args: SynthArgs) -> anyhow::Result<ExitCode> {
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
-    for (spec, m, truth) in outputs {
+    // Every preset's three files, written all-or-nothing.
+    let mut files = Vec::with_capacity(3 * outputs.len());
+    for (spec, m, truth) in &outputs {
         // Appended, not `with_extension`: series names hold a dot (`green-dye-c0.5`).
         let file = |extension: &str| args.out.join(format!("{}.{extension}", spec.name));
-        let csv = file("csv");
-        write_atomic(&csv, write_wide_csv(&m, RowsAre::Excitation).as_bytes())?;
-        write_atomic(&file("truth.json"), truth.to_json().as_bytes())?;
-        let spec_json = serde_json::to_string_pretty(&spec)? + "\n";
-        write_atomic(&file("synth.json"), spec_json.as_bytes())?;
+        let spec_json = serde_json::to_string_pretty(spec)? + "\n";
+        files.push((
+            file("csv"),
+            write_wide_csv(m, RowsAre::Excitation).into_bytes(),
+        ));
+        files.push((file("truth.json"), truth.to_json().into_bytes()));
+        files.push((file("synth.json"), spec_json.into_bytes()));
+    }
+    write_files(&files)?;
+    // The CSV is the first of each output's three files.
+    for ((spec, m, _), (csv, _)) in outputs.iter().zip(files.iter().step_by(3)) {
         println!(
             "{}: {} × {} cells, noise σ = {}, crosstalk {}, missing {:.0} %, seed {}",
             csv.display(),

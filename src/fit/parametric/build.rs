@@ -93,7 +93,7 @@ impl Problem<'_> {
                 absorption: absorption_samples,
                 emission: emission_samples,
             };
-            let limit = yield_limit(&fluorophore);
+            let limit = fluorophore.yield_limit();
             fluorophore.quantum_yield = if concentration > 0.0 {
                 (k_product / concentration).min(limit)
             } else {
@@ -132,7 +132,7 @@ impl Problem<'_> {
             for f in &mut fluorophores {
                 let k_product = f.k();
                 f.concentration /= total_peak;
-                f.quantum_yield = (k_product / f.concentration).min(yield_limit(f));
+                f.quantum_yield = (k_product / f.concentration).min(f.yield_limit());
             }
         }
         // Reflectance.
@@ -223,19 +223,7 @@ impl Problem<'_> {
             reflectance: reflectance_form,
             fluorophores: forms,
         });
-        material.conservation = Some(material.conservation_margins());
+        // Material::new computed the conservation block; nothing since changes it.
         Ok(material)
-    }
-}
-
-/// The largest yield of a fluorophore's form in the gauge of the smallest feasible c: Φ ≤ 1
-/// in the photon form; Q ≤ min(1, λmin/λ̄e) in the energy form (photon conservation).
-pub(super) fn yield_limit(f: &Fluorophore) -> f64 {
-    match f.yield_form {
-        YieldForm::Photon => 1.0,
-        YieldForm::Energy => f
-            .shortest_absorbed_nm()
-            .map(|l| (l / f.emission_mean_nm()).min(1.0))
-            .unwrap_or(1.0),
     }
 }
