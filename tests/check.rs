@@ -1,7 +1,7 @@
 //! `check`: every fitted and synthetic material passes; each law broken alone is named,
 //! in the report and through the CLI's exit code.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use fluorite::check::{Law, Status, check_file, check_material};
@@ -16,7 +16,7 @@ mod common;
 
 /// `fluorite check`'s text report on `material` (saved in a folder named by `tag`).
 fn check_text(material: &Material, tag: &str) -> String {
-    let dir = temp_dir(tag);
+    let dir = common::temp_dir(tag);
     let path = dir.join("material.json");
     material.save(&path).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
@@ -215,19 +215,11 @@ fn violating() -> Vec<(Law, String, String)> {
     cases
 }
 
-fn temp_dir(tag: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("fluorite-test-check-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 #[test]
 fn base_is_valid_and_each_law_broken_alone_is_named() {
     let report = check_material(&base());
     assert!(report.valid, "{}", report.to_json());
-    let dir = temp_dir("laws");
+    let dir = common::temp_dir("laws");
     let mut seen = Vec::new();
     for (n, (law, what, text)) in violating().into_iter().enumerate() {
         let path = dir.join(format!("case{n}.json"));
@@ -341,7 +333,7 @@ fn margins_and_worst_wavelengths_are_the_analytic_ones() {
 
 #[test]
 fn cli_exit_codes() {
-    let dir = temp_dir("cli");
+    let dir = common::temp_dir("cli");
     let good = dir.join("good.json");
     base().save(&good).unwrap();
     let run = |args: &[&Path]| {
@@ -476,7 +468,7 @@ fn forms_are_compared_with_their_samples_and_named() {
     assert!(text.contains("note: forms.fluorophores[1].absorption reaches"));
 
     // Through the CLI: text and JSON name the model.
-    let dir = temp_dir("forms");
+    let dir = common::temp_dir("forms");
     let path = dir.join("forms.json");
     m.save(&path).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
@@ -689,7 +681,7 @@ fn photon_form_energy_law_finds_the_maximum_between_samples_and_above_the_mean_e
 
 #[test]
 fn a_yield_given_wrongly_for_its_form_is_reported_not_fatal() {
-    let dir = temp_dir("yield-form");
+    let dir = common::temp_dir("yield-form");
     let good: serde_json::Value = serde_json::from_str(&base_photon(0.7).to_json()).unwrap();
     assert_eq!(good["fluorophores"][0]["yield_form"], "photon");
     assert_eq!(good["fluorophores"][0]["photon_yield"], 0.7);

@@ -4,7 +4,6 @@
 
 mod common;
 
-
 use fluorite::import::read_spectrum;
 use fluorite::parametric::fit::{
     BandFit, DEFAULT_BAND_DOMAIN, fit_bands, fit_bands_to_tolerance, fit_sigmoid_polynomial,
