@@ -8,43 +8,11 @@ use crate::error::{Error, Result};
 use crate::material::{Fluorophore, Material, YieldForm};
 use crate::measurement::{Measurement, Units};
 use crate::model::predict;
+use crate::numeric::SplitMix64;
 use crate::parametric::{
     BandDomain, FluorophoreForms, GaussianBand, GaussianBands, MaterialForms, SpectralForm,
 };
 use crate::spectrum::{Spectrum, bin_widths, uniform_grid};
-
-/// A small, fast, reproducible random generator (SplitMix64). Synthetic data must be
-/// identical across platforms and crate versions, which a fixed generator guarantees.
-#[derive(Debug, Clone)]
-pub struct SplitMix64(u64);
-
-impl SplitMix64 {
-    /// A generator from a seed.
-    pub fn new(seed: u64) -> Self {
-        SplitMix64(seed)
-    }
-
-    /// Next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Standard normal (Box-Muller).
-    pub fn normal(&mut self) -> f64 {
-        let u1 = 1.0 - self.uniform();
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
-}
 
 /// A Gaussian band in wavelength.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -516,7 +516,7 @@ fn noise_colour_check(
     // Colour on the data's own grids, as in the accuracy report (cached colorimeters).
     let lab = |mat: &Material| assess::predicted_labs(mat, m, &options.lights);
     let reference = lab(material);
-    let mut rng = crate::synth::SplitMix64::new(0x5EED);
+    let mut rng = crate::numeric::SplitMix64::new(0x5EED);
     let mut sum_sq = 0.0;
     let mut draws = 0.0;
     for _ in 0..BOOTSTRAP_DRAWS {
