@@ -6,7 +6,6 @@ use anyhow::Context;
 use fluorite::eem::correct::Absorbance;
 use fluorite::eem::scatter::{ScatterLine, ScatterOptions};
 use fluorite::eem::{EemOptions, Preprocessing, UnitsChoice, prepare};
-use fluorite::fit::FitOutcome;
 use fluorite::formats::{ReadOptions, read};
 use fluorite::measurement::Measurement;
 
@@ -128,19 +127,4 @@ pub fn read_prepared(
 ) -> anyhow::Result<(Measurement, Option<Preprocessing>)> {
     let m = read(input, read_options)?;
     Ok(prepare(m, options)?)
-}
-
-/// Records the preprocessing in the outcome's fit report.
-pub fn attach(outcome: &mut FitOutcome, preprocessing: Option<Preprocessing>) {
-    if preprocessing.is_none() {
-        return;
-    }
-    match outcome {
-        FitOutcome::Material(m) => {
-            if let Some(f) = m.fit.as_mut() {
-                f.preprocessing = preprocessing;
-            }
-        }
-        FitOutcome::Shapes(s) => s.fit.preprocessing = preprocessing,
-    }
 }

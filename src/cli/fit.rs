@@ -212,7 +212,9 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
             let eem = args.eem.options(index, args.inputs.len(), &read_options)?;
             let (m, preprocessing) = crate::cli::eem::read_prepared(input, &eem, &read_options)?;
             let mut outcome = fit(&m, &options)?;
-            crate::cli::eem::attach(&mut outcome, preprocessing);
+            if let Some(preprocessing) = preprocessing {
+                outcome.record_preprocessing(preprocessing);
+            }
             if args.timing_runs > 1 {
                 let mut times = vec![outcome.report().seconds];
                 for _ in 1..args.timing_runs {

@@ -163,6 +163,19 @@ pub enum FitOutcome {
 }
 
 impl FitOutcome {
+    /// Records how a raw EEM was prepared ([`crate::eem::prepare`]) in the fit report, so
+    /// the written file says what was done to the data before the fit.
+    pub fn record_preprocessing(&mut self, preprocessing: crate::eem::Preprocessing) {
+        match self {
+            FitOutcome::Material(m) => {
+                if let Some(f) = m.fit.as_mut() {
+                    f.preprocessing = Some(preprocessing);
+                }
+            }
+            FitOutcome::Shapes(s) => s.fit.preprocessing = Some(preprocessing),
+        }
+    }
+
     /// The fit report of either outcome.
     pub fn report(&self) -> &FitReport {
         match self {

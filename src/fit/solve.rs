@@ -13,8 +13,7 @@ use argmin::solver::neldermead::NelderMead;
 use argmin::solver::quasinewton::LBFGS;
 use nalgebra::{DMatrix, DVector};
 
-pub use crate::optimise::Refined;
-use crate::optimise::{Stopping, run};
+use crate::optimise::{Refined, Stopping, run};
 
 use super::Solver;
 use super::objective::Objective;

@@ -38,7 +38,7 @@ const PHOTON_BINDS_KAPPA: f64 = 0.999;
 /// One yield form fitted: the objective, the refinement and where it ended.
 struct FormFit<'a> {
     objective: Objective<'a>,
-    refined: solve::Refined,
+    refined: crate::optimise::Refined,
     spectra: GridSpectra,
     cost: f64,
     cost_history: Vec<f64>,
@@ -76,7 +76,7 @@ fn refine_form<'a>(
         cost_tolerance: options.tolerance * scale_cost.max(1e-300),
     };
     let refined = match options.solver {
-        Solver::Init => solve::Refined {
+        Solver::Init => crate::optimise::Refined {
             theta: theta0.clone(),
             iterations: start.sweeps as u64,
             converged: start.converged,

@@ -168,7 +168,7 @@ pub(super) fn fit_candidate(
     {
         starts.push(Start::Nested);
     }
-    let mut best: Option<(Vec<f64>, solve::Refined, f64)> = None;
+    let mut best: Option<(Vec<f64>, crate::optimise::Refined, f64)> = None;
     let mut last_error: Option<Error> = None;
     for kind in starts {
         let theta0 = match kind {
@@ -197,7 +197,7 @@ pub(super) fn fit_candidate(
         let theta = embed(&problem, &n.spec, &n.theta, EMBEDDED_EXTRA);
         let cost = problem.cost_gradient(&theta).0;
         if cost.is_finite() && best.as_ref().is_none_or(|b| cost < b.2) {
-            let refined = solve::Refined {
+            let refined = crate::optimise::Refined {
                 theta: theta.clone(),
                 iterations: 0,
                 converged: true,

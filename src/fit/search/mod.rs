@@ -509,7 +509,7 @@ fn refine(
     theta0: &[f64],
     options: &FitOptions,
     tolerance: f64,
-) -> Result<(Vec<f64>, solve::Refined)> {
+) -> Result<(Vec<f64>, crate::optimise::Refined)> {
     let (start_cost, start_gradient) = problem.cost_gradient(theta0);
     if !start_cost.is_finite() || start_gradient.iter().any(|g| !g.is_finite()) {
         return Err(Error::Fit(

@@ -513,7 +513,7 @@ fn fit_form(
 }
 
 /// The warnings of a finished series fit.
-fn warnings(fit: &SeriesFit, refined: &solve::Refined, names: &[String]) -> Vec<String> {
+fn warnings(fit: &SeriesFit, refined: &crate::optimise::Refined, names: &[String]) -> Vec<String> {
     let mut out = Vec::new();
     if !refined.converged {
         out.push(format!(
