@@ -314,7 +314,7 @@ mod tests {
             // Both components absorb almost everything near 21 kK: the Σκa penalty acts.
             theta[k] = 1.2 + 0.1 * k as f64;
             let centres = [20.5 + 3.0 * k as f64, 26.0];
-            // The second band near the width floor (≈ 0.34 kK at 26 kK): the gradient
+            // The second band near the width floor (≈ 0.5 kK at 26 kK): the gradient
             // runs through the floor's dependence on the centre.
             let widths = [0.1, 0.3f64.ln()];
             for (b, chunk) in theta[layout.absorption(k)].chunks_mut(3).enumerate() {
@@ -337,7 +337,7 @@ mod tests {
     }
 
     #[test]
-    fn bands_stay_wider_than_half_the_local_grid_step() {
+    fn bands_stay_wider_than_the_floor_at_the_local_grid_step() {
         let data = problem_data();
         let spec = ModelSpec {
             components: 1,
@@ -359,11 +359,11 @@ mod tests {
             theta[band + 2] = ln_width;
             let [absorption, _] = problem.component_bands(&theta, 0);
             assert!(
-                absorption[2].exp() >= 0.5 * step * (1.0 - 1e-12),
-                "width {} below half the step {step}",
+                absorption[2].exp() >= FLOOR_STEPS * step * (1.0 - 1e-12),
+                "width {} below the floor at step {step}",
                 absorption[2].exp()
             );
-            // The material carries the floored band too: σ in nm at 365 nm ≥ 2.5 nm.
+            // The material carries the floored band too: σ in nm at 365 nm ≥ ¾·10 nm.
             let material = problem.material(&theta, "floor").unwrap();
             let forms = material.forms.unwrap();
             let crate::parametric::SpectralForm::GaussianBands(bands) =
@@ -372,7 +372,7 @@ mod tests {
                 panic!("a Gaussian absorption");
             };
             let sigma_nm = bands.bands[0].width / 1e7 * 365.0f64.powi(2);
-            assert!(sigma_nm >= 0.5 * 10.0 * 0.99, "σ {sigma_nm} nm");
+            assert!(sigma_nm >= FLOOR_STEPS * 10.0 * 0.99, "σ {sigma_nm} nm");
         }
         // Starts below the floor come back just above it.
         let narrow = [0.0, theta[band + 1], (0.01 * step).ln()];
@@ -381,7 +381,7 @@ mod tests {
             theta[band..band + 3].copy_from_slice(&start);
             problem.component_bands(&theta, 0)
         };
-        assert!((absorption[2].exp() / (0.5 * step) - 1.0).abs() < 0.05);
+        assert!((absorption[2].exp() / (FLOOR_STEPS * step) - 1.0).abs() < 0.05);
     }
 
     #[test]
