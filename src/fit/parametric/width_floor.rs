@@ -2,12 +2,13 @@
 //! falls between the samples it is fitted to, and its colour off the grid (a light's
 //! narrow line between two rows) is then free of any data.
 //!
-//! The solver's third band parameter θ is not the ln width itself: the band's width is
-//! w = √(f(c)² + e^{2θ}), with f(c) [`FLOOR_STEPS`] times the local grid step at the
-//! centre c. w never falls below f, the map is smooth in θ and c, and a band well above
-//! the floor keeps w ≈ e^θ (the ln width the starts and the box speak of).
+//! The solver's third band parameter θ is not the ln width itself: with f(c)
+//! [`FLOOR_STEPS`] times the local grid step at the centre c and x = e^θ/f, the band's
+//! width is w = f·(1 + x²/4) below x = 2 and e^θ above. w never falls below f, the map
+//! is continuously differentiable in θ and c, and a band at least twice the floor is
+//! exactly the one θ names as its ln width (fits of broad bands do not move).
 
-use crate::parametric::{PARAMS_PER_BAND, sigmoid};
+use crate::parametric::PARAMS_PER_BAND;
 
 /// The narrowest band, in local grid steps Δ. At σ = ¾Δ the samples within ±2σ of any
 /// centre span 3Δ, so at least three see the band's core; midway between two samples
@@ -64,7 +65,7 @@ impl WidthFloor {
         let (Some(&first), Some(&last)) = (m.first(), m.last()) else {
             return (1e-6, 0.0);
         };
-        if !(u > first) {
+        if u <= first || u.is_nan() {
             return (f[0], 0.0);
         }
         if u >= last {
@@ -92,12 +93,18 @@ impl WidthFloor {
             .chunks_exact_mut(PARAMS_PER_BAND)
             .map(|band| {
                 let (f, slope) = self.at(band[1]);
-                // ln w = ½·ln(f² + e^{2θ}) = ln f + ½·ln(1 + e^{2(θ − ln f)}), evaluated
-                // without overflow either way.
-                let excess = 2.0 * (band[2] - f.ln());
-                let softplus = excess.max(0.0) + (-excess.abs()).exp().ln_1p();
-                band[2] = f.ln() + 0.5 * softplus;
-                let by_theta = sigmoid(excess);
+                let ln_x = band[2] - f.ln();
+                if ln_x >= BLEND_END.ln() {
+                    return WidthChain {
+                        by_theta: 1.0,
+                        by_centre: 0.0,
+                    };
+                }
+                // w = f·g(x), g = 1 + x²/4: g(2) = 2 and g'(2) = 1 meet w = e^θ.
+                let x2 = (2.0 * ln_x).exp();
+                let g = 1.0 + 0.25 * x2;
+                band[2] = f.ln() + g.ln();
+                let by_theta = 0.5 * x2 / g;
                 WidthChain {
                     by_theta,
                     by_centre: (1.0 - by_theta) * slope / f,
@@ -130,17 +137,23 @@ impl WidthFloor {
         let mut params = gaussian.to_vec();
         for band in params.chunks_exact_mut(PARAMS_PER_BAND) {
             let (f, _) = self.at(band[1]);
-            let w = band[2].exp();
-            let excess = (w * w - f * f).max((START_EXCESS * f).powi(2));
-            band[2] = 0.5 * excess.ln();
+            let ratio = (band[2] - f.ln()).exp();
+            if ratio < BLEND_END {
+                // Invert g(x) = 1 + x²/4 (a band at or below the floor starts at x_min).
+                let x = (2.0 * (ratio - 1.0).max(0.0).sqrt()).max(START_X);
+                band[2] = f.ln() + x.ln();
+            }
         }
         params
     }
 }
 
-/// The smallest e^θ a start gives a band, relative to the floor: a band pinned at the
-/// floor has ∂w/∂θ ≈ 0, so it starts where the data can still widen it (w ≈ 1.03·f).
-const START_EXCESS: f64 = 0.25;
+/// x = e^θ/f from which the width is e^θ itself (twice the floor).
+const BLEND_END: f64 = 2.0;
+
+/// The smallest x a start gives a band: a band pinned at the floor has ∂w/∂θ ≈ 0, so it
+/// starts where the data can still widen it (w = 1.06·f, ∂ln w/∂θ = 0.12).
+const START_X: f64 = 0.5;
 
 #[cfg(test)]
 mod tests {
