@@ -76,13 +76,11 @@ impl WidthFloor {
         (f[i - 1] + slope * (u - m[i - 1]), slope)
     }
 
-    /// The smallest floor anywhere on the grid.
+    /// The smallest floor anywhere on the grid (that of [`WidthFloor::at`] for a grid
+    /// of one point).
     pub fn smallest(&self) -> f64 {
-        self.floor
-            .iter()
-            .cloned()
-            .fold(f64::INFINITY, f64::min)
-            .min(1.0)
+        let smallest = self.floor.iter().cloned().fold(f64::INFINITY, f64::min);
+        if smallest.is_finite() { smallest } else { 1e-6 }
     }
 
     /// Gaussian parameters (ln height, centre, ln width) of solver parameters
