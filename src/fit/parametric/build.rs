@@ -33,6 +33,7 @@ impl Problem<'_> {
         let mut fluorophores = Vec::with_capacity(spec.components);
         let mut forms = Vec::with_capacity(spec.components);
         for k in 0..spec.components {
+            let [absorption_bands, emission_bands] = self.component_bands(theta, k);
             // Absorption: normalise on the fit grid, trim the support where the bands fall
             // below the floor (the photon law's λmin), renormalise on the fine grid.
             let mut absorption = GaussianBands::from_params(
@@ -41,7 +42,7 @@ impl Problem<'_> {
                     data.excitation_nm[0],
                     *data.excitation_nm.last().unwrap_or(&0.0),
                 ],
-                &theta[self.layout.absorption(k)],
+                &absorption_bands,
             );
             absorption.scale(1.0 / gm.absorption_peak[k]);
             if let Some(first) = gm.absorption[k].iter().position(|&a| a >= ABSORPTION_FLOOR) {
@@ -64,7 +65,7 @@ impl Problem<'_> {
                     data.emission_nm[0],
                     *data.emission_nm.last().unwrap_or(&0.0),
                 ],
-                &theta[self.layout.emission(k)],
+                &emission_bands,
             );
             let raw = SpectralForm::GaussianBands(emission.clone())
                 .tabulate(&emission_fine, &format!("{what}.emission"))?;

@@ -91,19 +91,23 @@ impl<'a> Problem<'a> {
             cell_mask[c.row * n_em + c.column] = 1.0;
             cell_value[c.row * n_em + c.column] = c.value;
         }
+        let excitation_u: Vec<f64> = data
+            .excitation_nm
+            .iter()
+            .map(|&l| domain.coordinate(l))
+            .collect();
+        let emission_u: Vec<f64> = data
+            .emission_nm
+            .iter()
+            .map(|&l| domain.coordinate(l))
+            .collect();
         Problem {
             data,
             layout: Layout::new(spec),
-            excitation_u: data
-                .excitation_nm
-                .iter()
-                .map(|&l| domain.coordinate(l))
-                .collect(),
-            emission_u: data
-                .emission_nm
-                .iter()
-                .map(|&l| domain.coordinate(l))
-                .collect(),
+            excitation_floor: WidthFloor::new(&excitation_u),
+            emission_floor: WidthFloor::new(&emission_u),
+            excitation_u,
+            emission_u,
             column_factor,
             density_factor,
             diagonal,
@@ -140,9 +144,11 @@ impl<'a> Problem<'a> {
             emission_jacobian: Vec::with_capacity(k_count),
         };
         for k in 0..k_count {
-            let ap = &theta[layout.absorption(k)];
-            let ep = &theta[layout.emission(k)];
-            let (raw, absorption_jacobian) = bands_with_jacobian(ap, &self.excitation_u);
+            let (raw, absorption_jacobian) = floored_bands_with_jacobian(
+                &self.excitation_floor,
+                &theta[layout.absorption(k)],
+                &self.excitation_u,
+            );
             let (peak_index, peak) =
                 raw.iter().enumerate().fold(
                     (0, f64::MIN),
@@ -150,7 +156,11 @@ impl<'a> Problem<'a> {
                 );
             let peak = peak.max(1e-300);
             let absorption: Vec<f64> = raw.iter().map(|v| v / peak).collect();
-            let (emission, emission_jacobian) = bands_with_jacobian(ep, &self.emission_u);
+            let (emission, emission_jacobian) = floored_bands_with_jacobian(
+                &self.emission_floor,
+                &theta[layout.emission(k)],
+                &self.emission_u,
+            );
             m.absorption_jacobian.push(absorption_jacobian);
             m.emission_jacobian.push(emission_jacobian);
             let (mut normaliser, mut moment) = (0.0, 0.0);
@@ -545,26 +555,31 @@ impl<'a> Problem<'a> {
     }
 
     /// (parameter index, lower, upper) for every band parameter: centres within half the
-    /// measured span beyond its ends, widths between 1/200 and twice the span, heights
-    /// below e⁶.
+    /// measured span beyond its ends, width parameters below ln(twice the span), heights
+    /// below e⁶. The widths' lower end only stops θ drifting where the hard floor
+    /// ([`WidthFloor`]) alone sets the width (e^θ under 1 % of the floor).
     pub(super) fn band_box(&self) -> Vec<(usize, (f64, f64))> {
         let mut boxes = Vec::new();
         for k in 0..self.layout.spec.components {
-            for (range, grid) in [
-                (self.layout.absorption(k), &self.excitation_u),
-                (self.layout.emission(k), &self.emission_u),
+            for (range, grid, floor) in [
+                (
+                    self.layout.absorption(k),
+                    &self.excitation_u,
+                    &self.excitation_floor,
+                ),
+                (
+                    self.layout.emission(k),
+                    &self.emission_u,
+                    &self.emission_floor,
+                ),
             ] {
                 let lo = grid.iter().cloned().fold(f64::INFINITY, f64::min);
                 let hi = grid.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
                 let span = (hi - lo).max(1e-6);
-                // A band narrower than half the grid step falls between samples: the data
-                // see it as a spike on one row or column (an instrument artefact fits it
-                // as well as a fluorophore), so widths stay above that.
-                let narrowest = (0.5 * median_step(grid)).max(span / 200.0);
                 let bounds = [
                     (-30.0, 6.0),
                     (lo - 0.5 * span, hi + 0.5 * span),
-                    (narrowest.ln(), (2.0 * span).ln()),
+                    ((0.01 * floor.smallest()).ln(), (2.0 * span).ln()),
                 ];
                 for band in range.step_by(PARAMS_PER_BAND) {
                     for (n, b) in bounds.iter().enumerate() {
@@ -576,10 +591,31 @@ impl<'a> Problem<'a> {
         boxes
     }
 
-    /// The soft box on band parameters: centres within half the measured span beyond
-    /// its ends, widths between half the median grid step (at least 1/200 of the span)
-    /// and twice the span, heights below e⁶. Adds its
-    /// gradient to `gradient` and returns its cost.
+    /// Component `k`'s absorption and emission bands in `theta` as Gaussian parameters
+    /// (ln height, centre, ln width), their widths held above the floor.
+    pub fn component_bands(&self, theta: &[f64], k: usize) -> [Vec<f64>; 2] {
+        [
+            self.excitation_floor
+                .widen(&theta[self.layout.absorption(k)])
+                .0,
+            self.emission_floor.widen(&theta[self.layout.emission(k)]).0,
+        ]
+    }
+
+    /// Solver parameters of absorption bands given as Gaussian parameters (ln height,
+    /// centre, ln width): bands narrower than the floor start just above it.
+    pub fn absorption_solver_params(&self, gaussian: &[f64]) -> Vec<f64> {
+        self.excitation_floor.solver_params(gaussian)
+    }
+
+    /// Solver parameters of emission bands given as Gaussian parameters (see
+    /// [`Problem::absorption_solver_params`]).
+    pub fn emission_solver_params(&self, gaussian: &[f64]) -> Vec<f64> {
+        self.emission_floor.solver_params(gaussian)
+    }
+
+    /// The soft box on band parameters ([`Problem::band_box`]). Adds its gradient to
+    /// `gradient` and returns its cost.
     pub(super) fn band_penalty(&self, theta: &[f64], gradient: &mut [f64]) -> f64 {
         let mut cost = 0.0;
         for (n, (low, high)) in self.band_box() {
@@ -641,14 +677,21 @@ impl<'a> Problem<'a> {
     }
 }
 
-/// The bands of parameters `params` at every abscissa of `u`, with their derivatives by
-/// the parameters (one row of `params.len()` per abscissa).
-fn bands_with_jacobian(params: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
+/// The bands of solver parameters `params` (widths held above `floor`) at every abscissa
+/// of `u`, with their derivatives by the parameters (one row of `params.len()` per
+/// abscissa).
+fn floored_bands_with_jacobian(
+    floor: &WidthFloor,
+    params: &[f64],
+    u: &[f64],
+) -> (Vec<f64>, Vec<f64>) {
+    let (gaussian, chains) = floor.widen(params);
     let mut jacobian = vec![0.0; u.len() * params.len()];
     let values = u
         .iter()
         .zip(jacobian.chunks_exact_mut(params.len().max(1)))
-        .map(|(&u, g)| bands_value_gradient(params, u, g))
+        .map(|(&u, g)| bands_value_gradient(&gaussian, u, g))
         .collect();
+    floor.chain(&chains, &mut jacobian);
     (values, jacobian)
 }

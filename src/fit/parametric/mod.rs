@@ -24,10 +24,11 @@ use super::data::FitData;
 
 mod build;
 mod cost;
-
-use crate::numeric::median_step;
+mod width_floor;
 
 pub use build::{TABULATION_STEP_NM, fine_grid};
+pub use width_floor::FLOOR_STEPS;
+use width_floor::WidthFloor;
 
 /// Absorption below this fraction of its peak counts as none for the photon law: a
 /// Gaussian tail never reaches zero, and without a floor every band would be "absorbing"
@@ -43,7 +44,8 @@ const HEIGHT_GAUGE_WEIGHT: f64 = 1e-4;
 const ABSORPTION_PENALTY: f64 = 1e4;
 
 /// Weight of the soft box keeping band centres near the measured range and widths
-/// sensible: it acts only outside the box, where the data no longer pull on a band.
+/// sensible: it acts only outside the box, where the data no longer pull on a band (the
+/// narrowest width is a hard floor, [`width_floor`]).
 const BAND_BOX_PENALTY: f64 = 1.0;
 
 /// Smallest weight of an excitation row that no chosen light reaches.
@@ -219,6 +221,10 @@ pub struct Problem<'a> {
     pub layout: Layout,
     excitation_u: Vec<f64>,
     emission_u: Vec<f64>,
+    /// The narrowest absorption band at each centre (the excitation grid's local step).
+    excitation_floor: WidthFloor,
+    /// The narrowest emission band at each centre (the emission grid's local step).
+    emission_floor: WidthFloor,
     /// u_j: e_j·u_j is the model's column value (bin width per bin, 1 per nm).
     column_factor: Vec<f64>,
     /// f_j turning a column sum into an emitted density (1/Δλ per bin, 1 per nm).
@@ -308,8 +314,11 @@ mod tests {
             // Both components absorb almost everything near 21 kK: the Σκa penalty acts.
             theta[k] = 1.2 + 0.1 * k as f64;
             let centres = [20.5 + 3.0 * k as f64, 26.0];
+            // The second band near the width floor (≈ 0.5 kK at 26 kK): the gradient
+            // runs through the floor's dependence on the centre.
+            let widths = [0.1, 0.3f64.ln()];
             for (b, chunk) in theta[layout.absorption(k)].chunks_mut(3).enumerate() {
-                chunk.copy_from_slice(&[-0.2 * b as f64, centres[b % 2], 0.1]);
+                chunk.copy_from_slice(&[-0.2 * b as f64, centres[b % 2], widths[b % 2]]);
             }
             for (b, chunk) in theta[layout.emission(k)].chunks_mut(3).enumerate() {
                 chunk.copy_from_slice(&[
@@ -328,7 +337,7 @@ mod tests {
     }
 
     #[test]
-    fn bands_stay_wider_than_half_the_grid_step() {
+    fn bands_stay_wider_than_the_floor_at_the_local_grid_step() {
         let data = problem_data();
         let spec = ModelSpec {
             components: 1,
@@ -341,21 +350,39 @@ mod tests {
         let problem = Problem::new(&data, spec, &[], &[], 0.0);
         let layout = problem.layout;
         let mut theta = theta_for(&layout);
-        theta[layout.emission(0).start + 2] = -0.3;
-        let width = layout.absorption(0).start + 2;
-        // The grid is 10 nm: about 0.44 kK at 480 nm, the median excitation step.
-        let floor = 0.5 * median_step(&problem.excitation_u);
-        assert!((0.15..0.3).contains(&floor), "{floor}");
-        let mut gradient = vec![0.0; layout.len];
-        theta[width] = (0.9 * floor).ln();
-        let below = problem.band_penalty(&theta, &mut gradient);
-        assert!(below > 0.0 && gradient[width] < 0.0, "{below}");
-        gradient.iter_mut().for_each(|g| *g = 0.0);
-        theta[width] = (1.1 * floor).ln();
-        assert_eq!(problem.band_penalty(&theta, &mut gradient), 0.0);
-        theta[width] = (0.1 * floor).ln();
-        problem.clamp_to_box(&mut theta);
-        assert!(theta[width].exp() >= floor * (1.0 - 1e-12));
+        let band = layout.absorption(0).start;
+        // An absorption band midway between the 360 and 370 nm rows of the 10 nm grid,
+        // asked to be far narrower than the rows' spacing (1e4/360 − 1e4/370 kK).
+        let step: f64 = 1e4 / 360.0 - 1e4 / 370.0;
+        theta[band + 1] = 0.5 * (1e4 / 360.0 + 1e4 / 370.0);
+        for ln_width in [-30.0, (0.1 * step).ln(), (0.5 * step).ln()] {
+            theta[band + 2] = ln_width;
+            let [absorption, _] = problem.component_bands(&theta, 0);
+            assert!(
+                absorption[2].exp() >= FLOOR_STEPS * step * (1.0 - 1e-12),
+                "width {} below the floor at step {step}",
+                absorption[2].exp()
+            );
+            // The material carries the floored band too: σ in nm at 365 nm ≥ ¾·10 nm.
+            let material = problem.material(&theta, "floor").unwrap();
+            let forms = material.forms.unwrap();
+            let crate::parametric::SpectralForm::GaussianBands(bands) =
+                &forms.fluorophores[0].absorption
+            else {
+                panic!("a Gaussian absorption");
+            };
+            let sigma_nm = bands.bands[0].width / 1e7 * 365.0f64.powi(2);
+            assert!(sigma_nm >= FLOOR_STEPS * 10.0 * 0.99, "σ {sigma_nm} nm");
+        }
+        // Starts below the floor come back just above it.
+        let narrow = [0.0, theta[band + 1], (0.01 * step).ln()];
+        let start = problem.absorption_solver_params(&narrow);
+        let [absorption, _] = {
+            theta[band..band + 3].copy_from_slice(&start);
+            problem.component_bands(&theta, 0)
+        };
+        let above = absorption[2].exp() / (FLOOR_STEPS * step) - 1.0;
+        assert!((0.0..0.1).contains(&above), "{above}");
     }
 
     #[test]

@@ -142,14 +142,15 @@ fn set_component(
         spec.domain,
         spec.absorption_bands,
     )?;
-    theta[layout.absorption(k)].copy_from_slice(&a.bands.params());
+    theta[layout.absorption(k)]
+        .copy_from_slice(&problem.absorption_solver_params(&a.bands.params()));
     let e = fit_bands(
         &data.emission_nm,
         emission,
         spec.domain,
         spec.emission_bands,
     )?;
-    theta[layout.emission(k)].copy_from_slice(&e.bands.params());
+    theta[layout.emission(k)].copy_from_slice(&problem.emission_solver_params(&e.bands.params()));
     Ok(())
 }
 
