@@ -116,6 +116,9 @@ fn fit_flags_weak_fluorescence() {
     for seed in 0..3 {
         let (w, _) = warnings_of(Sweep::Strength, 0.1, seed, Solver::Lbfgs);
         assert!(any_contains(&w, "weak fluorescence"), "{w:?}");
+    }
+    // No dye at all: noise alone must not be fitted as fluorescence, in any seed.
+    for seed in 0..6 {
         let (w, _) = warnings_of(Sweep::Strength, 0.0, seed, Solver::Lbfgs);
         assert!(any_contains(&w, "no fluorescent signal"), "{w:?}");
     }
@@ -125,8 +128,8 @@ fn fit_flags_weak_fluorescence() {
 /// plain reflector misses its colour by more than the measured colour's noise explains, it
 /// is fitted as fluorescent: its colour against the truth (not the noisy measurement) is
 /// then within ΔE2000 1.25 under every light, where a plain reflector is up to 5 off. (The
-/// seeds that stay plain reflectors are 1.2 from the truth: there the noise of the
-/// measured colour under A and uv is larger than what the fluorescence adds.)
+/// seeds that stay plain reflectors are up to 1.2 from the truth: there the noise of the
+/// measured colour is larger than what the fluorescence adds.)
 #[test]
 fn weak_fluorescence_that_shows_in_colour_is_fitted() {
     use fluorite::colour::{Light, delta_e2000, material_xyz, xyz_to_lab};

@@ -25,9 +25,10 @@ pub fn photon_form_fits_better(energy_cost: f64, photon_cost: f64, sigma: f64) -
 }
 
 /// How many times the reference colour's noise (RMS ΔE76 over noise draws) a colour
-/// difference may reach and still be the noise's doing: about 95 % of draws stay within
-/// twice the RMS.
-pub const NOISE_COVERAGE: f64 = 2.0;
+/// difference may reach and still be the noise's doing. Three: noise alone passes it in
+/// well under 1 % of draws per light (the stability sweep's dye-free matrices, four
+/// lights each, went past twice the RMS in one of six).
+pub const NOISE_COVERAGE: f64 = 3.0;
 
 /// Per light, the RMS ΔE76 that cell noise of level `sigma` alone gives the measured
 /// patch colour `reference` (XYZ per light) on the grids of `data`.
