@@ -56,11 +56,14 @@ pub struct FitArgs {
     /// Pin the concentration c from outside knowledge (Q = k/c).
     #[arg(long)]
     pub concentration: Option<f64>,
-    /// Iteration limit of the refinement.
+    /// Iteration limit of the refinement (with --joint: of the PARAFAC sweeps, or of the
+    /// series' Gauss-Newton).
     #[arg(long, default_value_t = 500)]
     pub max_iterations: u64,
     /// Relative tolerance of the refinement (the automatic model search fits its candidates
-    /// to at least 1e-5; a fixed --model gets this one).
+    /// to at least 1e-5; a fixed --model gets this one). Joint fits keep their own
+    /// convergence tests (PARAFAC: relative loss change; series: change of ‖r‖ against ‖M‖,
+    /// 1e-9).
     #[arg(long, default_value_t = fluorite::fit::DEFAULT_TOLERANCE)]
     pub tolerance: f64,
     /// Lights of the scene: the ΔE2000 report, the model search's bound and the colour

@@ -189,6 +189,7 @@ pub fn run_surface_series(args: &FitArgs, surfaces: &[Measurement]) -> anyhow::R
     let options = fluorite::fit::series::SeriesOptions {
         yield_choice: args.yield_choice,
         guard_nm: args.guard,
+        max_iterations: args.max_iterations,
         lights,
         ..Default::default()
     };
