@@ -16,6 +16,7 @@ $fluorite fit data/*.csv -o fits/ --plot --render --table --timing-runs 21 | tee
 # Speed against accuracy of every fitting method, and where each method fails.
 $fluorite bench data/*.csv --chart fits/speed-accuracy.svg --csv fits/speed-accuracy.csv -q
 $fluorite stability --chart fits/stability.svg --report fits/stability.md --csv fits/stability.csv
+$fluorite class --report fits/class.md --csv fits/class.csv
 
 # Models a scene needs: the search for the smallest parametric model meeting ΔE2000 ≤ 1
 # under D65, A, F11 and UV, on the examples and (below) on the real surfaces.

@@ -5,6 +5,7 @@
 mod bands;
 mod bench;
 mod check;
+mod class;
 mod eem;
 mod export;
 mod fit;
@@ -50,6 +51,9 @@ enum Command {
     Bench(bench::BenchArgs),
     /// Map where each fitting method fails on synthetic data with known truth.
     Stability(stability::StabilityArgs),
+    /// Measure the grid fit and the model search on a randomized class of synthetic
+    /// materials with known truth.
+    Class(class::ClassArgs),
     /// Count the Gaussian bands each curve of spectrum files needs, per band domain.
     Bands(bands::BandsArgs),
 }
@@ -83,6 +87,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::ImportSpectra(args) => import_spectra::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Stability(args) => stability::run(args),
+        Command::Class(args) => class::run(args),
         Command::Bands(args) => bands::run(args),
     }
 }

@@ -1,9 +1,11 @@
 //! Evaluation of the fitting methods: speed against accuracy on given inputs
 //! ([`mod@bench`]) and where each method fails on synthetic data with known truth
 //! ([`stability`]). Both produce tables (CSV, Markdown) and charts
-//! ([`crate::plot::evaluation`]).
+//! ([`crate::plot::evaluation`]). [`class`] measures the accuracy of the grid fit and the
+//! model search on a randomized class of synthetic materials (Markdown, CSV).
 
 pub mod bench;
+pub mod class;
 pub mod stability;
 
 use crate::fit::{FitOptions, ModelChoice, Solver, Start};

@@ -1,0 +1,122 @@
+//! `fluorite class`: the randomized class sweep is deterministic, complete and consistent,
+//! its ΔE2000 against the truth agrees with one recomputed here from the colour functions,
+//! and the command writes the report and the CSV.
+
+mod common;
+
+use std::process::Command;
+
+use fluorite::colour::{Light, delta_e2000, material_xyz, xyz_to_lab};
+use fluorite::evaluate::class::{self, ClassConfig, ClassSweep, GRID_FIT, SEARCH};
+use fluorite::fit::{FitOptions, FitOutcome, fit};
+
+const SMALL: ClassConfig = ClassConfig {
+    cases: 8,
+    seed: class::DEFAULT_SEED,
+};
+
+/// The sweep with every wall time zeroed: what must not depend on the run.
+fn without_times(mut sweep: ClassSweep) -> ClassSweep {
+    for case in &mut sweep.cases {
+        for result in &mut case.results {
+            result.ms = 0.0;
+        }
+    }
+    sweep
+}
+
+#[test]
+fn small_sweep_is_deterministic_complete_and_adds_up() {
+    let first = without_times(class::run(&SMALL).unwrap());
+    let second = without_times(class::run(&SMALL).unwrap());
+    assert_eq!(first, second);
+    assert_eq!(first.cases.len(), SMALL.cases);
+    for case in &first.cases {
+        let methods: Vec<&str> = case.results.iter().map(|r| r.method.as_str()).collect();
+        assert_eq!(methods, [GRID_FIT, SEARCH], "{}", case.name);
+        assert!((1..=2).contains(&case.true_fluorophores), "{}", case.name);
+    }
+    let summaries = class::summarise(&first);
+    assert_eq!(summaries.len(), 2);
+    let one_dye = first
+        .cases
+        .iter()
+        .filter(|c| c.true_fluorophores == 1)
+        .count();
+    for s in &summaries {
+        assert_eq!(s.cases, SMALL.cases, "{}", s.method);
+        for split in [&s.truth, &s.measurement] {
+            assert_eq!(split.all.n + s.errors, s.cases, "{}", s.method);
+            assert_eq!(split.one.n + split.two.n, split.all.n, "{}", s.method);
+            assert!(split.one.n <= one_dye);
+            assert!(split.all.within_1 <= split.all.within_2);
+            assert!(split.all.median <= split.all.p90 && split.all.p90 <= split.all.max);
+        }
+        assert!(s.fluorophores_right <= s.cases - s.errors);
+        assert_eq!(s.bound_met.is_some(), s.method == SEARCH);
+        assert!(s.bound_met.unwrap_or(0) <= s.cases);
+    }
+}
+
+/// The grid fit's ΔE2000 against the truth of one case, recomputed from the drawn spec
+/// with the colour functions (largest over the four standard lights).
+#[test]
+fn delta_e_against_the_truth_matches_a_recomputation() {
+    let config = ClassConfig { cases: 3, seed: 11 };
+    let sweep = class::run(&config).unwrap();
+    let specs = class::draw(&config).unwrap().specs;
+    for (case, spec) in sweep.cases.iter().zip(&specs) {
+        let (m, truth) = spec.generate().unwrap();
+        assert_eq!(case.true_fluorophores, truth.fluorophores.len());
+        let FitOutcome::Material(fitted) = fit(&m, &FitOptions::default()).unwrap() else {
+            panic!("{}: expected a material", case.name);
+        };
+        let expected = Light::standard()
+            .iter()
+            .map(|light| {
+                let (fit_xyz, white) = material_xyz(&fitted, light);
+                let (true_xyz, _) = material_xyz(&truth, light);
+                delta_e2000(xyz_to_lab(fit_xyz, white), xyz_to_lab(true_xyz, white))
+            })
+            .fold(0.0, f64::max);
+        let grid = &case.results[0];
+        assert_eq!(grid.method, GRID_FIT);
+        assert!(
+            (grid.delta_e_truth - expected).abs() <= 1e-9 * expected.max(1.0),
+            "{}: {} vs {expected}",
+            case.name,
+            grid.delta_e_truth
+        );
+    }
+}
+
+#[test]
+fn command_writes_report_and_csv() {
+    let dir = common::temp_dir("class");
+    let (report, csv) = (dir.join("class.md"), dir.join("class.csv"));
+    common::succeed(
+        Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .args(["class", "--cases", "3", "--seed", "0x2A", "-q", "--report"])
+            .arg(&report)
+            .arg("--csv")
+            .arg(&csv),
+    );
+    let text = std::fs::read_to_string(&report).unwrap();
+    assert!(text.starts_with("# Accuracy on a randomized class of materials"));
+    assert!(
+        text.contains("`fluorite class --cases 3 --seed 0x2A`"),
+        "{text}"
+    );
+    let table = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = table.lines();
+    assert_eq!(lines.next(), Some(class::CSV_HEADER));
+    assert_eq!(lines.count(), 2 * 3);
+
+    let (_, message) = common::refused(
+        Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .args(["class", "--cases", "0", "--report"])
+            .arg(dir.join("none.md")),
+    );
+    assert!(message.contains("--cases"), "{message}");
+    assert!(!dir.join("none.md").exists());
+}
