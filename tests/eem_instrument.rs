@@ -277,14 +277,13 @@ fn cli_plots_an_eem_fit_with_its_masked_scatter() {
     };
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("d433.json");
-    let o = Command::new(env!("CARGO_BIN_EXE_fluorite"))
-        .arg("fit")
-        .arg(eem.join("stardom_d433sf.csv"))
-        .args(["--plot", "-q", "-o"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    common::succeed(
+        Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .arg("fit")
+            .arg(eem.join("stardom_d433sf.csv"))
+            .args(["--plot", "-q", "-o"])
+            .arg(&out),
+    );
     for figure in ["d433-residuals.png", "d433-spectra.png"] {
         let bytes = std::fs::read(dir.path().join(figure))
             .unwrap_or_else(|e| panic!("{figure} missing: {e}"));

@@ -284,33 +284,31 @@ fn cli_joint_fit_and_surface_placeholder() {
     // of one dye at two concentrations gives back each file's c (the truth files the
     // generator writes) within 4 of its standard errors, and Q likewise.
     let series = out.path().join("series");
-    let o = std::process::Command::new(bin)
-        .args([
-            "synth",
-            "--preset",
-            "green-dye",
-            "--concentrations",
-            "0.3,0.8",
-            "--out",
-        ])
-        .arg(&series)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = std::process::Command::new(bin)
-        .arg("fit")
-        .args([
-            "green-dye-c0.3.csv",
-            "green-dye-c0.8.csv",
-            "--joint",
-            "-q",
-            "-o",
-            "fit",
-        ])
-        .current_dir(&series)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    common::succeed(
+        std::process::Command::new(bin)
+            .args([
+                "synth",
+                "--preset",
+                "green-dye",
+                "--concentrations",
+                "0.3,0.8",
+                "--out",
+            ])
+            .arg(&series),
+    );
+    common::succeed(
+        std::process::Command::new(bin)
+            .arg("fit")
+            .args([
+                "green-dye-c0.3.csv",
+                "green-dye-c0.8.csv",
+                "--joint",
+                "-q",
+                "-o",
+                "fit",
+            ])
+            .current_dir(&series),
+    );
     let read = |p: std::path::PathBuf| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
     };

@@ -575,17 +575,13 @@ fn rgb_export_writes_one_matrix_per_light_and_prints_the_delta_e() {
     let dir = common::temp_dir("cli");
     let material = dir.join("m.json");
     std::fs::write(&material, truth("green-dye").to_json()).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
-        .args([
-            "export", "m.json", "--to", "rgb", "--light", "d65,a", "--space", "xyz", "-o", "out/",
-        ])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = common::succeed(
+        Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .args([
+                "export", "m.json", "--to", "rgb", "--light", "d65,a", "--space", "xyz", "-o",
+                "out/",
+            ])
+            .current_dir(&dir),
     );
     let stdout = String::from_utf8(out.stdout).unwrap();
     let json: serde_json::Value =
@@ -610,30 +606,20 @@ fn rgb_export_writes_one_matrix_per_light_and_prints_the_delta_e() {
         );
     }
     // exr: the dropped share printed; the file fits from the command line.
-    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
-        .args(["export", "m.json", "--to", "exr", "-o", "m.exr"])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = common::succeed(
+        Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .args(["export", "m.json", "--to", "exr", "-o", "m.exr"])
+            .current_dir(&dir),
     );
     let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(
         stdout.contains("anti-Stokes") && stdout.contains('%'),
         "{stdout}"
     );
-    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
-        .args(["fit", "m.exr", "-o", "fit/"])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    common::succeed(
+        Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .args(["fit", "m.exr", "-o", "fit/"])
+            .current_dir(&dir),
     );
     assert!(dir.join("fit/m.json").exists());
     let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))

@@ -244,16 +244,11 @@ fn parametric_fit_without_diagonal_or_with_a_pin_is_refused() {
 #[test]
 fn cli_reports_the_search_and_refuses_bad_models() {
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_fluorite"))
-        .args(["fit", "--max-delta-e", "1", "-o"])
-        .arg(dir.path().join("g.json"))
-        .arg(data("green-dye.csv"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = common::succeed(
+        Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .args(["fit", "--max-delta-e", "1", "-o"])
+            .arg(dir.path().join("g.json"))
+            .arg(data("green-dye.csv")),
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("search (first model with ΔE2000 ≤ 1 under d65, a, f11, uv)"));

@@ -1286,23 +1286,15 @@ fn files_in(dir: &Path) -> Vec<String> {
 fn cli_writes_png_next_to_the_material_and_exr_on_request() {
     let dir = tempfile::tempdir().unwrap();
     let json = write_material(dir.path(), "HERPICER", &synthetic());
-    let out = fluorite()
-        .args([
-            "render",
-            json.to_str().unwrap(),
-            "--size",
-            "40x24",
-            "--spp",
-            "2",
-            "--quiet",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = common::succeed(fluorite().args([
+        "render",
+        json.to_str().unwrap(),
+        "--size",
+        "40x24",
+        "--spp",
+        "2",
+        "--quiet",
+    ]));
     assert!(out.stderr.is_empty() && out.stdout.is_empty());
     let png_path = dir.path().join("HERPICER.png");
     let decoder = png::Decoder::new(std::io::BufReader::new(
@@ -1315,23 +1307,18 @@ fn cli_writes_png_next_to_the_material_and_exr_on_request() {
     assert!(info.srgb.is_some());
 
     let out_path = dir.path().join("uv.png");
-    let out = fluorite()
-        .args([
-            "render",
-            json.to_str().unwrap(),
-            "--light",
-            "uv",
-            "--compare",
-            "--exr",
-        ])
-        .args(["--size", "32x16", "--spp", "2", "--seed", "7", "-o"])
-        .arg(&out_path)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    common::succeed(
+        fluorite()
+            .args([
+                "render",
+                json.to_str().unwrap(),
+                "--light",
+                "uv",
+                "--compare",
+                "--exr",
+            ])
+            .args(["--size", "32x16", "--spp", "2", "--seed", "7", "-o"])
+            .arg(&out_path),
     );
     let exr = std::fs::read(dir.path().join("uv.exr")).unwrap();
     assert_eq!(&exr[..4], &[0x76, 0x2f, 0x31, 0x01], "OpenEXR magic number");
