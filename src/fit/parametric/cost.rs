@@ -653,11 +653,6 @@ impl<'a> Problem<'a> {
         rss
     }
 
-    /// Number of residuals the information criterion counts.
-    pub fn residual_count(&self) -> usize {
-        self.data.off_diagonal.len() + self.data.diagonal.len()
-    }
-
     /// The central-difference gradient of the cost (to test [`Problem::cost_gradient`]).
     pub fn numerical_gradient(&self, theta: &[f64], step: f64) -> Vec<f64> {
         (0..theta.len())
