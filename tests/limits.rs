@@ -232,8 +232,14 @@ fn a_material_or_light_with_a_wavelength_typo_is_refused() {
     let last = grid.len() - 1;
     grid[last] = serde_json::json!(1e12);
     let path = write(&dir, "typo.json", &serde_json::to_string(&json).unwrap());
-    let message = refused(fluorite().arg("check").arg(&path));
-    assert!(message.contains("100–100,000 nm"), "{message}");
+    // check reports it as a broken law (exit 1), naming the sample and the range.
+    let out = run_bounded(fluorite().arg("check").arg(&path));
+    let report = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{report}");
+    assert!(
+        report.contains("reflectance.wavelength_nm[") && report.contains("100–100,000 nm"),
+        "{report}"
+    );
     let message = refused(
         fluorite()
             .arg("render")

@@ -103,7 +103,10 @@ fn usable(s: &RawSpectrum) -> bool {
     !s.value.is_empty()
         && s.value.len() == s.wavelength_nm.len()
         && s.value.iter().all(|v| v.is_finite())
-        && s.wavelength_nm.iter().all(|l| l.is_finite() && *l > 0.0)
+        && s.wavelength_nm.len() <= crate::limits::MAX_GRID_POINTS
+        && s.wavelength_nm
+            .iter()
+            .all(|l| crate::limits::WAVELENGTH_NM.contains(l))
         && s.wavelength_nm.windows(2).all(|w| w[1] > w[0])
 }
 
@@ -174,6 +177,15 @@ pub(super) fn check_to(m: &RawMaterial, depth: FormsDepth) -> CheckReport {
                 finite.observe_if(true, margin, l, format_args!("{what}.wavelength_nm[{i}]"), None, || {
                     format!("{what}.wavelength_nm[{i}] is {l}; wavelengths are positive finite numbers in nm")
                 });
+            } else if let Err(message) = crate::limits::check_wavelength(l) {
+                finite.observe_if(
+                    true,
+                    margin,
+                    l,
+                    format_args!("{what}.wavelength_nm[{i}]"),
+                    None,
+                    || format!("{what}.wavelength_nm[{i}]: {message}"),
+                );
             }
             if i > 0 {
                 let prev = s.wavelength_nm[i - 1];

@@ -113,7 +113,7 @@ impl Law {
         match self {
             Law::Schema => "schema = \"fluorite-material/1\"",
             Law::FiniteNonNegative => {
-                "every sample finite and ≥ 0, wavelengths > 0, one value per wavelength"
+                "every sample finite and ≥ 0, wavelengths in 100–100,000 nm, one value per wavelength"
             }
             Law::SortedWavelengths => "wavelengths strictly increasing",
             Law::ReflectanceRange => "r(λ) ≤ 1",
