@@ -26,8 +26,8 @@ Input layouts (told from the content; --format forces one; details: docs/formats
   WebFluor   whitespace matrix: first line emission wavelengths, rows excitation;
              zeros are missing cells.
   OpenEXR    bispectral spectral OpenEXR (Fichet, Mercier, Wilkie 2021), one uniform image.
-  raw EEMs   instrument EEMs in arbitrary units (--units, --blank, --absorbance, scatter
-             flags below; docs/eem.md).";
+  raw EEMs   instrument EEMs in arbitrary units (--units, --blank, --absorbance,
+             --keep-scatter, --scatter-width; docs/eem.md).";
 
 /// Arguments of `fluorite fit`.
 #[derive(clap::Args, Debug, Clone)]
