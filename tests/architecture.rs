@@ -1,5 +1,6 @@
-//! The layout's rules, read from the source: no import circle between the library's
-//! modules, no source file over 800 lines, and one place that builds an argmin executor.
+//! The layout's rules, read from the source: no import circle between modules (the
+//! top-level ones, or the files and folders of one module folder), no source file over
+//! 800 lines, and one place that builds an argmin executor.
 //! They keep the one-way flow read → fit → material → check/export/plot/render from
 //! eroding one convenient import at a time.
 
@@ -28,13 +29,26 @@ fn rust_files(dir: &Path) -> Vec<PathBuf> {
     files
 }
 
-/// The top-level module a file belongs to (`fit` for `src/fit/search/mod.rs`), or None
-/// for the crate roots and the binary's `cli`.
-fn top_module(file: &Path) -> Option<String> {
+/// The module a file is (`["fit", "search"]` for `src/fit/search/mod.rs`, `["cli", "fit"]`
+/// for the binary's `src/cli/fit.rs`, empty for the crate roots `lib.rs` and `main.rs`).
+fn module_path(file: &Path) -> Vec<String> {
     let relative = file.strip_prefix(src()).unwrap();
-    let first = relative.components().next()?.as_os_str().to_string_lossy();
-    let name = first.trim_end_matches(".rs").to_string();
-    (!matches!(name.as_str(), "lib" | "main" | "cli")).then_some(name)
+    let mut path: Vec<String> = relative
+        .components()
+        .map(|c| {
+            c.as_os_str()
+                .to_string_lossy()
+                .trim_end_matches(".rs")
+                .to_string()
+        })
+        .collect();
+    if matches!(
+        path.last().map(String::as_str),
+        Some("mod") | Some("lib") | Some("main")
+    ) {
+        path.pop();
+    }
+    path
 }
 
 /// The code of a file without its test module and without comment lines (doc links
@@ -55,64 +69,198 @@ fn code_of(text: &str) -> String {
         .join("\n")
 }
 
-/// The top-level modules named after `crate::` in `code`, including inside
-/// `use crate::{a, b::c}` groups.
-fn crate_references(code: &str) -> BTreeSet<String> {
-    let mut found = BTreeSet::new();
-    let identifier = |s: &str| -> String {
-        s.chars()
-            .take_while(|c| c.is_alphanumeric() || *c == '_')
-            .collect()
-    };
-    for (i, _) in code.match_indices("crate::") {
-        let rest = &code[i + "crate::".len()..];
-        if let Some(group) = rest.strip_prefix('{') {
-            let inner = &group[..group.find('}').unwrap_or(group.len())];
-            for item in inner.split(',') {
-                found.insert(identifier(item.trim()));
+fn is_identifier_char(c: char) -> bool {
+    c.is_alphanumeric() || c == '_'
+}
+
+/// The paths spelled from the start of `rest` (`a::b::{c, d::e}` gives `a::b::c` and
+/// `a::b::d::e`), as segments; groups are expanded at any depth, `self` in a group is the
+/// group's prefix.
+fn paths_at(rest: &str) -> Vec<Vec<String>> {
+    let rest = rest.trim_start();
+    if let Some(group) = rest.strip_prefix('{') {
+        let mut depth = 0;
+        let mut items = Vec::new();
+        let mut item_start = 0;
+        for (i, c) in group.char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' if depth == 0 => {
+                    items.push(&group[item_start..i]);
+                    break;
+                }
+                '}' => depth -= 1,
+                ',' if depth == 0 => {
+                    items.push(&group[item_start..i]);
+                    item_start = i + 1;
+                }
+                _ => {}
             }
-        } else {
-            found.insert(identifier(rest));
+        }
+        return items
+            .into_iter()
+            .flat_map(|item| match item.trim() {
+                "self" | "" => vec![Vec::new()],
+                item => paths_at(item),
+            })
+            .collect();
+    }
+    let identifier: String = rest
+        .chars()
+        .take_while(|&c| is_identifier_char(c))
+        .collect();
+    if identifier.is_empty() {
+        return vec![Vec::new()];
+    }
+    match rest[identifier.len()..].strip_prefix("::") {
+        Some(more) => paths_at(more)
+            .into_iter()
+            .map(|tail| std::iter::once(identifier.clone()).chain(tail).collect())
+            .collect(),
+        None => vec![vec![identifier]],
+    }
+}
+
+/// The absolute paths that the code of the module `module` names through `crate::`,
+/// `super::` (at any depth) and `self::`, as segments from the crate root.
+fn references(code: &str, module: &[String]) -> BTreeSet<Vec<String>> {
+    let mut found = BTreeSet::new();
+    for (i, _) in code.match_indices(['c', 's']) {
+        let before = code[..i].chars().next_back();
+        if before.is_some_and(|c| is_identifier_char(c) || c == ':' || c == '$') {
+            continue;
+        }
+        let rest = &code[i..];
+        if !["crate::", "super::", "self::"]
+            .iter()
+            .any(|start| rest.starts_with(start))
+        {
+            continue;
+        }
+        for path in paths_at(rest) {
+            let mut segments = path.into_iter().peekable();
+            let mut absolute: Vec<String> = match segments.peek().map(String::as_str) {
+                Some("crate") => Vec::new(),
+                Some("self") => module.to_vec(),
+                _ => {
+                    let mut base = module.to_vec();
+                    while segments.peek().is_some_and(|s| s == "super") {
+                        base.pop();
+                        segments.next();
+                    }
+                    base.extend(segments);
+                    found.insert(base);
+                    continue;
+                }
+            };
+            segments.next();
+            absolute.extend(segments);
+            found.insert(absolute);
         }
     }
-    // Items re-exported at the crate root (`crate::Material`) are types, not modules.
-    found.retain(|m| m.chars().next().is_some_and(|c| c.is_ascii_lowercase()));
     found
 }
 
-#[test]
-fn no_import_circle_between_modules() {
-    let mut imports: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
-    for file in rust_files(&src()) {
-        let Some(module) = top_module(&file) else {
-            continue;
-        };
-        let targets = crate_references(&code(&file));
-        let entry = imports.entry(module.clone()).or_default();
-        entry.extend(targets.into_iter().filter(|t| *t != module));
+/// The imports between sibling modules, as (importer, imported) module paths with the same
+/// parent: a file of `fit/search` naming `crate::fit::joint::…` gives (fit::search,
+/// fit::joint); one naming `crate::material` gives (fit, material). A module naming its
+/// own children or its parents' items gives none.
+fn import_edges() -> BTreeSet<(Vec<String>, Vec<String>)> {
+    let files = rust_files(&src());
+    let modules: BTreeSet<Vec<String>> = files.iter().map(|f| module_path(f)).collect();
+    let mut edges = BTreeSet::new();
+    for file in &files {
+        let module = module_path(file);
+        for reference in references(&code(file), &module) {
+            // The module named: the longest known module the path starts with (the rest
+            // are items).
+            let Some(target) = (0..=reference.len())
+                .rev()
+                .map(|n| reference[..n].to_vec())
+                .find(|p| modules.contains(p))
+            else {
+                continue;
+            };
+            let shared = module
+                .iter()
+                .zip(&target)
+                .take_while(|(a, b)| a == b)
+                .count();
+            if shared < module.len() && shared < target.len() {
+                edges.insert((module[..=shared].to_vec(), target[..=shared].to_vec()));
+            }
+        }
     }
-    assert!(
-        imports.len() > 10 && imports["fit"].contains("material"),
-        "the scan found too little: {imports:?}"
-    );
-    // A circle exists when some module reaches itself; report the first path found.
-    for start in imports.keys() {
-        let mut stack: Vec<Vec<String>> = vec![vec![start.clone()]];
+    edges
+}
+
+/// Every import circle among `edges`, each once, as `a -> b -> a`.
+fn circles(edges: &BTreeSet<(Vec<String>, Vec<String>)>) -> Vec<String> {
+    let mut imports: BTreeMap<&Vec<String>, BTreeSet<&Vec<String>>> = BTreeMap::new();
+    for (from, to) in edges {
+        imports.entry(from).or_default().insert(to);
+    }
+    let name = |m: &Vec<String>| m.join("::");
+    let mut found: BTreeMap<BTreeSet<&Vec<String>>, String> = BTreeMap::new();
+    for &start in imports.keys() {
+        let mut stack: Vec<Vec<&Vec<String>>> = vec![vec![start]];
         let mut seen = BTreeSet::new();
         while let Some(path) = stack.pop() {
-            let last = path.last().unwrap();
-            for next in imports.get(last).into_iter().flatten() {
+            let last = *path.last().unwrap();
+            for &next in imports.get(last).into_iter().flatten() {
                 if next == start {
-                    panic!("import circle: {} -> {start}", path.join(" -> "));
-                }
-                if seen.insert(next.clone()) {
+                    let members: BTreeSet<_> = path.iter().copied().collect();
+                    let text = path
+                        .iter()
+                        .map(|m| name(m))
+                        .collect::<Vec<_>>()
+                        .join(" -> ");
+                    found
+                        .entry(members)
+                        .or_insert_with(|| format!("{text} -> {}", name(start)));
+                } else if seen.insert(next) {
                     let mut longer = path.clone();
-                    longer.push(next.clone());
+                    longer.push(next);
                     stack.push(longer);
                 }
             }
         }
     }
+    found.into_values().collect()
+}
+
+fn module(path: &str) -> Vec<String> {
+    path.split("::").map(String::from).collect()
+}
+
+#[test]
+fn no_import_circle_between_modules() {
+    let edges: BTreeSet<_> = import_edges()
+        .into_iter()
+        .filter(|(from, _)| from.len() == 1)
+        .collect();
+    assert!(
+        edges.len() > 10 && edges.contains(&(module("fit"), module("material"))),
+        "the scan found too little: {edges:?}"
+    );
+    let found = circles(&edges);
+    assert!(found.is_empty(), "import circles: {found:#?}");
+}
+
+#[test]
+fn no_import_circle_between_the_files_of_one_module_folder() {
+    let edges: BTreeSet<_> = import_edges()
+        .into_iter()
+        .filter(|(from, _)| from.len() > 1)
+        .collect();
+    assert!(
+        edges.contains(&(module("cli::fit"), module("cli::printer")))
+            && edges.contains(&(module("cli::fit"), module("cli::joint")))
+            && edges.contains(&(module("cli::check"), module("cli::printer"))),
+        "the scan found too little: {edges:?}"
+    );
+    let found = circles(&edges);
+    assert!(found.is_empty(), "import circles: {found:#?}");
 }
 
 #[test]
@@ -138,18 +286,39 @@ fn one_place_builds_an_argmin_executor() {
 
 #[test]
 fn the_reference_reader_reads_paths_not_comments() {
-    // The reader on made-up code: grouped and inline paths count, doc links, test modules
-    // and root re-exports do not.
-    let a = crate_references("use crate::{b::Thing, error::Result};\nfn f() { crate::c::g() }");
-    assert_eq!(
-        a,
-        ["b", "c", "error"]
-            .iter()
-            .map(|s| s.to_string())
-            .collect::<BTreeSet<_>>()
+    // The reader on made-up code in module `x::y`: grouped, nested, inline and relative
+    // paths count; doc links, test modules and other crates' paths do not.
+    let here = module("x::y");
+    let found = references(
+        &code_of(
+            "//! see [`crate::d`]\nuse crate::{b::Thing, e::{f, g::h}};\nfn f() { crate::c::g() }\n\
+             use super::z::w;\nuse super::super::top;\nuse fluorite::crate_like;\n\
+             #[cfg(test)]\nmod tests { use crate::t; }",
+        ),
+        &here,
     );
-    let skipped = crate_references(&code_of(
-        "//! see [`crate::d`]\nuse crate::Material;\n#[cfg(test)]\nmod tests { use crate::e; }",
-    ));
-    assert!(skipped.is_empty(), "{skipped:?}");
+    let expected: BTreeSet<Vec<String>> = ["b::Thing", "e::f", "e::g::h", "c::g", "x::z::w", "top"]
+        .iter()
+        .map(|p| module(p))
+        .collect();
+    assert_eq!(found, expected);
+}
+
+#[test]
+fn the_circle_finder_finds_sibling_circles() {
+    let edge = |a: &str, b: &str| (module(a), module(b));
+    let edges: BTreeSet<_> = [
+        edge("m::a", "m::b"),
+        edge("m::b", "m::c"),
+        edge("m::c", "m::a"),
+        edge("m::c", "m::d"),
+    ]
+    .into_iter()
+    .collect();
+    assert_eq!(circles(&edges), ["m::a -> m::b -> m::c -> m::a"]);
+    let without: BTreeSet<_> = edges
+        .into_iter()
+        .filter(|e| e != &edge("m::c", "m::a"))
+        .collect();
+    assert!(circles(&without).is_empty());
 }

@@ -11,12 +11,29 @@ use fluorite::formats::{Format, ReadOptions, RowsAre};
 use fluorite::measurement::Measurement;
 use rayon::prelude::*;
 
+use crate::cli::joint::{JointArgs, JointRun};
 use crate::cli::printer;
+
+/// The input layouts `fit --help` lists (after the options).
+pub const INPUT_LAYOUTS: &str = "\
+Input layouts (told from the content; --format forces one; details: docs/formats.md):
+  wide CSV   a corner cell, then the column wavelengths (nm); each row starts with its
+             wavelength. Rows are excitation by default; a corner label `ex\\em` or
+             `em\\ex`, or --rows, says otherwise (else the signal's side of the diagonal).
+             Delimiter `,` `;` or tab.
+  long CSV   one cell per line, columns excitation_nm, emission_nm, value (any order).
+  BFC-450    Labsphere BFC-450 matrix files (rows are emission).
+  WebFluor   whitespace matrix: first line emission wavelengths, rows excitation;
+             zeros are missing cells.
+  OpenEXR    bispectral spectral OpenEXR (Fichet, Mercier, Wilkie 2021), one uniform image.
+  raw EEMs   instrument EEMs in arbitrary units (--units, --blank, --absorbance,
+             --keep-scatter, --scatter-width; docs/eem.md).";
 
 /// Arguments of `fluorite fit`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct FitArgs {
-    /// Measured matrices (wide CSV, long CSV, BFC-450, WebFluor).
+    /// Measured matrices (wide CSV, long CSV, BFC-450, WebFluor, OpenEXR, raw instrument
+    /// EEMs; layouts below).
     #[arg(required = true)]
     pub inputs: Vec<PathBuf>,
     /// Output file for one input, or a folder (existing, or ending in `/`) for several.
@@ -108,7 +125,7 @@ pub struct FitArgs {
     pub eem: crate::cli::eem::EemArgs,
     /// Joint fits of sample sets (--joint).
     #[command(flatten)]
-    pub joint: Box<crate::cli::joint::JointArgs>,
+    pub joint: Box<JointArgs>,
 }
 
 fn parse_model(text: &str) -> Result<ModelChoice, String> {
@@ -168,6 +185,38 @@ impl FitArgs {
     }
 }
 
+/// What a joint fit (`--joint`) takes from `fit`'s arguments; refuses the flags of single
+/// fits it has no use for rather than ignoring them.
+fn joint_run(args: &FitArgs) -> anyhow::Result<JointRun<'_>> {
+    let single_fit_only = [
+        ("--quantum-yield", args.quantum_yield.is_some()),
+        ("--concentration", args.concentration.is_some()),
+        ("--model", args.model.is_some()),
+        ("--max-delta-e", args.max_delta_e.is_some()),
+        ("--plot", args.plot),
+        ("--render", args.render),
+        ("--strict", args.strict),
+    ];
+    if let Some((flag, _)) = single_fit_only.iter().find(|(_, given)| *given) {
+        anyhow::bail!(
+            "{flag} applies to single fits, not to --joint (a joint fit writes its own figure and report); leave it out or fit the files one by one"
+        );
+    }
+    Ok(JointRun {
+        inputs: &args.inputs,
+        output: args.output.clone(),
+        joint: &args.joint,
+        eem: &args.eem,
+        yield_choice: args.yield_choice,
+        guard_nm: args.guard,
+        max_iterations: args.max_iterations,
+        lights: args.parsed_lights()?,
+        timing_runs: args.timing_runs,
+        table: args.table,
+        quiet: args.quiet,
+    })
+}
+
 /// Runs `fluorite fit`.
 pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
     let lights = args.parsed_lights()?;
@@ -196,7 +245,7 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         per_nm: args.per_nm,
     };
     if args.joint.joint {
-        return crate::cli::joint::run(&args, &read_options);
+        return crate::cli::joint::run(&joint_run(&args)?, &read_options);
     }
     let outputs = output_paths(&args)?;
     for out in &outputs {

@@ -16,7 +16,7 @@ use fluorite::formats::ReadOptions;
 use fluorite::measurement::Measurement;
 use fluorite::plot::ImageFormat;
 
-use crate::cli::fit::FitArgs;
+use crate::cli::eem::EemArgs;
 use crate::cli::printer;
 
 /// The joint-fit options of `fluorite fit`.
@@ -47,6 +47,33 @@ pub struct JointArgs {
     /// Skip split-half validation in a joint fit.
     #[arg(long, requires = "joint")]
     pub no_split_half: bool,
+}
+
+/// What a joint fit takes from `fit`'s arguments (`fit` builds it, so this file needs
+/// nothing of `fit`'s).
+pub struct JointRun<'a> {
+    /// The sample files.
+    pub inputs: &'a [PathBuf],
+    /// `-o`: the output folder.
+    pub output: Option<PathBuf>,
+    /// The joint-fit flags.
+    pub joint: &'a JointArgs,
+    /// The raw-EEM flags, applied per file as `fit` does.
+    pub eem: &'a EemArgs,
+    /// `--yield` (series of surfaces).
+    pub yield_choice: fluorite::fit::YieldChoice,
+    /// `--guard` (series of surfaces).
+    pub guard_nm: Option<f64>,
+    /// `--max-iterations`: PARAFAC sweeps, or the series' Gauss-Newton.
+    pub max_iterations: u64,
+    /// `--lights` (series of surfaces).
+    pub lights: Vec<fluorite::colour::Light>,
+    /// `--timing-runs`.
+    pub timing_runs: usize,
+    /// `--table`.
+    pub table: bool,
+    /// `-q`.
+    pub quiet: bool,
 }
 
 /// Component counts to fit.
@@ -110,23 +137,8 @@ fn stem(p: &Path) -> String {
 }
 
 /// Runs a joint fit of `args.inputs` (`fit --joint`).
-pub fn run(args: &FitArgs, read_options: &ReadOptions) -> anyhow::Result<ExitCode> {
-    let joint = &args.joint;
-    // Flags of single fits that a joint fit has no use for: refused, not ignored.
-    let single_fit_only = [
-        ("--quantum-yield", args.quantum_yield.is_some()),
-        ("--concentration", args.concentration.is_some()),
-        ("--model", args.model.is_some()),
-        ("--max-delta-e", args.max_delta_e.is_some()),
-        ("--plot", args.plot),
-        ("--render", args.render),
-        ("--strict", args.strict),
-    ];
-    if let Some((flag, _)) = single_fit_only.iter().find(|(_, given)| *given) {
-        anyhow::bail!(
-            "{flag} applies to single fits, not to --joint (a joint fit writes its own figure and report); leave it out or fit the files one by one"
-        );
-    }
+pub fn run(args: &JointRun, read_options: &ReadOptions) -> anyhow::Result<ExitCode> {
+    let joint = args.joint;
     for name in &joint.exclude {
         if !args
             .inputs
@@ -184,13 +196,12 @@ pub fn run(args: &FitArgs, read_options: &ReadOptions) -> anyhow::Result<ExitCod
 
 /// Joint fit of radiance-factor surface matrices of one material at several
 /// concentrations (shared r, a, e and yield; c per file).
-pub fn run_surface_series(args: &FitArgs, surfaces: &[Measurement]) -> anyhow::Result<ExitCode> {
-    let lights = args.parsed_lights()?;
+pub fn run_surface_series(args: &JointRun, surfaces: &[Measurement]) -> anyhow::Result<ExitCode> {
     let options = fluorite::fit::series::SeriesOptions {
         yield_choice: args.yield_choice,
-        guard_nm: args.guard,
+        guard_nm: args.guard_nm,
         max_iterations: args.max_iterations,
-        lights,
+        lights: args.lights.clone(),
         ..Default::default()
     };
     let fit = fluorite::fit::series::fit_concentration_series(surfaces, &options)?;
@@ -209,8 +220,8 @@ pub fn run_surface_series(args: &FitArgs, surfaces: &[Measurement]) -> anyhow::R
 }
 
 /// Joint PARAFAC of a set of prepared EEMs, for each requested K.
-fn run_eem_set(args: &FitArgs, eems: &[Measurement]) -> anyhow::Result<ExitCode> {
-    let joint = &args.joint;
+fn run_eem_set(args: &JointRun, eems: &[Measurement]) -> anyhow::Result<ExitCode> {
+    let joint = args.joint;
     let ks = joint
         .components
         .clone()

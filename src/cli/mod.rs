@@ -59,9 +59,55 @@ enum Command {
     Bands(bands::BandsArgs),
 }
 
+/// The guide page each subcommand's help names (`More: docs/<page>`), and the top-level
+/// help's.
+const GUIDE_PAGES: [(&str, &str); 12] = [
+    ("fluorite", "docs/README.md"),
+    ("fit", "docs/fitting.md"),
+    ("synth", "docs/formats.md"),
+    ("render", "docs/render.md"),
+    ("plot", "docs/plots.md"),
+    ("check", "docs/material.md"),
+    ("export", "docs/export.md"),
+    ("import-spectra", "docs/export.md"),
+    ("bench", "docs/results.md"),
+    ("stability", "docs/results.md"),
+    ("class", "docs/results.md"),
+    ("bands", "docs/fitting.md"),
+];
+
+/// The guide page of subcommand `name` (the index for the top level or an unknown name).
+fn guide_page(name: &str) -> &'static str {
+    GUIDE_PAGES
+        .iter()
+        .find(|(command, _)| *command == name)
+        .map_or(GUIDE_PAGES[0].1, |(_, page)| page)
+}
+
+/// The command line's grammar: the derived one, each help ending with its guide page
+/// (`fit`'s also with the input layouts).
+fn command() -> clap::Command {
+    let mut command = <Cli as clap::CommandFactory>::command()
+        .after_help(format!("More: {}", guide_page("fluorite")));
+    for (name, page) in &GUIDE_PAGES[1..] {
+        let text = match *name {
+            "fit" => format!(
+                "{}\n\nMore: {page} (raw instrument EEMs: docs/eem.md; concentration series: docs/series.md)",
+                fit::INPUT_LAYOUTS
+            ),
+            _ => format!("More: {page}"),
+        };
+        command = command.mut_subcommand(name, |sub| sub.after_help(text));
+    }
+    command
+}
+
 /// Parses the command line and runs the chosen subcommand.
 pub fn run() -> anyhow::Result<ExitCode> {
-    let cli = match Cli::try_parse() {
+    let parsed = command()
+        .try_get_matches()
+        .and_then(|matches| <Cli as clap::FromArgMatches>::from_arg_matches(&matches));
+    let cli = match parsed {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => {
             // --help and --version: print and succeed.
@@ -69,13 +115,11 @@ pub fn run() -> anyhow::Result<ExitCode> {
             return Ok(ExitCode::SUCCESS);
         }
         Err(e) => {
-            // Usage errors as one line, like every other error.
-            let text = e.render().to_string();
-            let first = text.lines().next().unwrap_or("invalid arguments");
-            anyhow::bail!(
-                "{} (see fluorite --help)",
-                first.trim_start_matches("error: ")
-            );
+            // Usage errors as clap renders them: what is missing or wrong, suggestions,
+            // possible values, the subcommand's usage line; then the guide page.
+            e.print()?;
+            eprintln!("More: {}", guide_page(&subcommand_named()));
+            return Ok(ExitCode::from(2));
         }
     };
     match cli.command {
@@ -90,5 +134,29 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Stability(args) => stability::run(args),
         Command::Class(args) => class::run(args),
         Command::Bands(args) => bands::run(args),
+    }
+}
+
+/// The subcommand the command line names (its first argument that is one), or "" when
+/// none is.
+fn subcommand_named() -> String {
+    let cli = command();
+    std::env::args()
+        .skip(1)
+        .find(|a| cli.find_subcommand(a).is_some())
+        .unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_grammar_is_consistent_and_every_subcommand_has_a_guide_page() {
+        let command = command();
+        command.clone().debug_assert();
+        let named: Vec<&str> = command.get_subcommands().map(|s| s.get_name()).collect();
+        let paged: Vec<&str> = GUIDE_PAGES[1..].iter().map(|(name, _)| *name).collect();
+        assert_eq!(named, paged);
     }
 }

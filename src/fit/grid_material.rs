@@ -87,10 +87,18 @@ pub(super) fn build_material(
     let (concentration, gauge) = match (options.quantum_yield, options.concentration) {
         (Some(q), _) => {
             if q > photon_limit_q * (1.0 + 1e-12) {
+                // Measured yields are mostly photon yields Φ; pinning one as Q is the
+                // usual way to land here.
+                let remedy = match objective.form {
+                    YieldForm::Energy => format!(
+                        "; if {q} is a photon yield Φ (photons emitted per photon absorbed), pass --yield photon to pin Φ instead of Q, else give Q ≤ {photon_limit_q:.4}"
+                    ),
+                    YieldForm::Photon => String::new(),
+                };
                 return Err(Error::invalid(
                     "--quantum-yield",
                     format!(
-                        "{q} breaks photon conservation for this fit: with mean emission {:.1} nm and absorption down to {:.0} nm the energy yield is at most {photon_limit_q:.4}",
+                        "{q} breaks photon conservation for this fit: with mean emission {:.1} nm and absorption down to {:.0} nm the energy yield is at most {photon_limit_q:.4}{remedy}",
                         derived.emission_mean_nm, derived.shortest_absorbed_nm
                     ),
                 ));

@@ -36,6 +36,7 @@ use crate::error::{Error, Result};
 use crate::measurement::{Measurement, Units};
 
 pub use bfc::write_bfc;
+pub use text::sha256_hex;
 
 /// The file formats fluorite reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

@@ -362,8 +362,9 @@ pub(crate) fn check_increasing(
     Ok(())
 }
 
-/// Hex digest of the file's bytes, for provenance.
-pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
+/// Hex SHA-256 digest of a file's bytes, for provenance (the `source_sha256` a fit
+/// records; `plot` compares it with the file it finds).
+pub fn sha256_hex(bytes: &[u8]) -> String {
     use sha2::{Digest, Sha256};
     use std::fmt::Write;
     let digest = Sha256::digest(bytes);
