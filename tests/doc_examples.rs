@@ -123,6 +123,7 @@ fn logical_lines(lines: &[(usize, &str)]) -> Vec<(usize, String)> {
 /// The commands of one sh/bash block.
 fn shell_block(file: &str, lines: &[(usize, &str)], page: &mut Page) {
     let mut prelude = Vec::new();
+    let block_start = page.examples.len();
     for (number, line) in logical_lines(lines) {
         let trimmed = line.trim();
         let place = format!("{file}:{number}");
@@ -131,18 +132,21 @@ fn shell_block(file: &str, lines: &[(usize, &str)], page: &mut Page) {
         }
         if let Some(comment) = trimmed.strip_prefix('#') {
             let comment = comment.trim();
-            if let Some(text) = comment.strip_prefix("expect:") {
-                if let Some(last) = page
-                    .examples
-                    .last_mut()
-                    .filter(|e| e.place.starts_with(file))
-                {
-                    last.expect.push(text.trim().to_string());
-                }
-            } else if let Some(code) = comment.strip_prefix("exit:") {
-                if let Some(last) = page.examples.last_mut() {
-                    last.exit = code.trim().parse().expect("`# exit: N` takes a number");
-                }
+            let expect = comment.strip_prefix("expect:");
+            let exit = comment.strip_prefix("exit:");
+            if expect.is_none() && exit.is_none() {
+                continue; // a plain comment
+            }
+            assert!(
+                page.examples.len() > block_start,
+                "{place}: `# expect:` and `# exit:` follow the command they are about, in its block"
+            );
+            let last = page.examples.last_mut().expect("checked above");
+            if let Some(text) = expect {
+                last.expect.push(text.trim().to_string());
+            }
+            if let Some(code) = exit {
+                last.exit = code.trim().parse().expect("`# exit: N` takes a number");
             }
             continue;
         }
@@ -191,10 +195,10 @@ fn console_block(file: &str, lines: &[(usize, &str)], page: &mut Page) {
                 let (start, text) = logical_lines(&command_lines).remove(0);
                 current = new_console_example(file, start, &text, page);
             }
-        } else if let Some(example) = current.as_mut() {
-            if !line.trim().is_empty() {
-                example.expect.push(line.trim().to_string());
-            }
+        } else if let Some(example) = current.as_mut()
+            && !line.trim().is_empty()
+        {
+            example.expect.push(line.trim().to_string());
         }
     }
     flush(&mut current, page);
