@@ -568,25 +568,66 @@ cargo test
 /// Pages the README announces before they exist (linked as "not yet").
 const ANNOUNCED_PAGES: &[&str] = &["docs/python.md"];
 
-/// Every relative link of the README and the guide (files, images) points at something
-/// that exists, so moving text between pages cannot leave a dead link behind.
+/// GitHub's anchor for a heading: lower case, punctuation dropped, spaces to hyphens.
+fn anchor(heading: &str) -> String {
+    heading
+        .trim()
+        .to_lowercase()
+        .chars()
+        .filter(|c| c.is_alphanumeric() || matches!(c, ' ' | '-' | '_'))
+        .map(|c| if c == ' ' { '-' } else { c })
+        .collect()
+}
+
+/// The anchors of a page's headings (outside code blocks).
+fn anchors(markdown: &str) -> Vec<String> {
+    let mut in_code = false;
+    let mut out = Vec::new();
+    for line in markdown.lines() {
+        if line.trim_start().starts_with("```") {
+            in_code = !in_code;
+        } else if !in_code && line.starts_with('#') {
+            out.push(anchor(line.trim_start_matches('#')));
+        }
+    }
+    out
+}
+
+/// Every relative link of the README and the guide (files, images, and the heading a
+/// `#fragment` names) points at something that exists, so moving text between pages
+/// cannot leave a dead link behind.
 #[test]
 fn relative_links_in_the_docs_resolve() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let link = regex::Regex::new(r"\]\(([^)\s#]+)(#[^)]*)?\)").unwrap();
+    let link = regex::Regex::new(r"\]\(([^)\s#]*)(?:#([^)\s]*))?\)").unwrap();
     let mut dead = Vec::new();
     for page in doc_pages(repo) {
         let text = std::fs::read_to_string(repo.join(&page)).unwrap();
         let folder = page.parent().unwrap_or(Path::new(""));
         for (number, line) in text.lines().enumerate() {
-            for target in link.captures_iter(line).map(|c| c[1].to_string()) {
+            for captures in link.captures_iter(line) {
+                let target = &captures[1];
                 if target.contains("://") || target.starts_with("mailto:") {
                     continue;
                 }
-                let path = folder.join(&target);
+                let place = format!("{}:{}: {}", page.display(), number + 1, &captures[0]);
+                let path = if target.is_empty() {
+                    page.clone()
+                } else {
+                    folder.join(target)
+                };
                 let normalised = path.to_string_lossy().replace("docs/../", "");
-                if !repo.join(&path).exists() && !ANNOUNCED_PAGES.contains(&normalised.as_str()) {
-                    dead.push(format!("{}:{}: {target}", page.display(), number + 1));
+                if !repo.join(&path).exists() {
+                    if !ANNOUNCED_PAGES.contains(&normalised.as_str()) {
+                        dead.push(place);
+                    }
+                    continue;
+                }
+                if let Some(fragment) = captures.get(2) {
+                    let linked = std::fs::read_to_string(repo.join(&path)).unwrap_or_default();
+                    if !anchors(&linked).iter().any(|a| a == fragment.as_str()) {
+                        dead.push(format!("{place} (no such heading)"));
+                    }
                 }
             }
         }
