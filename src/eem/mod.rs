@@ -247,10 +247,9 @@ pub fn prepare(
             return Err(Error::invalid(
                 "--units radiance-factor",
                 format!(
-                    "{}: {}; as they stand they cannot be radiance factors (largest cell {:.1}, bound {}); pass --units percent (or --units auto) to read them ÷ 100",
+                    "{}: {}; as they stand they cannot be radiance factors (no cell may exceed {}); pass --units percent (or --units auto) to read them ÷ 100",
                     m.name,
                     percent.reason,
-                    verdict.max_cell,
                     units::MAX_RADIANCE_FACTOR_CELL
                 ),
             ));

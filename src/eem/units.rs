@@ -53,6 +53,11 @@ const MIN_DIAGONAL_SHARE: f64 = 0.5;
 /// matrix is more likely radiance factors a little over the bounds than a surface darker
 /// than black velvet.
 const MIN_PEAK_REFLECTANCE: f64 = 0.02;
+/// Largest median ratio of the cell one emission step below the diagonal to the diagonal
+/// cell: a reflectance is sharp (the shared surface files: medians 0.001–0.044), while a
+/// Rayleigh scatter line, which can dominate an EEM's rows too, spreads over the
+/// neighbouring cells by the instrument's bandwidth.
+const MAX_SHOULDER: f64 = 0.25;
 /// Fewest measured diagonal cells that can show a reflectance.
 const MIN_DIAGONAL_CELLS: usize = 3;
 
@@ -215,6 +220,18 @@ pub fn classify_percent(m: &Measurement, verdict: &UnitsVerdict) -> PercentVerdi
                 .all(|v| !(v.is_finite() && *v > d))
         })
         .count();
+    let shoulders: Vec<f64> = m
+        .diagonal()
+        .into_iter()
+        .filter(|&(_, j)| j > 0)
+        .map(|(i, j)| (m.get(i, j - 1) / m.get(i, j)).abs())
+        .filter(|r| r.is_finite())
+        .collect();
+    let shoulder = if shoulders.is_empty() {
+        0.0
+    } else {
+        crate::numeric::median(&shoulders)
+    };
     let diagonal_signal: f64 = diagonal.iter().map(|(_, d)| d.max(0.0)).sum();
     let share = diagonal_signal / positive(&m.values);
     let peak = diagonal
@@ -224,17 +241,19 @@ pub fn classify_percent(m: &Measurement, verdict: &UnitsVerdict) -> PercentVerdi
         / PERCENT;
     let dominant_share = dominant as f64 / diagonal.len() as f64;
     let figures = format!(
-        "largest cell {:.1}, ÷ 100 {:.3} with largest excitation-row sum {:.3} (bound {MAX_RADIANCE_FACTOR_ROW}); the diagonal is the largest cell in {dominant} of its {} rows, holds {:.0} % of the signal and peaks at reflectance {:.3}",
+        "largest cell {:.1}, ÷ 100 {:.3} with largest excitation-row sum {:.3} (bound {MAX_RADIANCE_FACTOR_ROW}); the diagonal is the largest cell in {dominant} of its {} rows, holds {:.0} % of the signal, peaks at reflectance {:.3} and is sharp (the cell one step below holds {:.1} % of it in the median row)",
         verdict.max_cell,
         scaled_verdict.max_cell,
         scaled_verdict.max_row_sum,
         diagonal.len(),
         100.0 * share,
-        peak
+        peak,
+        100.0 * shoulder
     );
     let percent = dominant_share >= MIN_DOMINANT_ROWS
         && share >= MIN_DIAGONAL_SHARE
-        && peak >= MIN_PEAK_REFLECTANCE;
+        && peak >= MIN_PEAK_REFLECTANCE
+        && shoulder <= MAX_SHOULDER;
     PercentVerdict {
         percent,
         bounds_fit: true,
@@ -242,9 +261,10 @@ pub fn classify_percent(m: &Measurement, verdict: &UnitsVerdict) -> PercentVerdi
             format!("the values look like radiance factors ×100 (percent): {figures}")
         } else {
             format!(
-                "÷ 100 the values keep the radiance-factor bounds, but the diagonal does not look like a reflectance (percent needs it largest in {:.0} % of its rows, {:.0} % of the signal and a peak ≥ {MIN_PEAK_REFLECTANCE}): {figures}",
+                "÷ 100 the values keep the radiance-factor bounds, but the diagonal does not look like a reflectance (percent needs it largest in {:.0} % of its rows, {:.0} % of the signal, a peak ≥ {MIN_PEAK_REFLECTANCE} and at most {:.0} % one step below): {figures}",
                 100.0 * MIN_DOMINANT_ROWS,
-                100.0 * MIN_DIAGONAL_SHARE
+                100.0 * MIN_DIAGONAL_SHARE,
+                100.0 * MAX_SHOULDER
             )
         },
     }

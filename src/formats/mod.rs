@@ -158,7 +158,7 @@ pub fn read_bytes(bytes: &[u8], path: &Path, options: &ReadOptions) -> Result<Me
                 0,
                 0,
                 format!(
-                    "unknown format: the content matches none that fluorite reads ({SUPPORTED}); pass --format wide|long|bfc|webfluor|exr to choose one"
+                    "unknown format: the content matches none that fluorite reads ({SUPPORTED}); pass the --format of one to choose it"
                 ),
             )
         })?,

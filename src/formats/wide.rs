@@ -69,7 +69,7 @@ fn check_header(path: &Path, header: &Line, delimiter: Delimiter) -> Result<()> 
             header.number,
             k + 1,
             format!(
-                "column wavelength {} is not a number, so this is no wide matrix (a corner cell, then one wavelength in nm per column). fluorite reads {}; rename the header so (a long table needs excitation, emission and value columns, such as \"Ex (nm),Em (nm),Intensity\") or pass --format wide|long|bfc|webfluor|exr",
+                "column wavelength {} is not a number, so this is no wide matrix (a corner cell, then one wavelength in nm per column). fluorite reads {}; rename the header cells to match one layout, or pass its --format",
                 quote(cell),
                 super::SUPPORTED
             ),
