@@ -300,6 +300,11 @@ pub fn prepare(
             UnitsChoice::Auto if m.arbitrary_scale && verdict.radiance_factor => {
                 "the file's format holds counts (arbitrary scale)".into()
             }
+            // A dark or odd surface in percent: say how to read it so.
+            UnitsChoice::Auto if percent.bounds_fit => format!(
+                "{}; {}; pass --units percent if they are radiance factors ×100",
+                verdict.reason, percent.reason
+            ),
             UnitsChoice::Auto => verdict.reason.clone(),
             _ => "treated as an uncalibrated EEM: the λo = λi line is scatter, not a reflectance"
                 .into(),
