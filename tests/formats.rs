@@ -756,7 +756,11 @@ fn unknown_format() {
 
 #[test]
 fn long_csv_without_value_column() {
-    let err = error_of("l.csv", "excitation_nm,emission_nm,signal\n400,500,1\n");
+    // `signal` names the values; `sample` and `comment` name nothing fluorite reads.
+    let err = error_of(
+        "l.csv",
+        "excitation_nm,emission_nm,sample,comment\n400,500,a,b\n",
+    );
     assert_mentions(&err, &["l.csv:1", "no value column"]);
 }
 

@@ -12,9 +12,10 @@ use fluorite::measurement::Measurement;
 /// Arguments for uncalibrated EEMs (flattened into `fluorite fit`).
 #[derive(clap::Args, Debug, Clone)]
 pub struct EemArgs {
-    /// Units of the values: `auto` (radiance factors if the values can be, else an
-    /// uncalibrated EEM in arbitrary units, fitted for shapes and a scale only),
-    /// `radiance-factor` or `arbitrary`.
+    /// Units of the values: `auto` (radiance factors if the values can be, radiance
+    /// factors ×100 read ÷ 100 if they look like percent, else an uncalibrated EEM in
+    /// arbitrary units, fitted for shapes and a scale only), `radiance-factor`, `percent`
+    /// (radiance factors ×100) or `arbitrary`.
     #[arg(long, value_enum, default_value = "auto")]
     pub units: UnitsChoice,
     /// Blank (e.g. Milli-Q water, same settings) to subtract from each EEM: one file for

@@ -251,7 +251,9 @@ fn run_eem_set(args: &JointRun, eems: &[Measurement]) -> anyhow::Result<ExitCode
             },
             match args.eem.units {
                 UnitsChoice::Auto => "inferred",
-                UnitsChoice::RadianceFactor | UnitsChoice::Arbitrary => "as --units says",
+                UnitsChoice::RadianceFactor | UnitsChoice::Arbitrary | UnitsChoice::Percent => {
+                    "as --units says"
+                }
             }
         );
     }

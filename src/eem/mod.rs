@@ -13,7 +13,10 @@
 //! Sets of prepared EEMs are fitted jointly by [`crate::fit::joint`] (non-negative
 //! PARAFAC, judged by core consistency and split-half).
 //!
-//! A radiance-factor matrix passes through untouched, so surface fits are unchanged.
+//! A radiance-factor matrix passes through untouched, so surface fits are unchanged; one
+//! written ×100 (percent, [`units::classify_percent`]) is divided by 100 with a note and
+//! then passes through. A forced `--units radiance-factor` on percent values, or
+//! `--units percent` on values that are not percent, is an error naming the likely unit.
 //! Every step is recorded in a [`Preprocessing`] report (the fit report's
 //! `preprocessing` block) and as notes on the measurement.
 
@@ -134,7 +137,7 @@ impl Preprocessing {
             "units: {} ({}): {}",
             self.units,
             if self.units_inferred {
-                "inferred; --units radiance-factor|arbitrary overrides"
+                "inferred; --units radiance-factor|percent|arbitrary overrides"
             } else {
                 "set with --units"
             },
@@ -192,6 +195,25 @@ impl Preprocessing {
     }
 }
 
+/// Divides `m`'s values by 100 and says so in a note.
+fn read_percent(m: &mut Measurement, verdict: &units::PercentVerdict, inferred: bool) {
+    m.values.iter_mut().for_each(|v| *v /= units::PERCENT);
+    m.notes.push(format!(
+        "values read as percent radiance factors and divided by 100 ({}): {}; {}",
+        if inferred {
+            "inferred"
+        } else {
+            "set with --units percent"
+        },
+        verdict.reason,
+        if inferred {
+            "--units arbitrary fits shapes only"
+        } else {
+            "--units auto infers the units"
+        }
+    ));
+}
+
 /// Decides the units of `m` and, for an uncalibrated EEM, cleans it (see the module
 /// doc). Returns the matrix to fit and, unless it is a radiance-factor matrix left
 /// untouched, what was done (also appended to the matrix's notes). The options
@@ -203,18 +225,57 @@ pub fn prepare(
 ) -> Result<(Measurement, Option<Preprocessing>)> {
     options.validate()?;
     m.validate()?;
-    let verdict = units::classify(&m);
+    let mut verdict = units::classify(&m);
+    let percent = units::classify_percent(&m, &verdict);
+    match options.units {
+        UnitsChoice::Percent if !percent.bounds_fit => {
+            return Err(Error::invalid(
+                "--units percent",
+                format!(
+                    "{}: {}; {}",
+                    m.name,
+                    percent.reason,
+                    if verdict.radiance_factor {
+                        "drop --units percent (or pass --units radiance-factor)"
+                    } else {
+                        "if it is an uncalibrated EEM in counts, pass --units arbitrary"
+                    }
+                ),
+            ));
+        }
+        UnitsChoice::RadianceFactor if percent.percent => {
+            return Err(Error::invalid(
+                "--units radiance-factor",
+                format!(
+                    "{}: {}; as they stand they cannot be radiance factors (no cell may exceed {}); pass --units percent (or --units auto) to read them ÷ 100",
+                    m.name,
+                    percent.reason,
+                    units::MAX_RADIANCE_FACTOR_CELL
+                ),
+            ));
+        }
+        _ => {}
+    }
+    let inferred_percent = options.units == UnitsChoice::Auto && percent.percent;
+    if options.units == UnitsChoice::Percent || inferred_percent {
+        read_percent(&mut m, &percent, inferred_percent);
+        verdict = units::classify(&m);
+    }
     let arbitrary = match options.units {
         UnitsChoice::Auto => !verdict.radiance_factor || m.arbitrary_scale,
-        UnitsChoice::RadianceFactor => false,
+        UnitsChoice::RadianceFactor | UnitsChoice::Percent => false,
         UnitsChoice::Arbitrary => true,
     };
     let wants_eem_steps = options.blank.is_some() || options.absorbance.is_some();
     if !arbitrary {
         if options.units == UnitsChoice::RadianceFactor && !verdict.radiance_factor {
             m.notes.push(format!(
-                "--units radiance-factor given although the {}; the material fitted from it will not be physical",
-                verdict.reason.trim_start_matches("values ")
+                "--units radiance-factor given although the values cannot be radiance factors (largest cell {:.4e}, largest excitation-row sum {:.4e} at {} nm; bounds {} and {}): the material fitted from them will not be physical; --units arbitrary fits shapes and a scale only",
+                verdict.max_cell,
+                verdict.max_row_sum,
+                verdict.max_row_nm,
+                units::MAX_RADIANCE_FACTOR_CELL,
+                units::MAX_RADIANCE_FACTOR_ROW
             ));
         }
         if wants_eem_steps {
@@ -239,6 +300,11 @@ pub fn prepare(
             UnitsChoice::Auto if m.arbitrary_scale && verdict.radiance_factor => {
                 "the file's format holds counts (arbitrary scale)".into()
             }
+            // A dark or odd surface in percent: say how to read it so.
+            UnitsChoice::Auto if percent.bounds_fit => format!(
+                "{}; {}; pass --units percent if they are radiance factors ×100",
+                verdict.reason, percent.reason
+            ),
             UnitsChoice::Auto => verdict.reason.clone(),
             _ => "treated as an uncalibrated EEM: the λo = λi line is scatter, not a reflectance"
                 .into(),

@@ -1,33 +1,109 @@
-//! Long CSV: one cell per line, with a header naming the columns `excitation_nm`,
-//! `emission_nm` and `value` in any order (other columns are ignored). Combinations that
-//! do not appear are missing cells.
+//! Long CSV: one cell per line, with a header naming an excitation, an emission and a
+//! value column in any order (other columns are ignored). Combinations that do not appear
+//! are missing cells.
+//!
+//! Header names are matched the way labs write them: case-insensitively, with units in
+//! brackets and `nm` dropped and `wavelength`/`lambda`/`λ` ignored, so `Ex (nm)`, `EX`,
+//! `Excitation`, `excitation_wavelength`, `lambda_ex` and `λex [nm]` all name the
+//! excitation column; `Intensity`, `Signal`, `value`, `Counts`, `RF` and the like the
+//! values. When the excitation and emission columns are found and exactly one other
+//! column is left, that column holds the values (with a note). A unit row right under the
+//! header (`nm,nm,a.u.`) is skipped with a note.
 
 use std::path::Path;
 
 use crate::error::{Error, Result};
 
 use super::Parsed;
-use super::text::{CellReader, Delimiter, Line, drop_trailing_empty, split_cells};
+use super::table::unit_row;
+use super::text::{CellReader, Delimiter, Line, drop_trailing_empty, quote, split_cells};
 
 /// Guard against a file whose few lines span an enormous grid (memory, not correctness).
 const MAX_CELLS: usize = 10_000_000;
 
-/// Column roles, by the names a header may use for them.
-const EXCITATION_NAMES: [&str; 4] = ["excitation_nm", "excitation", "ex_nm", "ex"];
-const EMISSION_NAMES: [&str; 4] = ["emission_nm", "emission", "em_nm", "em"];
-const VALUE_NAMES: [&str; 2] = ["value", "values"];
+/// Words that name the excitation column (after [`words`] has normalised the header).
+const EXCITATION_WORDS: [&str; 5] = ["ex", "exc", "excit", "excitation", "lambdaex"];
+/// Words that name the emission column.
+const EMISSION_WORDS: [&str; 5] = ["em", "emi", "emis", "emission", "lambdaem"];
+/// Words any of which marks the value column.
+const VALUE_WORDS: [&str; 16] = [
+    "value",
+    "values",
+    "intensity",
+    "signal",
+    "counts",
+    "count",
+    "cps",
+    "rf",
+    "fluorescence",
+    "fl",
+    "radiance",
+    "reflectance",
+    "reradiation",
+    "response",
+    "amplitude",
+    "reading",
+];
+/// Words that carry no meaning in a header (`Wavelength Ex (nm)`, `lambda_em`).
+const FILLER_WORDS: [&str; 5] = ["nm", "wavelength", "wavelengths", "wl", "lambda"];
 
-fn role_of(names: &[&str], cells: &[std::borrow::Cow<str>]) -> Option<usize> {
-    cells
-        .iter()
-        .position(|c| names.iter().any(|n| c.trim().eq_ignore_ascii_case(n)))
+/// What a long header's column holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Role {
+    Excitation,
+    Emission,
+    Value,
+}
+
+/// The words of a header cell: lower case, bracketed parts (units) dropped, `λ` spelled
+/// `lambda`, split at everything that is not a letter or digit, filler words dropped.
+fn words(cell: &str) -> Vec<String> {
+    let mut kept = String::with_capacity(cell.len());
+    let mut depth = 0usize;
+    for c in cell.chars() {
+        match c {
+            '(' | '[' | '{' => depth += 1,
+            ')' | ']' | '}' => depth = depth.saturating_sub(1),
+            'λ' | 'Λ' if depth == 0 => kept.push_str(" lambda "),
+            _ if depth == 0 => kept.extend(c.to_lowercase()),
+            _ => {}
+        }
+    }
+    kept.split(|c: char| !c.is_alphanumeric())
+        .filter(|w| !w.is_empty() && !FILLER_WORDS.contains(w))
+        .map(str::to_string)
+        .collect()
+}
+
+/// The role a header cell names, if any: one excitation or emission word (`lambda ex`
+/// and `ex_nm` reduce to `ex`), or any value word.
+fn role(cell: &str) -> Option<Role> {
+    let words = words(cell);
+    let joined = words.concat();
+    let is = |names: &[&str]| names.contains(&joined.as_str());
+    if words.len() <= 2 && is(&EXCITATION_WORDS) {
+        Some(Role::Excitation)
+    } else if words.len() <= 2 && is(&EMISSION_WORDS) {
+        Some(Role::Emission)
+    } else if words.iter().any(|w| VALUE_WORDS.contains(&w.as_str())) {
+        Some(Role::Value)
+    } else {
+        None
+    }
+}
+
+fn role_of(role_wanted: Role, cells: &[std::borrow::Cow<str>]) -> Option<usize> {
+    cells.iter().position(|c| role(c) == Some(role_wanted))
 }
 
 /// True when a header line names excitation and emission columns (for detection).
 pub(super) fn looks_like_header(line: &str) -> bool {
     let cells = split_cells(line, Delimiter::detect(line));
-    role_of(&EXCITATION_NAMES, &cells).is_some() && role_of(&EMISSION_NAMES, &cells).is_some()
+    role_of(Role::Excitation, &cells).is_some() && role_of(Role::Emission, &cells).is_some()
 }
+
+/// The header names a long CSV accepts, for messages.
+const ACCEPTED: &str = "excitation: ex, excitation, excitation_nm, lambda_ex, \"Ex (nm)\"; emission: em, emission, emission_nm, lambda_em, \"Em (nm)\"; values: value, intensity, signal, counts, RF (any case; units in brackets and the words wavelength and nm are ignored)";
 
 pub(super) fn read(path: &Path, lines: &[Line]) -> Result<Parsed> {
     let skipped = |l: &Line| l.is_blank() || l.text.trim_start().starts_with('#');
@@ -42,27 +118,48 @@ pub(super) fn read(path: &Path, lines: &[Line]) -> Result<Parsed> {
     };
     let mut names = split_cells(header.text, delimiter);
     drop_trailing_empty(&mut names);
-    let find = |role: &[&str], what: &str| {
-        role_of(role, &names).ok_or_else(|| {
-            reader.error(
-                header.number,
-                0,
-                format!(
-                    "the header has no {what} column; a long CSV needs the columns excitation_nm, emission_nm and value (in any order)"
-                ),
-            )
-        })
+    let missing = |what: &str| {
+        reader.error(
+            header.number,
+            0,
+            format!(
+                "the header {} has no {what} column; a long CSV names its excitation, emission and value columns in any order ({ACCEPTED}). Rename the column, or if this is another layout, pass --format with one of the layouts fluorite reads ({})",
+                quote(header.text),
+                super::SUPPORTED
+            ),
+        )
     };
-    let (ex_col, em_col, value_col) = (
-        find(&EXCITATION_NAMES, "excitation_nm")?,
-        find(&EMISSION_NAMES, "emission_nm")?,
-        find(&VALUE_NAMES, "value")?,
-    );
+    let ex_col = role_of(Role::Excitation, &names).ok_or_else(|| missing("excitation_nm"))?;
+    let em_col = role_of(Role::Emission, &names).ok_or_else(|| missing("emission_nm"))?;
+    let mut notes = Vec::new();
+    let value_col = match role_of(Role::Value, &names) {
+        Some(k) => k,
+        // Three columns, two of them wavelengths: the third can only be the values.
+        None if names.len() == 3 && !names[3 - ex_col - em_col].is_empty() => {
+            let k = 3 - ex_col - em_col;
+            notes.push(format!(
+                "column {} {} read as the values: it is the only column besides excitation and emission",
+                k + 1,
+                quote(&names[k])
+            ));
+            k
+        }
+        None => return Err(missing("value")),
+    };
+    let mut data_lines: Vec<Line> = lines[header_index + 1..].to_vec();
+    if let Some(k) = unit_row(&data_lines, delimiter) {
+        let unit = data_lines.remove(k);
+        notes.push(format!(
+            "line {} {} read as a unit row under the header and skipped",
+            unit.number,
+            quote(unit.text.trim())
+        ));
+    }
     let width = names.len();
 
     // (excitation, emission, value, line)
     let mut entries: Vec<(f64, f64, f64, usize)> = Vec::new();
-    for line in lines.iter().skip(header_index + 1) {
+    for line in &data_lines {
         if skipped(line) {
             continue;
         }
@@ -144,10 +241,5 @@ pub(super) fn read(path: &Path, lines: &[Line]) -> Result<Parsed> {
         first_line[k] = line;
         values[k] = v;
     }
-    Ok(Parsed::surface(
-        excitation_nm,
-        emission_nm,
-        values,
-        Vec::new(),
-    ))
+    Ok(Parsed::surface(excitation_nm, emission_nm, values, notes))
 }

@@ -3,14 +3,15 @@
 //! | format | layout | rows |
 //! |---|---|---|
 //! | [`Format::Wide`] | corner cell, column wavelengths; rows start with their wavelength; `,` `;` or tab | corner label, `--rows`, or inferred |
-//! | [`Format::Long`] | header `excitation_nm,emission_nm,value` in any order | — |
+//! | [`Format::Long`] | header naming excitation, emission and value columns in any order (`excitation_nm,emission_nm,value`, `Ex (nm);Em (nm);Intensity`, …) | — |
 //! | [`Format::Bfc`] | Labsphere BFC-450 matrix file | emission |
 //! | [`Format::Webfluor`] | whitespace; first line emission wavelengths, rows start with excitation | excitation |
 //! | [`Format::Exr`] | bispectral spectral OpenEXR (channels `T.<λ>nm`, `T.<λi>nm.<λo>nm`; see [`exr`]) | — |
 //!
 //! The format is told by content first (OpenEXR's magic number, the `BFC-450 Matrix
-//! File` line, a header naming `excitation_nm` and `emission_nm`, delimiters, a corner
+//! File` line, a header naming excitation and emission columns, delimiters, a corner
 //! label), the extension second.
+//! A unit row right under a wide or long header (`nm,nm,a.u.`) is skipped with a note.
 //! Empty cells, `NaN` and `NA` (any case) are missing values; zeros are missing too in
 //! WebFluor files, where they mean "not measured". Whatever the file's orientation, the
 //! [`Measurement`] is stored excitation-major. Every malformed file gives an
@@ -43,7 +44,8 @@ pub use text::sha256_hex;
 pub enum Format {
     /// Wide CSV: corner cell, column wavelengths, one row per wavelength.
     Wide,
-    /// Long CSV with columns `excitation_nm,emission_nm,value`.
+    /// Long CSV: excitation, emission and value columns (`excitation_nm,emission_nm,value`,
+    /// `Ex (nm),Em (nm),Intensity`, …).
     Long,
     /// Labsphere BFC-450 matrix file.
     Bfc,
@@ -157,7 +159,7 @@ pub fn read_bytes(bytes: &[u8], path: &Path, options: &ReadOptions) -> Result<Me
                 0,
                 0,
                 format!(
-                    "unknown format: the content matches none that fluorite reads ({SUPPORTED}); pass --format wide|long|bfc|webfluor|exr to choose one"
+                    "unknown format: the content matches none that fluorite reads ({SUPPORTED}); pass the --format of one to choose it"
                 ),
             )
         })?,
@@ -182,7 +184,8 @@ pub fn detect_format(path: &Path, bytes: &[u8]) -> Option<Format> {
     detect::detect(path, bytes, &text::split_lines(&text))
 }
 
-const SUPPORTED: &str = "a wide CSV with a corner cell and column wavelengths, a long CSV with columns excitation_nm,emission_nm,value, a BFC-450 matrix file, a WebFluor whitespace matrix, or a bispectral OpenEXR";
+/// The layouts fluorite reads, for messages about files that match none.
+const SUPPORTED: &str = "a wide CSV (--format wide: a corner cell, then column wavelengths; each row starts with its wavelength), a long CSV (--format long: excitation, emission and value columns such as excitation_nm,emission_nm,value or Ex (nm),Em (nm),Intensity), a BFC-450 matrix file (--format bfc), a WebFluor whitespace matrix (--format webfluor) or a bispectral OpenEXR (--format exr)";
 
 fn finish(path: &Path, bytes: &[u8], parsed: Parsed, options: &ReadOptions) -> Result<Measurement> {
     let Parsed {

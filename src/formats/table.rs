@@ -8,7 +8,7 @@ use crate::error::{Error, Result};
 
 use super::RowsAre;
 use super::text::{
-    CellReader, Delimiter, Line, Located, drop_trailing_empty, parse_number, split_cells,
+    CellReader, Delimiter, Line, Located, Number, drop_trailing_empty, parse_number, split_cells,
 };
 
 /// A matrix as laid out in the file, rows in file order.
@@ -81,12 +81,9 @@ impl<'a> TableLayout<'a> {
         let mut cells = split_cells(header.text, self.delimiter);
         drop_trailing_empty(&mut cells);
         // A header that starts with a number has no corner cell (WebFluor layout).
-        let has_corner = cells.first().is_none_or(|c| {
-            matches!(
-                parse_number(c, false),
-                super::text::Number::Invalid | super::text::Number::Missing
-            )
-        });
+        let has_corner = cells
+            .first()
+            .is_none_or(|c| matches!(parse_number(c, false), Number::Invalid | Number::Missing));
         let first_wavelength = usize::from(has_corner);
         let corner = has_corner.then(|| cells.first().map(|c| c.to_string()).unwrap_or_default());
         if cells.len() <= first_wavelength {
@@ -257,6 +254,24 @@ impl Table {
         }
         (above, below)
     }
+}
+
+/// The index in `lines` of a unit row (`nm,nm,a.u.`, `unit,a.u.,a.u.`): the first line
+/// that is neither blank nor a `#` comment, when none of its cells is a number and at
+/// least one is text. `lines` start right under the header.
+pub(crate) fn unit_row(lines: &[Line], delimiter: Delimiter) -> Option<usize> {
+    let index = lines
+        .iter()
+        .position(|l| !l.is_blank() && !l.text.trim_start().starts_with('#'))?;
+    let cells = split_cells(lines[index].text, delimiter);
+    let kinds: Vec<Number> = cells
+        .iter()
+        .map(|c| parse_number(c, delimiter.allows_decimal_comma()))
+        .collect();
+    let no_number = kinds
+        .iter()
+        .all(|k| matches!(k, Number::Invalid | Number::Missing));
+    (no_number && kinds.contains(&Number::Invalid)).then_some(index)
 }
 
 /// Median spacing of a set of wavelengths in any order (0 for fewer than two).

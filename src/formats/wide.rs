@@ -11,20 +11,33 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 
-use super::table::{Table, TableLayout};
-use super::text::{Delimiter, Line, check_increasing};
+use super::table::{Table, TableLayout, unit_row};
+use super::text::{Delimiter, Line, Number, check_increasing, parse_number, quote, split_cells};
 use super::{Parsed, ReadOptions, RowsAre};
 
 /// How much larger one side's signal must be to call the orientation.
 const DECISIVE_RATIO: f64 = 2.0;
 
 pub(super) fn read(path: &Path, lines: &[Line], options: &ReadOptions) -> Result<Parsed> {
-    let header = lines
+    let header_index = lines
         .iter()
-        .find(|l| !l.is_blank() && !l.text.trim_start().starts_with('#'))
+        .position(|l| !l.is_blank() && !l.text.trim_start().starts_with('#'))
         .ok_or_else(|| Error::parse(path, 0, 0, "holds no header line"))?;
-    let layout = TableLayout::commented(path, Delimiter::detect(header.text));
-    let table = layout.read(lines)?;
+    let header = lines[header_index];
+    let delimiter = Delimiter::detect(header.text);
+    check_header(path, &header, delimiter)?;
+    let mut notes = Vec::new();
+    let mut lines = lines.to_vec();
+    if let Some(k) = unit_row(&lines[header_index + 1..], delimiter) {
+        let unit = lines.remove(header_index + 1 + k);
+        notes.push(format!(
+            "line {} {} read as a unit row under the header and skipped",
+            unit.number,
+            quote(unit.text.trim())
+        ));
+    }
+    let layout = TableLayout::commented(path, delimiter);
+    let table = layout.read(&lines)?;
     table.require_rows(
         path,
         "has a header line of column wavelengths but no data rows",
@@ -32,10 +45,37 @@ pub(super) fn read(path: &Path, lines: &[Line], options: &ReadOptions) -> Result
     check_increasing(path, &table.columns, "column wavelength", false)?;
     check_increasing(path, &table.rows, "row wavelength", true)?;
 
-    let mut notes = Vec::new();
     let rows_are = orientation(&table, options.rows, &mut notes);
     let (excitation_nm, emission_nm, values) = table.to_excitation_major(rows_are);
     Ok(Parsed::surface(excitation_nm, emission_nm, values, notes))
+}
+
+/// Refuses a header whose column cells hold words, not wavelengths: the file is likely
+/// another layout, so the error lists the layouts fluorite reads and `--format`.
+fn check_header(path: &Path, header: &Line, delimiter: Delimiter) -> Result<()> {
+    let cells = split_cells(header.text, delimiter);
+    let number = |c: &str| parse_number(c, delimiter.allows_decimal_comma());
+    let has_corner = cells
+        .first()
+        .is_some_and(|c| matches!(number(c), Number::Invalid | Number::Missing));
+    let word = cells
+        .iter()
+        .enumerate()
+        .skip(usize::from(has_corner))
+        .find(|(_, c)| number(c) == Number::Invalid);
+    match word {
+        Some((k, cell)) => Err(Error::parse(
+            path,
+            header.number,
+            k + 1,
+            format!(
+                "column wavelength {} is not a number, so this is no wide matrix (a corner cell, then one wavelength in nm per column). fluorite reads {}; rename the header cells to match one layout, or pass its --format",
+                quote(cell),
+                super::SUPPORTED
+            ),
+        )),
+        None => Ok(()),
+    }
 }
 
 /// What a corner label says the rows are, if it says anything.
