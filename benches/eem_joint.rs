@@ -5,7 +5,7 @@
 //! `cargo bench --bench eem_joint`. Needs ../shared/data/eem-instrument/dorrit; says so
 //! and benchmarks nothing when it is absent.
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/suite/common/mod.rs"]
 mod common;
 
 use std::hint::black_box;

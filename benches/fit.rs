@@ -4,7 +4,7 @@
 //! figure is HERPICER.BFC, whose conservation bound binds, and TEXTYELL.BFC, whose does
 //! not); falls back to a synthetic BFC-like matrix otherwise.
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/suite/common/mod.rs"]
 mod common;
 
 use std::hint::black_box;

@@ -1,6 +1,6 @@
 //! Parsing speed of the input formats on a 49 × 41 BFC-450-sized matrix.
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/suite/common/mod.rs"]
 mod common;
 
 use std::hint::black_box;

@@ -28,7 +28,7 @@ use super::lm::{LeastSquares, SEED_STOPPING, STOPPING, levenberg_marquardt};
 /// (2, 3, 3 bands in wavenumber against 3, 4, 4), consistent with electronic bands being
 /// broadened in energy; excitation needs the same counts in both (3, 6, 6). Reproduce with
 /// `fluorite bands ../shared/data/spectra/*.csv` (`--tolerance 0.02` for 2 %); the test
-/// `dye_spectra_need_the_measured_band_counts` in `tests/parametric.rs` holds the counts.
+/// `dye_spectra_need_the_measured_band_counts` in `tests/suite/parametric.rs` holds the counts.
 pub const DEFAULT_BAND_DOMAIN: BandDomain = BandDomain::Wavenumber;
 
 /// A sum of Gaussian bands fitted to samples, with how well it fits.

@@ -12,7 +12,7 @@ use fluorite::parametric::SpectralForm;
 use fluorite::spectrum::Spectrum;
 use fluorite::synth::{PRESETS, SynthSpec};
 
-mod common;
+use crate::common;
 
 /// `fluorite check`'s text report on `material` (saved in a folder named by `tag`).
 fn check_text(material: &Material, tag: &str) -> String {

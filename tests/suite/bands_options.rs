@@ -1,7 +1,7 @@
 //! The band search's limits are the library's (`check_band_search`); `fluorite bands`
 //! names its own flags, not the library's parameter names, in the same refusals.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 

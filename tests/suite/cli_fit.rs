@@ -1,7 +1,7 @@
 //! `fluorite fit` and `fluorite synth` from the command line: outputs, exit codes, and
 //! bad input (one-line message, non-zero exit, no output file).
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -2,7 +2,7 @@
 //! input, and the dye study behind `DEFAULT_BAND_DOMAIN` (../shared/data/spectra,
 //! skipped with a message when absent).
 
-mod common;
+use crate::common;
 
 use fluorite::import::read_spectrum;
 use fluorite::parametric::fit::{

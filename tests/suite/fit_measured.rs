@@ -3,7 +3,7 @@
 use fluorite::fit::{FitOptions, FitOutcome, fit};
 use fluorite::formats::{ReadOptions, read};
 
-mod common;
+use crate::common;
 
 /// Acceptance: every measured surface converges, satisfies every constraint, and is
 /// within ΔE2000 1.5 under D65, A and F11 (mean ≤ 0.7); the `uv` figure is reported.

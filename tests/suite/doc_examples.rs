@@ -21,7 +21,7 @@
 //! Commands write only into the scratch copy, so the repository is unchanged by
 //! construction; the test also compares `git status --porcelain` before and after.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};

@@ -3,7 +3,7 @@
 //! name their guide page, the hint when a pinned yield breaks photon conservation, and
 //! `plot` finding the matrix a material was fitted to.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

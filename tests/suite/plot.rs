@@ -722,8 +722,8 @@ use fluorite::parametric::{
 };
 use fluorite::synth::{Band, SynthSpec};
 
-mod common;
-use common::decode_png;
+use crate::common;
+use crate::common::decode_png;
 
 /// The `two-dyes` preset's truth: a UV brightener (a at 365 nm, e at 440 nm) and an
 /// orange-red dye (a at 545 nm, e at 610 nm), on the BFC-450 grids.

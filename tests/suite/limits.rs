@@ -3,7 +3,7 @@
 //! the built binary under a watchdog (a hang fails the test instead of stalling the suite;
 //! the bound is generous, this is no timing assert).
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};

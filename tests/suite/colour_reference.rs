@@ -13,7 +13,7 @@ use fluorite::formats::{ReadOptions, read};
 use fluorite::synth::SynthSpec;
 use serde_json::Value;
 
-mod common;
+use crate::common;
 
 /// A matrix M[excitation][emission] on its grids.
 struct Matrix {

@@ -1,7 +1,7 @@
 //! Residual maps of EEM fits show the cells scatter masking removed as masked (hatched,
 //! with a legend entry), apart from cells the file never recorded (plain grey).
 
-mod common;
+use crate::common;
 
 use fluorite::eem::scatter::{ScatterOptions, WATER_RAMAN_SHIFT_CM};
 use fluorite::eem::{EemOptions, prepare};

@@ -11,7 +11,7 @@ use fluorite::measurement::Units;
 use fluorite::spectrum::uniform_grid;
 use proptest::prelude::*;
 
-mod common;
+use crate::common;
 
 // ---------------------------------------------------------------------------------------
 // Helpers

@@ -12,7 +12,7 @@ use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, ModelRequest, YieldChoi
 use fluorite::formats::read;
 use fluorite::parametric::BandDomain;
 
-mod common;
+use crate::common;
 
 fn search_options(bound: f64) -> FitOptions {
     FitOptions {

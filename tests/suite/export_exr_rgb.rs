@@ -5,7 +5,7 @@
 //! dense computation of the notebook's formula (afichet/fluorescence-rgb,
 //! `reduce_matrix_ours`).
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

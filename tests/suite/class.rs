@@ -2,7 +2,7 @@
 //! its ΔE2000 against the truth agrees with one recomputed here from the colour functions,
 //! and the command writes the report and the CSV.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 

@@ -11,7 +11,7 @@
 //! asserts that its standard errors are small against the effect it tests, so that a
 //! noisy render cannot pass by having wide error bars.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

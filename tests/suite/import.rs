@@ -1,7 +1,7 @@
 //! `import-spectra`: the dye spectra in ../shared/data/spectra become valid materials
 //! whose a and e are the source curves, normalised.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;

@@ -4,7 +4,7 @@
 //! gives the original material. A forced unit the values contradict is an error naming
 //! the likely unit (exit 2), and raw instrument EEMs in counts are never read as percent.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -2,7 +2,7 @@
 //! (`eem::prepare`, `EemOptions::validate`), naming the `fluorite fit` flag, and never
 //! panics on them; the command prints the same messages.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;

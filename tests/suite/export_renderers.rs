@@ -25,7 +25,7 @@ use fluorite::export::{ExportFormat, ExportOptions};
 use fluorite::material::{Material, YieldForm};
 use fluorite::synth::SynthSpec;
 
-mod common;
+use crate::common;
 
 // ---- the truth, computed independently ------------------------------------------
 

@@ -12,7 +12,7 @@ use fluorite::material::{Fluorophore, Material, YieldForm};
 use fluorite::parametric::SpectralForm;
 use fluorite::synth::SynthSpec;
 
-mod common;
+use crate::common;
 
 const VERSION: &str = env!("CARGO_PKG_VERSION");
 

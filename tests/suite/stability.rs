@@ -2,6 +2,7 @@
 //! per failure mode showing that `fit` flags it, and the benchmark table's structure and
 //! accuracy numbers (never its times).
 
+use crate::common;
 use std::path::Path;
 
 use fluorite::evaluate::stability::{
@@ -253,11 +254,9 @@ fn bench_table_holds_each_method_with_the_fits_own_accuracy() {
 
 #[test]
 fn bench_on_a_real_matrix_reports_the_fitted_accuracy() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/measured/HERPICER.BFC");
-    if !path.exists() {
-        eprintln!("skipped: {} not present", path.display());
+    let Some(path) = common::measured("HERPICER.BFC") else {
         return;
-    }
+    };
     let m = read(&path, &ReadOptions::default()).unwrap();
     let rows = bench::run(
         std::slice::from_ref(&m),

@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-mod common;
-use common::{files_in, shared};
+use crate::common;
+use crate::common::{files_in, shared};
 
 use fluorite::eem::{EemOptions, UnitsChoice, prepare, units::classify};
 use fluorite::fit::{FitOptions, FitOutcome, fit};

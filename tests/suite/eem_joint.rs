@@ -3,7 +3,7 @@
 //! synthetic set of known Gaussian shapes and scores comes back, with core consistency
 //! telling the true K from K + 2.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 

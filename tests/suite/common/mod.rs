@@ -4,30 +4,42 @@
 
 use std::path::{Path, PathBuf};
 
-/// `../shared/data/<sub>` (a folder or a file), or None with a printed reason.
+/// `../shared/data/<sub>` (a folder or a file), or None when it is absent: the calling
+/// test then skips, and says so — `SKIPPED <test>: <reason>` on the terminal, past the test
+/// harness's capture. Under CI (`CI` set and not `false`), which always has `../shared`,
+/// an absent folder fails the test instead.
 pub fn shared(sub: &str) -> Option<PathBuf> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/data")
         .join(sub);
     if path.exists() {
-        Some(path)
-    } else {
-        eprintln!(
-            "skipped: {} is absent (CI always has ../shared)",
-            path.display()
-        );
-        None
+        return Some(path);
     }
+    let reason = format!("{} is absent", path.display());
+    let ci = std::env::var("CI").is_ok_and(|v| !v.is_empty() && v != "false");
+    assert!(!ci, "{reason}; CI must have ../shared beside the clone");
+    skipped(&reason);
+    None
 }
 
-/// A fresh, empty folder for `tag` of this test binary, under the system's temporary
-/// folder (named after the binary, the tag and the process, so parallel tests never meet).
+/// Says on the terminal that the running test skips, and why: written to the process's
+/// stderr directly, since the harness shows a passing test's `eprintln!` only on failure.
+pub fn skipped(reason: &str) {
+    use std::io::Write;
+    let thread = std::thread::current();
+    let test = thread.name().unwrap_or("a test");
+    let _ = writeln!(std::io::stderr().lock(), "SKIPPED {test}: {reason}");
+}
+
+/// A fresh, empty folder for `tag` of the calling test file, under the system's temporary
+/// folder (named after the file, the tag and the process, so parallel tests never meet).
+#[track_caller]
 pub fn temp_dir(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "fluorite-test-{}-{tag}-{}",
-        env!("CARGO_CRATE_NAME"),
-        std::process::id()
-    ));
+    let file = Path::new(std::panic::Location::caller().file())
+        .file_stem()
+        .map_or_else(|| "test".to_string(), |s| s.to_string_lossy().to_string());
+    let dir =
+        std::env::temp_dir().join(format!("fluorite-test-{file}-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
