@@ -18,8 +18,9 @@
 # the speed/accuracy charts (fits/speed-accuracy.{svg,csv},
 # fits/measured/speed-accuracy.{svg,csv}), the stability and class sweeps
 # (fits/stability.{svg,md,csv}, fits/class.{md,csv}: median ms columns) and the Dorrit
-# joint summaries (fits/eem/dorrit/summary.txt, fits/eem/dorrit-sweep.md). Their fits
-# rewrite the same JSON and plots as the deterministic pass.
+# joint fit (fits/eem/dorrit/: model.json records its fit time; summary.txt and
+# fits/eem/dorrit-sweep.md). Their fits rewrite the same material JSON and plots as the
+# deterministic pass.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 timings=false
@@ -60,16 +61,6 @@ if [ "$timings" = false ]; then
     done
   else
     echo "skipped the measured materials: $shared is absent" >&2
-  fi
-  # Joint PARAFAC of the Dorrit EEM set (README "Joint fits of sample sets"): the classic
-  # preparation, four components. Its summary (with times) is written by --timings.
-  if [ -d "$dorrit" ]; then
-    mkdir -p fits/eem/dorrit
-    $fluorite fit "$dorrit"/*.csv --joint --components 4 --em-range 250:681 --ex-range 230:315 \
-      --exclude QAB,QAC,QAE,QAA --reference "$dorrit"/concentrations.csv -o fits/eem/dorrit/ \
-      >/dev/null
-  else
-    echo "skipped the Dorrit joint fit: $dorrit is absent" >&2
   fi
   exit 0
 fi

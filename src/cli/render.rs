@@ -215,8 +215,9 @@ fn render_picture(
         bar.finish_and_clear();
     }
 
+    let exposure_ev = exposure.unwrap_or(DEFAULT_EXPOSURE_EV);
     let description = format!(
-        "{} under {}{}, scene {:?}, {} spp, seed {}{}",
+        "{} under {}{}, scene {:?}, {} spp, seed {}{}{}",
         material.name,
         light.name,
         if *compare {
@@ -227,15 +228,21 @@ fn render_picture(
         kind,
         settings.samples_per_pixel,
         settings.seed,
+        // The compare picture states its exposure itself (it may be automatic).
+        if *compare {
+            String::new()
+        } else {
+            format!(", exposure {exposure_ev:+} EV")
+        },
         if picture.adapt {
             ", adapted to D65"
         } else {
             ", not adapted"
         }
     );
-    let mut develop_as = Develop {
+    let develop_as = Develop {
         adapt: picture.adapt,
-        exposure_ev: exposure.unwrap_or(DEFAULT_EXPOSURE_EV),
+        exposure_ev,
         description,
         exr: picture.exr,
     };
@@ -250,7 +257,6 @@ fn render_picture(
         )?;
         (developed.png, developed.exr)
     } else {
-        develop_as.description += &format!(", exposure {:+} EV", develop_as.exposure_ev);
         develop(&film, scene.light(), &develop_as)?
     };
     let exr = exr.map(|bytes| (output.with_extension("exr"), bytes));
