@@ -270,6 +270,9 @@ pub struct FitReport {
     /// Solver iterations.
     pub iterations: u64,
     /// Wall time of the fit (seconds).
+    /// Not written to JSON (read when present, for older files): a wall-clock time would
+    /// make every rewrite of a committed fit differ. `fit` prints it; `bench` measures speed.
+    #[serde(default, skip_serializing)]
     pub seconds: f64,
     /// Cells within this distance of the diagonal were excluded (0: none, the default).
     pub guard_nm: f64,
@@ -352,6 +355,9 @@ pub struct ModelSearch {
     /// The candidate with the lowest BIC among those tried.
     pub lowest_bic: String,
     /// Wall time of the whole search (seconds).
+    /// Not written to JSON (read when present, for older files): a wall-clock time would
+    /// make every rewrite of a committed fit differ. `fit` prints it; `bench` measures speed.
+    #[serde(default, skip_serializing)]
     pub seconds: f64,
 }
 
@@ -369,6 +375,9 @@ pub struct Candidate {
     /// BIC on the matrix residual.
     pub bic: f64,
     /// Fit time (seconds).
+    /// Not written to JSON (read when present, for older files): a wall-clock time would
+    /// make every rewrite of a committed fit differ. `fit` prints it; `bench` measures speed.
+    #[serde(default, skip_serializing)]
     pub seconds: f64,
     /// Why the candidate failed to fit, if it did (then the figures are empty).
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -9,6 +9,7 @@ use anyhow::Context;
 use fluorite::Material;
 use fluorite::colour::Light;
 use fluorite::error::Error;
+use fluorite::render::compare::develop_compare;
 use fluorite::render::image::{Develop, check_exposure, develop};
 use fluorite::render::report::furnace_noise;
 
@@ -76,9 +77,12 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Exposure in stops. At 0 a white diffuser facing up on top of the sphere is sRGB
-    /// white; the default leaves half a stop for fluorescence brighter than white.
-    #[arg(long, default_value_t = DEFAULT_EXPOSURE_EV, allow_negative_numbers = true)]
-    pub exposure: f64,
+    /// white; the default, -0.5, leaves half a stop for fluorescence brighter than white.
+    /// With `--compare` the default is automatic: 99 % of both spheres' pixels stay below
+    /// 0.9 in every linear sRGB channel (never brighter than -0.5), so a fluorescent sphere
+    /// far brighter than white keeps its colour; the image states the exposure used.
+    #[arg(long, allow_negative_numbers = true)]
+    pub exposure: Option<f64>,
     /// Also write scene-referred linear radiance as OpenEXR beside the PNG: linear sRGB
     /// primaries of the film's XYZ, without chromatic adaptation, exposure or clipping
     /// (the PNG alone gets the display transform).
@@ -156,7 +160,8 @@ struct Picture {
     kind: SceneKind,
     compare: bool,
     sampling: SamplingArg,
-    exposure: f64,
+    /// Given exposure (stops); None: the default, automatic with `compare`.
+    exposure: Option<f64>,
     exr: bool,
     adapt: bool,
     quiet: bool,
@@ -181,7 +186,9 @@ fn render_picture(
     } = picture;
     let (width, height) = (settings.width, settings.height);
     settings.validate()?;
-    check_exposure(*exposure)?;
+    if let Some(ev) = exposure {
+        check_exposure(*ev)?;
+    }
     check_output_folder(output)?;
     let mut scene = Scene::build(*kind, material, light, *compare, settings.aspect())
         .with_context(|| format!("cannot render {}", material_path.display()))?;
@@ -208,8 +215,9 @@ fn render_picture(
         bar.finish_and_clear();
     }
 
+    let exposure_ev = exposure.unwrap_or(DEFAULT_EXPOSURE_EV);
     let description = format!(
-        "{} under {}{}, scene {:?}, {} spp, seed {}, exposure {:+} EV{}",
+        "{} under {}{}, scene {:?}, {} spp, seed {}{}{}",
         material.name,
         light.name,
         if *compare {
@@ -220,23 +228,37 @@ fn render_picture(
         kind,
         settings.samples_per_pixel,
         settings.seed,
-        exposure,
+        // The compare picture states its exposure itself (it may be automatic).
+        if *compare {
+            String::new()
+        } else {
+            format!(", exposure {exposure_ev:+} EV")
+        },
         if picture.adapt {
             ", adapted to D65"
         } else {
             ", not adapted"
         }
     );
-    let (png, exr) = develop(
-        &film,
-        scene.light(),
-        &Develop {
-            adapt: picture.adapt,
-            exposure_ev: *exposure,
-            description,
-            exr: picture.exr,
-        },
-    )?;
+    let develop_as = Develop {
+        adapt: picture.adapt,
+        exposure_ev,
+        description,
+        exr: picture.exr,
+    };
+    let (png, exr) = if *compare {
+        let developed = develop_compare(
+            &film,
+            &scene,
+            settings,
+            &develop_as,
+            exposure.is_none(),
+            (&material.name, &light.name),
+        )?;
+        (developed.png, developed.exr)
+    } else {
+        develop(&film, scene.light(), &develop_as)?
+    };
     let exr = exr.map(|bytes| (output.with_extension("exr"), bytes));
     let mut files = vec![(output.clone(), png)];
     files.extend(exr.iter().cloned());
@@ -274,7 +296,7 @@ pub fn preview(material: &Material, material_path: &Path, quiet: bool) -> anyhow
         kind: SceneKind::Preview,
         compare: false,
         sampling: SamplingArg::Light,
-        exposure: DEFAULT_EXPOSURE_EV,
+        exposure: None,
         exr: false,
         adapt: true,
         quiet,

@@ -82,6 +82,57 @@ pub(crate) fn render_named<D: Draw>(
     }
 }
 
+/// A line of text to set on a picture: the text, the pixel its centre sits on, its size
+/// in pixels and whether it is bold.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Caption {
+    /// What it says.
+    pub(crate) text: String,
+    /// Centre of the text (x, y) in pixels.
+    pub(crate) centre: (i32, i32),
+    /// Font size in pixels.
+    pub(crate) size: f64,
+    /// Bold instead of regular.
+    pub(crate) bold: bool,
+}
+
+/// Sets `captions` in black onto `rgb` (8-bit RGB rows of `size`), in the figures' font
+/// and glyph layout: labels on pictures that are not figures, such as the renderer's
+/// compare image.
+pub(crate) fn draw_captions(rgb: &mut [u8], size: (u32, u32), captions: &[Caption]) -> Result<()> {
+    super::font::ensure_registered()?;
+    if rgb.len() != size.0 as usize * size.1 as usize * 3 {
+        return Err(Error::invalid(
+            "captions",
+            format!(
+                "the picture holds {} bytes, not 3 per pixel of {}×{}",
+                rgb.len(),
+                size.0,
+                size.1
+            ),
+        ));
+    }
+    let failed = |e: String| Error::invalid("captions", format!("could not be drawn: {e}"));
+    let backend = TextBitmap::new(BitMapBackend::with_buffer(rgb, size))?;
+    let root = backend.into_drawing_area();
+    for caption in captions {
+        let style = if caption.bold {
+            bold(caption.size)
+        } else {
+            font(caption.size)
+        };
+        draw_text(
+            &root,
+            &caption.text,
+            caption.centre,
+            &anchored(style, HPos::Center, VPos::Center),
+        )
+        .map_err(|e| failed(e.to_string()))?;
+    }
+    root.present().map_err(|e| failed(e.to_string()))?;
+    Ok(())
+}
+
 fn encode_png(rgb: &[u8], width: u32, height: u32) -> std::result::Result<Vec<u8>, String> {
     let mut bytes = Vec::new();
     {

@@ -18,6 +18,7 @@
 
 pub mod colormap;
 mod common;
+pub(crate) use common::{Caption, draw_captions};
 pub mod convergence;
 pub mod evaluation;
 pub mod font;

@@ -7,6 +7,7 @@
 //! - [`integrator`]: the path tracer (hero wavelengths, fluorescent events, next-event
 //!   estimation with multiple importance sampling, Russian roulette).
 //! - [`image`]: the exposure rule, sRGB PNG and linear EXR.
+//! - [`compare`]: the `--compare` picture: automatic exposure and the label strip.
 //! - [`report`]: furnace noise and time, to compare sampling rules.
 //!
 //! [`render`] produces a film of CIE XYZ for pictures; [`spectral_radiance`] estimates
@@ -14,6 +15,7 @@
 //! spectra rather than colours. Every pixel draws from its own seeded generator, so a
 //! render is reproducible whatever the number of threads.
 
+pub mod compare;
 pub mod geometry;
 pub mod image;
 pub mod integrator;

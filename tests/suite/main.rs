@@ -35,6 +35,8 @@ mod parametric;
 mod plot;
 mod plot_masked;
 mod render;
+mod render_compare;
+mod reproducible_outputs;
 mod stability;
 mod synth_components;
 mod units_percent;
