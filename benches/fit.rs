@@ -162,10 +162,32 @@ fn bench_search(c: &mut Criterion) {
     group.finish();
 }
 
+/// The default `fluorite fit` (`FitOptions::default()`) on every shipped example
+/// (data/*.csv): the one-fluorophore matrices, whose default fit is the grid fit alone (the
+/// fast path), and two-dyes, which one fluorophore does not explain.
+fn bench_default(c: &mut Criterion) {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
+    let mut examples: Vec<std::path::PathBuf> = std::fs::read_dir(&data)
+        .expect("data/ ships with the crate")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "csv"))
+        .collect();
+    examples.sort();
+    let options = FitOptions::default();
+    let mut group = c.benchmark_group("default");
+    group.sample_size(10);
+    for path in examples {
+        let m = read(&path, &ReadOptions::default()).expect("shipped examples read");
+        let stem = path.file_stem().unwrap().to_string_lossy().into_owned();
+        group.bench_function(stem, |b| b.iter(|| fit(black_box(&m), &options).unwrap()));
+    }
+    group.finish();
+}
+
 criterion_group! {
     name = benches;
     // No plots: criterion's plotters backend would need a system font.
     config = Criterion::default().without_plots();
-    targets = bench_fit, bench_batch, bench_objective, bench_search
+    targets = bench_fit, bench_batch, bench_objective, bench_search, bench_default
 }
 criterion_main!(benches);

@@ -325,6 +325,10 @@ pub struct FitReport {
     /// The candidates tried when the model was chosen automatically.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_search: Option<ModelSearch>,
+    /// The default fit's choice (`--model as-needed`): whether it went beyond one
+    /// fluorophore, and why.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub escalation: Option<Escalation>,
     /// What was done to an uncalibrated EEM before the fit (units, blank, inner filter,
     /// scatter masked); absent for radiance-factor matrices.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -333,6 +337,20 @@ pub struct FitReport {
 
 fn is_zero(n: &usize) -> bool {
     *n == 0
+}
+
+/// What the default fit (`--model as-needed`) chose: one fluorophore on the grid, or the
+/// model search's model because one fluorophore did not explain the matrix.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct Escalation {
+    /// Whether the fit went beyond the one-fluorophore grid fit.
+    pub escalated: bool,
+    /// Why, with the figures.
+    pub reason: String,
+    /// The one-fluorophore grid fit's ΔE2000 against the measurement under d65, a, f11.
+    pub grid_delta_e2000: BTreeMap<String, f64>,
+    /// The one-fluorophore grid fit's ‖M − F‖/‖M‖ over the Stokes cells.
+    pub grid_rel_residual_fluorescence: f64,
 }
 
 /// How a model was chosen: the rule, every candidate tried, and the choice.

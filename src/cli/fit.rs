@@ -87,10 +87,17 @@ pub struct FitArgs {
     /// term of parametric fits. Built-in names (d65, a, f11, uv) or CSV files, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "d65,a,f11,uv")]
     pub lights: Vec<String>,
-    /// Spectral model: `tabulated` (one sample per grid wavelength, the default), `auto`
-    /// (search from the smallest parametric model up), or `gaussian:KxB[/E][+rD|+rt]`
-    /// (K fluorophores with B Gaussian bands, or A absorption and E emission bands;
-    /// reflectance a sigmoid polynomial of degree D or tabulated; default degree: chosen).
+    /// Spectral model. `as-needed` (the default): one fluorophore sampled at every grid
+    /// wavelength, kept when its ΔE2000 against the matrix is ≤ 1 under d65, a and f11
+    /// (or within the colour's noise); otherwise the smallest parametric model meeting
+    /// that bound (as `auto --max-delta-e 1 --lights d65,a,f11`), or the closest with a
+    /// warning; the summary and the JSON (`fit.escalation`) say which and why. Raw or
+    /// arbitrary-scale EEMs, --quantum-yield/--concentration and --solver other than
+    /// lbfgs keep one fluorophore. `tabulated`: one fluorophore, never escalated (the
+    /// default before as-needed). `auto`: search from the smallest parametric model up.
+    /// `gaussian:KxB[/E][+rD|+rt]`: K fluorophores with B Gaussian bands, or A absorption
+    /// and E emission bands; reflectance a sigmoid polynomial of degree D or tabulated
+    /// (default degree: chosen).
     #[arg(long, value_parser = parse_model)]
     pub model: Option<ModelChoice>,
     /// Choose the smallest model whose ΔE2000 under every light of --lights is at most
@@ -233,7 +240,7 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         model: match (args.model, args.max_delta_e) {
             (Some(model), _) => model,
             (None, Some(_)) => ModelChoice::Auto,
-            (None, None) => ModelChoice::Tabulated,
+            (None, None) => ModelChoice::AsNeeded,
         },
         max_delta_e: args.max_delta_e,
         colour_weight: args.colour_weight,
@@ -306,11 +313,11 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                 if !args.quiet {
                     print!("{}", printer::summary(input, out, &m, &outcome));
                 }
-                rows.push(if options.model == ModelChoice::Tabulated {
-                    printer::table_row(&m, &outcome)
-                } else {
-                    printer::model_table_row(&m, &outcome)
-                });
+                rows.push((
+                    printer::table_row(&m, &outcome),
+                    printer::model_table_row(&m, &outcome),
+                    report.model_search.is_some(),
+                ));
                 if args.plot {
                     crate::cli::plot::plot_fit(&outcome, &m, out, args.quiet)
                         .with_context(|| format!("plotting {}", out.display()))?;
@@ -325,10 +332,18 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         }
     }
     if args.table {
-        print!(
-            "{}",
-            printer::fit_table(options.model != ModelChoice::Tabulated, &rows)
-        );
+        // The model table once any file's model was chosen by a search (the default fit
+        // escalates per file), the grid table otherwise.
+        let parametric = match options.model {
+            ModelChoice::Tabulated => false,
+            ModelChoice::AsNeeded => rows.iter().any(|r| r.2),
+            _ => true,
+        };
+        let rows: Vec<String> = rows
+            .into_iter()
+            .map(|(grid, model, _)| if parametric { model } else { grid })
+            .collect();
+        print!("{}", printer::fit_table(parametric, &rows));
     }
     Ok(if failed > 0 {
         ExitCode::from(2)

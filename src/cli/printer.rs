@@ -55,6 +55,17 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
                         .unwrap_or_default()
                 );
             }
+            if let Some(escalation) = &report.escalation {
+                let _ = writeln!(
+                    s,
+                    "  default fit: {}",
+                    if escalation.escalated {
+                        format!("escalated beyond one fluorophore: {}", escalation.reason)
+                    } else {
+                        escalation.reason.clone()
+                    }
+                );
+            }
             if let Some(search) = &report.model_search {
                 let _ = writeln!(
                     s,

@@ -13,6 +13,11 @@ use super::data::{Cell, FitData};
 /// Residual RMS above this many noise σ is flagged (single fits and series alike).
 pub const RESIDUAL_NOISE_FACTOR: f64 = 3.0;
 
+/// The words of the grid fit's warning that its residual exceeds [`RESIDUAL_NOISE_FACTOR`]
+/// × the noise (the default fit escalates on it).
+pub const STRUCTURE_WARNING: &str =
+    "the matrix holds structure one fluorophore with a constant yield does not explain";
+
 /// `--yield auto` takes the photon form only when its objective is lower than the energy
 /// form's by more than this fraction (plus ½σ²): forms that fit equally keep the paper's.
 const YIELD_FORM_MARGIN: f64 = 1e-3;

@@ -1,7 +1,8 @@
 //! Fitting the diffuse fluorescent BBRRDF to a reradiation matrix.
 //!
-//! [`fit`] dispatches: the grid (tabulated) fit, or the parametric model search. Below it,
-//! one concern per file:
+//! [`fit`] dispatches: the default fit as needed ([`escalate`]: the grid fit, escalated to
+//! the search when one fluorophore does not explain the matrix), the grid (tabulated) fit,
+//! or the parametric model search. Below it, one concern per file:
 //!
 //! - `options`: [`FitOptions`], [`Solver`], [`Start`], [`YieldChoice`], [`FitOutcome`].
 //! - [`data`]: the cells a fit uses, gathered once (and `fill_missing` for diagonals).
@@ -28,6 +29,7 @@ pub mod assess;
 pub mod checks;
 mod colour_term;
 pub mod data;
+pub mod escalate;
 mod grid_material;
 pub mod init;
 pub mod joint;
@@ -64,6 +66,7 @@ use tabulated::fit_checked;
 pub fn fit(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
     match options.model {
         ModelChoice::Tabulated => fit_checked(m, options, true),
+        ModelChoice::AsNeeded => escalate::fit_as_needed(m, options),
         _ => {
             validate_options(options)?;
             search::fit_model(m, options)

@@ -23,8 +23,14 @@ pub const DEFAULT_COLOUR_WEIGHT: f64 = 0.01;
 /// What model to fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ModelChoice {
-    /// One sample per grid wavelength, one fluorophore (the default).
+    /// The default (`as-needed`): the one-fluorophore grid fit when it explains the
+    /// matrix, else the smallest parametric model meeting ΔE2000 ≤ 1 under d65, a and
+    /// f11 (see [`crate::fit::escalate`]). Matrices without a calibrated diagonal and fits
+    /// with a pinned yield or concentration keep the grid fit.
     #[default]
+    AsNeeded,
+    /// One sample per grid wavelength, one fluorophore, never escalated (`tabulated`: the
+    /// default before `as-needed`).
     Tabulated,
     /// The smallest parametric model meeting the rule.
     Auto,
@@ -123,7 +129,8 @@ pub struct FitOptions {
     pub lights: Vec<Light>,
     /// Starting point of the iterative solvers.
     pub start: Start,
-    /// The spectral model: tabulated (the default), a parametric model, or the search.
+    /// The spectral model: as needed (the default), tabulated, a parametric model, or the
+    /// search.
     pub model: ModelChoice,
     /// The search's bound: the first model with ΔE2000 at most this under every light in
     /// `lights` is chosen (without it the search takes the lowest BIC).
@@ -146,7 +153,7 @@ impl Default for FitOptions {
             tolerance: DEFAULT_TOLERANCE,
             lights: Light::standard(),
             start: Start::ClosedForm,
-            model: ModelChoice::Tabulated,
+            model: ModelChoice::AsNeeded,
             max_delta_e: None,
             colour_weight: DEFAULT_COLOUR_WEIGHT,
         }
@@ -273,7 +280,11 @@ pub(super) fn validate_options(options: &FitOptions) -> Result<()> {
             format!("is {}; give a weight ≥ 0", options.colour_weight),
         ));
     }
-    if options.model != ModelChoice::Tabulated && options.solver != Solver::Lbfgs {
+    if !matches!(
+        options.model,
+        ModelChoice::Tabulated | ModelChoice::AsNeeded
+    ) && options.solver != Solver::Lbfgs
+    {
         return Err(Error::invalid(
             "--solver",
             "parametric models are refined with L-BFGS only; drop --solver or use --model tabulated",

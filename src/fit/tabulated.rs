@@ -414,10 +414,11 @@ pub(super) fn fit_checked(
             .fold(0.0f64, |a, v| a.max(v.abs()));
     if accuracy.rms_off_diagonal > (assess::RESIDUAL_NOISE_FACTOR * noise_sigma).max(signal_floor) {
         warnings.push(format!(
-            "off-diagonal residual RMS {:.2e} is {:.1}× the noise level σ = {:.2e} (anti-Stokes side): the matrix holds structure one fluorophore with a constant yield does not explain",
+            "off-diagonal residual RMS {:.2e} is {:.1}× the noise level σ = {:.2e} (anti-Stokes side): {}",
             accuracy.rms_off_diagonal,
             accuracy.rms_off_diagonal / noise_sigma,
-            noise_sigma
+            noise_sigma,
+            assess::STRUCTURE_WARNING
         ));
     }
     let fit = material.fit.as_mut().expect("report set above");

@@ -1,11 +1,11 @@
-//! Model names: `tabulated`, `auto`, `gaussian:KxA/E[+rD|+rt][@wavelength][/photon]`.
+//! Model names: `as-needed`, `tabulated`, `auto`, `gaussian:KxA/E[+rD|+rt][@wavelength][/photon]`.
 
 use super::*;
 
 impl FromStr for ModelChoice {
     type Err = Error;
 
-    /// `tabulated`, `auto`, or `gaussian:KxB` / `gaussian:KxA/E`, optionally followed by
+    /// `as-needed`, `tabulated`, `auto`, or `gaussian:KxB` / `gaussian:KxA/E`, optionally followed by
     /// `+rD` (sigmoid-polynomial reflectance of degree D) or `+rt` (tabulated
     /// reflectance), `@wavenumber` / `@wavelength`, and `/photon` (components with a
     /// constant photon yield Φ; without it `--yield` decides).
@@ -14,12 +14,13 @@ impl FromStr for ModelChoice {
             Error::invalid(
                 "--model",
                 format!(
-                    "\"{text}\" {why}; use tabulated, auto, or gaussian:KxB[/E][+rD|+rt][@wavenumber|@wavelength][/photon] (e.g. gaussian:2x1, gaussian:1x2/1+r4, gaussian:1x1+r6/photon)"
+                    "\"{text}\" {why}; use as-needed, tabulated, auto, or gaussian:KxB[/E][+rD|+rt][@wavenumber|@wavelength][/photon] (e.g. gaussian:2x1, gaussian:1x2/1+r4, gaussian:1x1+r6/photon)"
                 ),
             )
         };
         match text.trim() {
             "tabulated" => return Ok(ModelChoice::Tabulated),
+            "as-needed" => return Ok(ModelChoice::AsNeeded),
             "auto" => return Ok(ModelChoice::Auto),
             _ => {}
         }

@@ -1,0 +1,303 @@
+//! The default fit ([`ModelChoice::AsNeeded`]): the one-fluorophore grid fit, kept when it
+//! explains the matrix, else the model search's smallest model meeting ΔE2000 ≤
+//! [`ESCALATION_BOUND`] under [`ESCALATION_LIGHTS`] (what `--model auto --max-delta-e 1
+//! --lights d65,a,f11` fits).
+//!
+//! The grid fit's own figures decide, so a matrix one fluorophore explains costs nothing
+//! beyond them: its ΔE2000 against the measurement, which its report holds. A residual
+//! above the noise (the "structure one fluorophore does not explain" warning) alone does
+//! not escalate: the search's rule is colour, and where one fluorophore already meets it
+//! the search takes its smallest model, which explains less of the matrix (TEXTYELL.BFC:
+//! gaussian:1x1+r11, fluorescence residual 44.6 % against the grid fit's 25.9 %, ΔE2000
+//! under uv 2.95 against 0.38; `fluorite fit TEXTYELL.BFC --model auto --max-delta-e 1
+//! --lights d65,a,f11`). The report names the structure, and `--model auto` fits the
+//! lowest-BIC model.
+//!
+//! Cost: the fast path is the grid fit plus a look at its report; two-dyes adds the search
+//! (median of 15, dev build, loaded machine: 3.9–8.2 ms as `tabulated`, 23 ms as-needed;
+//! `fluorite fit data/*.csv --model M --timing-runs 15 --table`; criterion's figures come
+//! from the `default` group of `cargo bench --bench fit`).
+
+use std::collections::BTreeMap;
+
+use super::*;
+use crate::material::Escalation;
+
+/// The ΔE2000 the default fit must reach against the measurement under every light of
+/// [`ESCALATION_LIGHTS`] (1: invisible side by side).
+pub const ESCALATION_BOUND: f64 = 1.0;
+
+/// The lights the default fit is judged under: daylight, incandescent and a narrow-band
+/// fluorescent lamp. The `uv` light is left out: under it the colour is mostly the
+/// fluorescence of wavelengths below most grids' reach, and the search would chase it
+/// (it is still reported).
+pub const ESCALATION_LIGHTS: [&str; 3] = ["d65", "a", "f11"];
+
+/// Fits one fluorophore on the grid, and escalates to the model search when it does not
+/// explain the matrix (see the module documentation).
+pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
+    let started = Instant::now();
+    let grid_options = FitOptions {
+        model: ModelChoice::Tabulated,
+        ..options.clone()
+    };
+    let mut grid = tabulated::fit_checked(m, &grid_options, true)?;
+    // Shapes (raw or arbitrary-scale EEMs) have no colour to judge and no reflectance for
+    // a parametric model; a plain reflector was already judged on its colour.
+    let FitOutcome::Material(material) = &mut grid else {
+        return Ok(grid);
+    };
+    if material.fluorophores.is_empty() {
+        if let Some(report) = material.fit.as_mut() {
+            report.escalation = Some(Escalation {
+                reason: "no fluorescence to model: a plain reflector (c = 0) meets the colour within its noise".into(),
+                ..Escalation::default()
+            });
+        }
+        return Ok(grid);
+    }
+    let verdict = judge(m, material);
+    let report = material
+        .fit
+        .as_mut()
+        .expect("fitted materials carry a report");
+    let Some(trigger) = verdict.trigger.clone() else {
+        report.escalation = Some(Escalation {
+            escalated: false,
+            reason: match &verdict.structure {
+                None => format!(
+                    "one fluorophore explains the matrix: residual within {} × the noise and ΔE2000 ≤ {ESCALATION_BOUND} under {} ({})",
+                    assess::RESIDUAL_NOISE_FACTOR,
+                    ESCALATION_LIGHTS.join(", "),
+                    per_light(&verdict.grid_delta_e2000)
+                ),
+                Some(structure) => format!(
+                    "one fluorophore kept: it meets ΔE2000 ≤ {ESCALATION_BOUND} under {} ({}), although {structure}; fit --model auto for the model of lowest BIC",
+                    ESCALATION_LIGHTS.join(", "),
+                    per_light(&verdict.grid_delta_e2000)
+                ),
+            },
+            grid_delta_e2000: verdict.grid_delta_e2000,
+            grid_rel_residual_fluorescence: report.rel_residual_fluorescence,
+        });
+        return Ok(grid);
+    };
+    let grid_figures = |reason: String| Escalation {
+        escalated: false,
+        reason,
+        grid_delta_e2000: verdict.grid_delta_e2000.clone(),
+        grid_rel_residual_fluorescence: report.rel_residual_fluorescence,
+    };
+    // Pins and other solvers belong to the one-fluorophore grid model: keep it, and say
+    // what the matrix would need.
+    let refusal = if options.quantum_yield.is_some() || options.concentration.is_some() {
+        Some("--quantum-yield/--concentration pin the one fluorophore's yield")
+    } else if options.solver != Solver::Lbfgs {
+        Some("--solver applies to the grid model (the search refines with L-BFGS)")
+    } else {
+        None
+    };
+    if let Some(why) = refusal {
+        report.warnings.push(format!(
+            "{trigger}; kept one fluorophore because {why}: drop it to let the default fit try larger models, or fit --model auto --max-delta-e {ESCALATION_BOUND}"
+        ));
+        report.escalation = Some(grid_figures(format!(
+            "one fluorophore kept although {trigger}: {why}"
+        )));
+        return Ok(grid);
+    }
+    let search_options = FitOptions {
+        model: ModelChoice::Auto,
+        max_delta_e: Some(ESCALATION_BOUND),
+        lights: escalation_lights(),
+        ..options.clone()
+    };
+    let searched = match search::fit_model(m, &search_options) {
+        Ok(FitOutcome::Material(searched)) => searched,
+        other => {
+            let e = match other {
+                Err(e) => e.to_string(),
+                _ => "it gave shapes, not a material".to_string(),
+            };
+            report.warnings.push(format!(
+                "{trigger}, but the model search failed ({e}); kept the one-fluorophore grid fit"
+            ));
+            report.escalation = Some(grid_figures(format!(
+                "one fluorophore kept: {trigger}, and the model search failed"
+            )));
+            return Ok(grid);
+        }
+    };
+    let search_fit = searched
+        .fit
+        .as_ref()
+        .expect("searched materials carry a report");
+    let met = search_fit.model_search.as_ref().is_some_and(|s| s.met);
+    // The search keeps the grid model it started from when no candidate came closer: the
+    // default's own grid fit (bootstrap and report under the asked lights) is that model.
+    if search_fit.model == "tabulated" {
+        let tried = search_fit.model_search.clone();
+        report.warnings.push(format!(
+            "{trigger}; no larger model tried came closer ({}), so one fluorophore is kept; average repeated measurements or fit --model gaussian:KxB to go further",
+            tried
+                .as_ref()
+                .map(|s| s.candidates.iter().map(|c| c.model.as_str()).collect::<Vec<_>>().join(", "))
+                .unwrap_or_default()
+        ));
+        report.model_search = tried;
+        report.escalation = Some(grid_figures(format!(
+            "one fluorophore kept: {trigger}, and no larger model came closer"
+        )));
+        return Ok(grid);
+    }
+    let mut searched = *searched;
+    // Report the chosen model under the lights asked for (the search judged it under
+    // ESCALATION_LIGHTS only).
+    let data = data::FitData::new(m, options.guard_nm.unwrap_or(0.0));
+    let accuracy = assess::accuracy(&searched, m, &data, &options.lights);
+    let fit = searched
+        .fit
+        .as_mut()
+        .expect("searched materials carry a report");
+    accuracy.record_in(fit);
+    let chosen_delta_e = under_escalation_lights(&fit.delta_e2000);
+    fit.escalation = Some(Escalation {
+        escalated: true,
+        reason: format!(
+            "{trigger}: fitted {} instead, the {} (ΔE2000 {})",
+            fit.model,
+            if met {
+                format!(
+                    "smallest model with ΔE2000 ≤ {ESCALATION_BOUND} under {}",
+                    ESCALATION_LIGHTS.join(", ")
+                )
+            } else {
+                "closest model tried; none met the bound".to_string()
+            },
+            per_light(&chosen_delta_e)
+        ),
+        grid_delta_e2000: verdict.grid_delta_e2000,
+        grid_rel_residual_fluorescence: verdict.grid_rel_residual,
+    });
+    fit.seconds = started.elapsed().as_secs_f64();
+    Ok(FitOutcome::Material(Box::new(searched)))
+}
+
+/// What the grid fit leaves: its ΔE2000 under [`ESCALATION_LIGHTS`], why it does not
+/// explain the matrix (in words) when it misses the bound, and the structure its residual
+/// shows.
+struct Verdict {
+    grid_delta_e2000: BTreeMap<String, f64>,
+    grid_rel_residual: f64,
+    trigger: Option<String>,
+    structure: Option<String>,
+}
+
+/// Judges the one-fluorophore grid fit `material` of `m` from its report: the residual
+/// warning its checks already gave, and its ΔE2000 (computed here only for the lights of
+/// [`ESCALATION_LIGHTS`] the fit's own `--lights` left out).
+fn judge(m: &Measurement, material: &Material) -> Verdict {
+    let report = material
+        .fit
+        .as_ref()
+        .expect("fitted materials carry a report");
+    let mut grid_delta_e2000: BTreeMap<String, f64> = ESCALATION_LIGHTS
+        .iter()
+        .filter_map(|l| report.delta_e2000.get(*l).map(|de| (l.to_string(), *de)))
+        .collect();
+    if grid_delta_e2000.len() < ESCALATION_LIGHTS.len() {
+        let data = data::FitData::new(m, report.guard_nm);
+        grid_delta_e2000 = assess::accuracy(material, m, &data, &escalation_lights()).delta_e2000;
+    }
+    let structure = report
+        .warnings
+        .iter()
+        .find(|w| w.contains(assess::STRUCTURE_WARNING));
+    let misses: BTreeMap<String, f64> = grid_delta_e2000
+        .iter()
+        .filter(|(_, de)| **de > ESCALATION_BOUND || !de.is_finite())
+        .map(|(l, de)| (l.clone(), *de))
+        .collect();
+    // A miss the measured colour's own noise explains is no evidence of a second
+    // fluorophore (and no model would reach the bound reliably): it does not escalate.
+    let misses = if misses.is_empty() {
+        misses
+    } else {
+        let data = data::FitData::new(m, report.guard_nm);
+        let lights = escalation_lights();
+        let reference = patch_xyz(m, material, &lights);
+        let noise = assess::colour_noise(&data, &lights, &reference, report.noise_sigma);
+        let bounds = assess::noise_aware_bounds(ESCALATION_BOUND, &lights, &noise);
+        misses
+            .into_iter()
+            .filter(|(l, de)| bounds.get(l).is_none_or(|b| de > b))
+            .collect()
+    };
+    let structure = structure.map(|_| {
+        format!(
+            "its residual leaves structure above {} × the noise (fluorescence residual {:.1} %)",
+            assess::RESIDUAL_NOISE_FACTOR,
+            100.0 * report.rel_residual_fluorescence
+        )
+    });
+    let trigger = (!misses.is_empty()).then(|| {
+        format!(
+            "one fluorophore misses ΔE2000 ≤ {ESCALATION_BOUND} ({}){}",
+            per_light(&misses),
+            structure
+                .as_ref()
+                .map(|s| format!(" and {s}"))
+                .unwrap_or_default()
+        )
+    });
+    Verdict {
+        grid_delta_e2000,
+        grid_rel_residual: report.rel_residual_fluorescence,
+        trigger,
+        structure,
+    }
+}
+
+/// The measured patch's XYZ per light, as the accuracy report sees it.
+fn patch_xyz(m: &Measurement, material: &Material, lights: &[Light]) -> Vec<crate::colour::Xyz> {
+    let fitted = crate::model::predict_like(material, m).to_per_bin();
+    let measured = assess::measured_patch(m, &fitted);
+    lights
+        .iter()
+        .map(|l| PatchColorimeter::cached(l, &m.excitation_nm, &m.emission_nm).xyz(&measured))
+        .collect()
+}
+
+/// The lights of [`ESCALATION_LIGHTS`].
+fn escalation_lights() -> Vec<Light> {
+    ESCALATION_LIGHTS
+        .iter()
+        .map(|n| Light::builtin(n).expect("escalation lights are built in"))
+        .collect()
+}
+
+/// `d65 0.42, a 1.30` (the lights' order of [`crate::colour::STANDARD_LIGHTS`]).
+fn per_light(delta_e: &BTreeMap<String, f64>) -> String {
+    let mut named: Vec<(&String, &f64)> = delta_e.iter().collect();
+    let rank = |l: &str| {
+        crate::colour::STANDARD_LIGHTS
+            .iter()
+            .position(|s| *s == l)
+            .unwrap_or(usize::MAX)
+    };
+    named.sort_by_key(|(l, _)| rank(l));
+    named
+        .iter()
+        .map(|(l, de)| format!("{l} {de:.2}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The ΔE2000 under the escalation lights only.
+fn under_escalation_lights(delta_e: &BTreeMap<String, f64>) -> BTreeMap<String, f64> {
+    delta_e
+        .iter()
+        .filter(|(l, _)| ESCALATION_LIGHTS.contains(&l.as_str()))
+        .map(|(l, de)| (l.clone(), *de))
+        .collect()
+}

@@ -1,0 +1,273 @@
+//! The default fit (`--model as-needed`): one fluorophore where it explains the matrix,
+//! the smallest model meeting ΔE2000 ≤ 1 under d65, a and f11 where it does not. Colour
+//! is recomputed here from the written material and the measured matrix, not read from
+//! the fit's own report.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use fluorite::Material;
+use fluorite::colour::{Light, PatchColorimeter, delta_e2000};
+use fluorite::evaluate::stability::material_delta_e;
+use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, fit};
+use fluorite::formats::read;
+use fluorite::measurement::{Measurement, Units};
+use fluorite::synth::{Band, SynthComponent, SynthSpec};
+
+mod common;
+
+/// The lights and bound the default fit promises.
+const LIGHTS: [&str; 3] = ["d65", "a", "f11"];
+const BOUND: f64 = 1.0;
+
+fn lights() -> Vec<Light> {
+    LIGHTS.iter().map(|n| Light::builtin(n).unwrap()).collect()
+}
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("data")
+        .join(name)
+}
+
+fn material(outcome: FitOutcome) -> Material {
+    match outcome {
+        FitOutcome::Material(m) => *m,
+        FitOutcome::Shapes(_) => panic!("expected a material"),
+    }
+}
+
+/// ΔE2000 per light between the measured patch (every measured cell as measured, the
+/// missing ones from the material) and the material's own patch, on the matrix's grids.
+fn delta_e_to_matrix(material: &Material, m: &Measurement) -> Vec<(String, f64)> {
+    let predicted = fluorite::model::predict(
+        material,
+        &m.name,
+        &m.excitation_nm,
+        &m.emission_nm,
+        Units::PerBin,
+        m.has_diagonal,
+    );
+    let measured = m.to_per_bin().filled_from(&predicted);
+    lights()
+        .iter()
+        .map(|light| {
+            let colorimeter = PatchColorimeter::new(light, &m.excitation_nm, &m.emission_nm);
+            let de = delta_e2000(colorimeter.lab(&measured), colorimeter.lab(&predicted));
+            (light.name.clone(), de)
+        })
+        .collect()
+}
+
+fn assert_within_bound(what: &str, material: &Material, m: &Measurement) {
+    for (light, de) in delta_e_to_matrix(material, m) {
+        assert!(
+            de <= BOUND,
+            "{what}: ΔE2000 {de:.3} under {light} against the matrix ({})",
+            material
+                .fit
+                .as_ref()
+                .map(|f| f.model.as_str())
+                .unwrap_or("")
+        );
+    }
+}
+
+/// `fluorite fit` with no model option on every shipped example: the written material
+/// meets the bound against its matrix; the one-fluorophore examples keep the grid fit
+/// without a search (the fast path), two-dyes escalates to two fluorophores and says so.
+#[test]
+fn every_shipped_example_meets_the_bound_by_default() {
+    let dir = common::temp_dir("default-fit-examples");
+    let examples = common::files_in(&data(""), &["csv"]);
+    assert!(examples.len() >= 5, "{examples:?}");
+    for input in examples {
+        let stem = input.file_stem().unwrap().to_string_lossy().into_owned();
+        let out = dir.join(format!("{stem}.json"));
+        let output = common::succeed(Command::new(env!("CARGO_BIN_EXE_fluorite")).args([
+            "fit",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]));
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        let m = read(&input, &Default::default()).unwrap();
+        let written = Material::load(&out).unwrap();
+        assert_within_bound(&stem, &written, &m);
+        let report = written.fit.as_ref().unwrap();
+        let truth = Material::load(&data(&format!("{stem}.truth.json"))).unwrap();
+        if truth.fluorophores.len() > 1 {
+            let escalation = report.escalation.as_ref().expect("the choice is reported");
+            assert!(escalation.escalated, "{stem}: {escalation:?}");
+            assert_eq!(written.fluorophores.len(), truth.fluorophores.len());
+            assert!(report.model.starts_with("gaussian:2x"), "{}", report.model);
+            // Why: the grid fit's figures, which miss the bound.
+            let grid_worst = escalation
+                .grid_delta_e2000
+                .values()
+                .fold(0.0f64, |a, b| a.max(*b));
+            assert!(grid_worst > BOUND, "{escalation:?}");
+            assert!(
+                stdout.contains("escalated beyond one fluorophore"),
+                "{stdout}"
+            );
+            assert!(stdout.contains(&report.model), "{stdout}");
+        } else {
+            assert!(report.model_search.is_none(), "{stem}: a search ran");
+            assert_eq!(
+                written.fluorophores.len(),
+                truth.fluorophores.len(),
+                "{stem}"
+            );
+            if !truth.fluorophores.is_empty() {
+                assert_eq!(report.model, "tabulated", "{stem}");
+                let escalation = report.escalation.as_ref().expect("the choice is reported");
+                assert!(!escalation.escalated, "{stem}: {escalation:?}");
+                assert!(stdout.contains("one fluorophore explains"), "{stdout}");
+            }
+        }
+    }
+}
+
+/// Two-dye matrices other than the shipped one: different dyes, concentrations, noise
+/// and seeds. The default fit escalates, meets the bound against the matrix and comes
+/// within ΔE2000 1 of the generating material under d65, a and f11.
+#[test]
+fn two_dye_matrices_escalate_to_two_fluorophores() {
+    let band = |centre_nm: f64, width_nm: f64, weight: f64| Band {
+        centre_nm,
+        width_nm,
+        weight,
+    };
+    // (first dye from a preset, second dye's absorption and emission, its c, noise, seed)
+    let cases = [
+        ("green-dye", (420.0, 20.0), (470.0, 18.0), 0.5, 0.0006, 3),
+        ("red-pigment", (440.0, 18.0), (490.0, 16.0), 0.8, 0.0003, 5),
+        ("brightener", (580.0, 20.0), (640.0, 20.0), 0.6, 0.001, 11),
+    ];
+    for (preset, absorption, emission, concentration, noise, seed) in cases {
+        let mut spec = SynthSpec::preset(preset).unwrap();
+        spec.components = vec![SynthComponent {
+            absorption: vec![band(absorption.0, absorption.1, 1.0)],
+            emission: vec![band(emission.0, emission.1, 1.0)],
+            concentration,
+            yield_fraction_of_limit: 0.8,
+            yield_form: fluorite::YieldForm::Energy,
+        }];
+        spec.noise_sigma = noise;
+        spec.seed = seed;
+        spec.name = format!("{preset}+{}nm", absorption.0);
+        let (m, truth) = spec.generate().unwrap();
+        let fitted = material(fit(&m, &FitOptions::default()).unwrap());
+        let report = fitted.fit.as_ref().unwrap();
+        let escalation = report.escalation.as_ref().unwrap();
+        assert!(escalation.escalated, "{}: {escalation:?}", spec.name);
+        assert_within_bound(&spec.name, &fitted, &m);
+        let to_truth = material_delta_e(&fitted, &truth, &lights());
+        assert!(
+            to_truth <= BOUND,
+            "{}: ΔE2000 {to_truth:.3} to the truth ({})",
+            spec.name,
+            report.model
+        );
+    }
+}
+
+/// `--model tabulated` is the old default: one fluorophore on two-dyes, with its residual
+/// (the second dye is not modelled), its colour miss and the warning, and no search.
+#[test]
+fn model_tabulated_keeps_one_fluorophore() {
+    let m = read(&data("two-dyes.csv"), &Default::default()).unwrap();
+    let options = FitOptions {
+        model: ModelChoice::Tabulated,
+        ..FitOptions::default()
+    };
+    let one = material(fit(&m, &options).unwrap());
+    let report = one.fit.as_ref().unwrap();
+    assert_eq!(one.fluorophores.len(), 1);
+    assert_eq!(report.model, "tabulated");
+    assert!(report.model_search.is_none() && report.escalation.is_none());
+    assert!(report.rel_residual_fluorescence > 0.3, "{report:?}");
+    let worst = delta_e_to_matrix(&one, &m)
+        .into_iter()
+        .fold(0.0f64, |a, (_, de)| a.max(de));
+    assert!(
+        worst > 2.0,
+        "one fluorophore misses the second dye's colour"
+    );
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains(fluorite::fit::assess::STRUCTURE_WARNING)),
+        "{:?}",
+        report.warnings
+    );
+}
+
+/// On a matrix one fluorophore explains, the default fit is the tabulated fit: the same
+/// spectra and figures, plus the report of the choice.
+#[test]
+fn the_fast_path_is_the_tabulated_fit() {
+    let m = read(&data("green-dye.csv"), &Default::default()).unwrap();
+    let default = material(fit(&m, &FitOptions::default()).unwrap());
+    let tabulated = material(
+        fit(
+            &m,
+            &FitOptions {
+                model: ModelChoice::Tabulated,
+                ..FitOptions::default()
+            },
+        )
+        .unwrap(),
+    );
+    assert_eq!(default.fluorophores, tabulated.fluorophores);
+    assert_eq!(default.reflectance, tabulated.reflectance);
+    let (d, t) = (default.fit.unwrap(), tabulated.fit.unwrap());
+    assert_eq!(d.delta_e2000, t.delta_e2000);
+    assert_eq!(d.warnings, t.warnings);
+    assert!(!d.escalation.unwrap().escalated);
+}
+
+/// Raw EEMs and pins keep one fluorophore: a pinned yield on two-dyes keeps the grid fit
+/// and warns what the matrix would need.
+#[test]
+fn a_pinned_yield_keeps_one_fluorophore_and_says_so() {
+    let m = read(&data("two-dyes.csv"), &Default::default()).unwrap();
+    let options = FitOptions {
+        quantum_yield: Some(0.5),
+        ..FitOptions::default()
+    };
+    let pinned = material(fit(&m, &options).unwrap());
+    let report = pinned.fit.as_ref().unwrap();
+    assert_eq!(pinned.fluorophores.len(), 1);
+    assert!(!report.escalation.as_ref().unwrap().escalated);
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("kept one fluorophore because --quantum-yield")),
+        "{:?}",
+        report.warnings
+    );
+}
+
+/// The six real surfaces (skipped when ../shared is absent): the default fit meets the
+/// bound against each matrix. Their one-fluorophore fits already do (ΔE2000 ≤ 0.78 under
+/// d65, a and f11), so none escalates, TEXTYELL included, whose residual shows structure:
+/// the search's smallest model meeting the bound would explain less of that matrix.
+#[test]
+fn measured_surfaces_meet_the_bound_by_default() {
+    let Some(files) = common::measured_files() else {
+        eprintln!("skipped: ../shared/data/measured is absent");
+        return;
+    };
+    for path in files {
+        let m = read(&path, &Default::default()).unwrap();
+        let fitted = material(fit(&m, &FitOptions::default()).unwrap());
+        assert_within_bound(&m.name, &fitted, &m);
+        let report = fitted.fit.as_ref().unwrap();
+        assert!(!report.escalation.as_ref().unwrap().escalated, "{}", m.name);
+        assert_eq!(report.model, "tabulated", "{}", m.name);
+    }
+}
