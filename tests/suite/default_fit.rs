@@ -14,7 +14,7 @@ use fluorite::formats::read;
 use fluorite::measurement::{Measurement, Units};
 use fluorite::synth::{Band, SynthComponent, SynthSpec};
 
-mod common;
+use crate::common;
 
 /// The lights and bound the default fit promises.
 const LIGHTS: [&str; 3] = ["d65", "a", "f11"];
