@@ -93,9 +93,10 @@ fn main() -> ExitCode {
     if let Some(index) = args.replay {
         let (which, mutant) = harness.mutant(args.seed, index);
         let seed = &harness.seeds[which];
-        let path = args
-            .out
-            .join(format!("seed{}-mutant{index}-{}", args.seed, seed.file_name));
+        let path = args.out.join(format!(
+            "seed{}-mutant{index}-{}",
+            args.seed, seed.file_name
+        ));
         std::fs::write(&path, &mutant.bytes).expect("write the mutant");
         println!(
             "seed {} mutant {index}: {} [{:?}]: {}\nwritten to {}\nreplay: {}",
@@ -239,11 +240,23 @@ fn commands(kind: Kind, path: &Path, dir: &Path) -> Vec<(Vec<String>, Vec<i32>)>
     let out = |name: &str| dir.join(name).display().to_string();
     let owned = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
     match kind {
-        Kind::Matrix => vec![(owned(&["fit", &p, "-q", "-o", &out("fit.json")]), vec![0, 2])],
+        Kind::Matrix => vec![(
+            owned(&["fit", &p, "-q", "-o", &out("fit.json")]),
+            vec![0, 2],
+        )],
         Kind::Material => vec![
             (owned(&["check", &p]), vec![0, 1, 2]),
             (
-                owned(&["render", &p, "--size", "8x8", "--spp", "2", "-o", &out("r.png")]),
+                owned(&[
+                    "render",
+                    &p,
+                    "--size",
+                    "8x8",
+                    "--spp",
+                    "2",
+                    "-o",
+                    &out("r.png"),
+                ]),
                 vec![0, 2],
             ),
         ],
@@ -274,7 +287,15 @@ fn commands(kind: Kind, path: &Path, dir: &Path) -> Vec<(Vec<String>, Vec<i32>)>
                 .display()
                 .to_string();
             vec![(
-                owned(&["fit", &sample, "--absorbance", &p, "-q", "-o", &out("fit.json")]),
+                owned(&[
+                    "fit",
+                    &sample,
+                    "--absorbance",
+                    &p,
+                    "-q",
+                    "-o",
+                    &out("fit.json"),
+                ]),
                 vec![0, 2],
             )]
         }
@@ -302,7 +323,10 @@ fn run_limited(cli: &Path, command: &[String], limit: Duration) -> Result<i32, S
             Ok(None) if started.elapsed() > limit => {
                 let _ = child.kill();
                 let _ = child.wait();
-                return Err(format!("TIMEOUT: still running after {} s", limit.as_secs()));
+                return Err(format!(
+                    "TIMEOUT: still running after {} s",
+                    limit.as_secs()
+                ));
             }
             Ok(None) => std::thread::sleep(Duration::from_millis(5)),
             Err(e) => return Err(format!("wait failed: {e}")),

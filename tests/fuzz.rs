@@ -36,7 +36,12 @@ fn every_seed_is_accepted_unmutated() {
     for note in &harness.skipped {
         eprintln!("skipped: {note}");
     }
-    let kinds = [Kind::Matrix, Kind::Material, Kind::Spectra, Kind::Absorbance];
+    let kinds = [
+        Kind::Matrix,
+        Kind::Material,
+        Kind::Spectra,
+        Kind::Absorbance,
+    ];
     for kind in kinds {
         let n = harness.seeds.iter().filter(|s| s.kind == kind).count();
         let expected_without_shared = matches!(kind, Kind::Spectra | Kind::Absorbance);
@@ -89,4 +94,43 @@ fn five_thousand_mutants_end_in_ok_or_a_one_line_error() {
         "the mutants should reach both outcomes: {text}"
     );
     let _ = std::fs::remove_dir_all(&failures_dir);
+}
+
+/// Found by this harness (seed 21, mutants 180 and 540): a BFC-450 cell of −1e308 made the
+/// fit's sums of squares infinite and L-BFGS's line search loop forever. Such a cell is
+/// now refused on reading, naming the cell; one just inside the bound still fits.
+#[test]
+fn a_cell_whose_square_overflows_is_refused_not_fitted_forever() {
+    let Some(path) = harness::corpus::shared_data().map(|d| d.join("measured/HERPICER.BFC")) else {
+        eprintln!("skipped: ../shared/data is absent");
+        return;
+    };
+    let text = std::fs::read_to_string(&path).unwrap();
+    // Line 16 is the emission row at 410 nm; its fourth field is excitation 320 nm.
+    let with_cell = |value: &str| {
+        let mut lines: Vec<String> = text.split('\n').map(str::to_string).collect();
+        let mut fields: Vec<&str> = lines[15].split('\t').collect();
+        assert_eq!(fields[0], "410");
+        fields[3] = value;
+        lines[15] = fields.join("\t");
+        lines.join("\n").into_bytes()
+    };
+    let options = fluorite::formats::ReadOptions::default();
+    let e = fluorite::formats::read_bytes(&with_cell("-1e308"), &path, &options)
+        .and_then(|m| m.validate())
+        .expect_err("a cell of -1e308 is refused");
+    let message = e.to_string();
+    assert!(
+        message.contains("HERPICER") && message.contains("410 nm") && message.contains("1e100"),
+        "{message}"
+    );
+    let m = fluorite::formats::read_bytes(&with_cell("-1e99"), &path, &options).unwrap();
+    let options = fluorite::fit::FitOptions {
+        max_iterations: harness::run::FIT_ITERATIONS,
+        ..Default::default()
+    };
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || tx.send(fluorite::fit::fit(&m, &options).is_ok()));
+    let ended = rx.recv_timeout(DEV_BUDGET);
+    assert!(ended.is_ok(), "a cell of -1e99 still hangs the fit");
 }

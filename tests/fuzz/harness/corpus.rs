@@ -145,7 +145,10 @@ fn written_by_fluorite(root: &Path) -> Vec<Seed> {
     let files = export(&material, &ExportOptions::new(ExportFormat::Exr)).expect("exr export");
     for f in files {
         seeds.push(Seed {
-            origin: format!("generated:export --to exr of fits/two-dyes.json ({})", f.name),
+            origin: format!(
+                "generated:export --to exr of fits/two-dyes.json ({})",
+                f.name
+            ),
             file_name: "two-dyes.exr".into(),
             kind: Kind::Matrix,
             bytes: f.contents,

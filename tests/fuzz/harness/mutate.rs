@@ -234,7 +234,10 @@ fn binary_edit(bytes: &mut Vec<u8>, rng: &mut SplitMix64) -> String {
             let with = *pick(rng, WAVELENGTHS);
             let old = String::from_utf8_lossy(&bytes[span.0..span.1]).into_owned();
             replace(bytes, span, with.as_bytes());
-            format!("replaced header number {old:?} at byte {} by {with:?}", span.0)
+            format!(
+                "replaced header number {old:?} at byte {} by {with:?}",
+                span.0
+            )
         }
     }
 }
@@ -351,7 +354,11 @@ fn replace_wavelength(bytes: &mut Vec<u8>, rng: &mut SplitMix64) -> String {
             .collect()
     } else {
         let header_end = own.get(12).map_or(bytes.len(), |l| l.1);
-        spans.iter().copied().filter(|n| n.1 <= header_end).collect()
+        spans
+            .iter()
+            .copied()
+            .filter(|n| n.1 <= header_end)
+            .collect()
     };
     if candidates.is_empty() {
         return replace_number(bytes, rng);
@@ -439,5 +446,9 @@ fn swap_delimiters(bytes: &mut Vec<u8>, rng: &mut SplitMix64) -> String {
             swapped += 1;
         }
     }
-    format!("swapped {swapped} delimiters {from:?}→{to:?} in {where_}", from = from as char, to = to as char)
+    format!(
+        "swapped {swapped} delimiters {from:?}→{to:?} in {where_}",
+        from = from as char,
+        to = to as char
+    )
 }

@@ -256,7 +256,9 @@ pub fn replay_command(kind: Kind, path: &Path) -> String {
     match kind {
         Kind::Matrix => format!("fluorite fit {p} -o /tmp/fuzz-replay.json"),
         Kind::Material => {
-            format!("fluorite check {p} && fluorite render {p} --size 8x8 --spp 2 -o /tmp/fuzz-replay.png")
+            format!(
+                "fluorite check {p} && fluorite render {p} --size 8x8 --spp 2 -o /tmp/fuzz-replay.png"
+            )
         }
         Kind::Spectra => format!(
             "fluorite import-spectra --absorption {p} --absorption-column excitation --emission-column emission --reflectance 0.5 -c 0.5 --photon-yield 0.5 -o /tmp/fuzz-replay.json"
