@@ -134,3 +134,30 @@ fn a_cell_whose_square_overflows_is_refused_not_fitted_forever() {
     let ended = rx.recv_timeout(DEV_BUDGET);
     assert!(ended.is_ok(), "a cell of -1e99 still hangs the fit");
 }
+
+/// Found by this harness (seed 21, mutant 4553): a 42-digit absorbance reached the
+/// inner-filter correction, whose factor 10^(A/2) made the sample's cells infinite, and
+/// the error named the sample instead of the absorbance file. The absorbance file is now
+/// refused, by name.
+#[test]
+fn an_absurd_absorbance_is_refused_naming_its_file() {
+    let harness = Harness::new();
+    if harness.seeds.iter().all(|s| s.kind != Kind::Absorbance) {
+        eprintln!("skipped: no absorbance seed (../shared/data is absent)");
+        return;
+    }
+    let (which, mutant) = harness.mutant(21, 4553);
+    let seed = &harness.seeds[which];
+    assert_eq!(seed.kind, Kind::Absorbance, "{}", seed.origin);
+    let scratch = std::env::temp_dir().join(format!("fluorite-fuzz-abs-{}", std::process::id()));
+    std::fs::create_dir_all(&scratch).unwrap();
+    let ending = harness.run(seed, &mutant.bytes, &scratch);
+    let _ = std::fs::remove_dir_all(&scratch);
+    match ending {
+        Ending::Refused(message) => assert!(
+            message.contains(&seed.file_name) && message.contains("absorbance at"),
+            "{message}"
+        ),
+        Ending::Accepted => panic!("{}: {:?} accepted", seed.origin, mutant.edits),
+    }
+}

@@ -217,6 +217,8 @@ pub struct Report {
     pub unnamed_errors: Vec<String>,
     /// How many refusals do not name the file.
     pub unnamed_error_count: u64,
+    /// Mutants and their summed seconds per kind of seed.
+    pub per_kind: Vec<(Kind, u64, f64)>,
 }
 
 /// What a mutant's worker thread hands back.
@@ -343,6 +345,13 @@ pub fn campaign(harness: &Arc<Harness>, c: &Campaign) -> Report {
                             if peak > r.peak_bytes.0 {
                                 r.peak_bytes = (peak, recipe.clone());
                             }
+                            match r.per_kind.iter_mut().find(|k| k.0 == seed.kind) {
+                                Some(k) => {
+                                    k.1 += 1;
+                                    k.2 += done.seconds;
+                                }
+                                None => r.per_kind.push((seed.kind, 1, done.seconds)),
+                            }
                             if done.seconds > r.slowest.0 {
                                 r.slowest = (done.seconds, recipe.clone());
                             }
@@ -439,6 +448,12 @@ pub fn summary(r: &Report) -> String {
         r.slowest.1,
         r.unnamed_error_count,
     );
+    for (kind, n, seconds) in &r.per_kind {
+        s.push_str(&format!(
+            "  {kind:?}: {n} mutants, mean {:.1} ms\n",
+            1000.0 * seconds / *n as f64
+        ));
+    }
     for e in &r.unnamed_errors {
         s.push_str(&format!("  e.g. {e}\n"));
     }
