@@ -4,20 +4,67 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, MutexGuard};
 
 use crate::error::{Error, Result};
+
+/// Set once [`interrupt`] ran: from then on nothing is written.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// The temporary files being written now. Renames into place happen while this lock is
+/// held, so [`interrupt`] sees every file either still temporary (and removes it) or
+/// wholly in place, and a set of files ([`write_files`]) either wholly in place or not.
+static STAGED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn staged() -> MutexGuard<'static, Vec<PathBuf>> {
+    // A writer that panicked left a list that is still a plain list of paths.
+    STAGED
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// For an interrupt handler (Ctrl-C): from now on every write fails, and the temporary
+/// files being written are removed, so what a run leaves is only whole files written
+/// before the interrupt. Returns when the file system is in that state; the caller then
+/// ends the process.
+pub fn interrupt() {
+    let mut pending = staged();
+    INTERRUPTED.store(true, Ordering::SeqCst);
+    for path in pending.drain(..) {
+        let _ = std::fs::remove_file(path);
+    }
+}
+
+fn refuse_if_interrupted(path: &Path) -> Result<()> {
+    if INTERRUPTED.load(Ordering::SeqCst) {
+        return Err(Error::io(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::Interrupted,
+                "interrupted before this file was written; nothing was written",
+            ),
+        ));
+    }
+    Ok(())
+}
 
 /// Writes `bytes` to `path` atomically: into a temporary file in the same folder, then
 /// renamed over the target, so an interrupted or failed run never leaves a half-written
 /// file. The folder must exist.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = temporary_beside(path, bytes)?;
+    let mut pending = staged();
+    refuse_if_interrupted(path)?;
+    pending.retain(|p| p != tmp.path());
     tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
     Ok(())
 }
 
-/// Writes `bytes` into a temporary file in `path`'s folder (deleted when dropped).
+/// Writes `bytes` into a temporary file in `path`'s folder (deleted when dropped, and by
+/// [`interrupt`]).
 fn temporary_beside(path: &Path, bytes: &[u8]) -> Result<tempfile::NamedTempFile> {
+    refuse_if_interrupted(path)?;
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -34,10 +81,16 @@ fn temporary_beside(path: &Path, bytes: &[u8]) -> Result<tempfile::NamedTempFile
             ),
         ));
     }
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".fluorite-")
-        .tempfile_in(dir)
-        .map_err(|e| Error::io(path, e))?;
+    let mut tmp = {
+        let mut pending = staged();
+        refuse_if_interrupted(path)?;
+        let tmp = tempfile::Builder::new()
+            .prefix(".fluorite-")
+            .tempfile_in(dir)
+            .map_err(|e| Error::io(path, e))?;
+        pending.push(tmp.path().to_path_buf());
+        tmp
+    };
     tmp.write_all(bytes).map_err(|e| Error::io(path, e))?;
     tmp.as_file().sync_all().map_err(|e| Error::io(path, e))?;
     // Temporary files are private (0600); results are ordinary files others may read.
@@ -67,11 +120,16 @@ pub fn write_files(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
             ));
         }
     }
-    let mut staged = Vec::with_capacity(files.len());
+    let mut written = Vec::with_capacity(files.len());
     for (path, bytes) in files {
-        staged.push((path, temporary_beside(path, bytes)?));
+        written.push((path, temporary_beside(path, bytes)?));
     }
-    for (path, tmp) in staged {
+    let mut pending = staged();
+    if let Some((path, _)) = written.first() {
+        refuse_if_interrupted(path)?;
+    }
+    for (path, tmp) in written {
+        pending.retain(|p| p != tmp.path());
         tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
     }
     Ok(())

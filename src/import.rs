@@ -158,6 +158,11 @@ pub fn read_spectrum(path: &Path, column: Option<&str>, preferred: &[&str]) -> R
             Ok(v)
         };
         let l = number(0)?;
+        if l > 0.0
+            && let Err(message) = crate::limits::check_wavelength(l)
+        {
+            return Err(Error::parse(path, line, 1, format!("wavelength {message}")));
+        }
         let v = number(pick)?;
         if l <= 0.0 || wavelength.last().is_some_and(|&p| l <= p) {
             return Err(Error::parse(

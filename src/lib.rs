@@ -18,6 +18,7 @@ pub mod files;
 pub mod fit;
 pub mod formats;
 pub mod import;
+pub mod limits;
 pub mod material;
 pub mod measurement;
 pub mod model;

@@ -105,6 +105,18 @@ impl Measurement {
         }
         check_grid(&self.excitation_nm, &what("excitation_nm"))?;
         check_grid(&self.emission_nm, &what("emission_nm"))?;
+        let cells = self.excitation_nm.len() * self.emission_nm.len();
+        if cells > crate::limits::MAX_CELLS {
+            return Err(Error::invalid(
+                what("grid"),
+                format!(
+                    "{} excitation × {} emission wavelengths make {cells} cells; at most {} are fitted at once: bin the grid or fit parts of it",
+                    self.excitation_nm.len(),
+                    self.emission_nm.len(),
+                    crate::limits::MAX_CELLS
+                ),
+            ));
+        }
         if self.values.len() != self.excitation_nm.len() * self.emission_nm.len() {
             return Err(Error::invalid(
                 what("values"),

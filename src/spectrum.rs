@@ -160,14 +160,28 @@ impl Spectrum {
     }
 }
 
-/// Checks a wavelength grid: finite, positive, strictly increasing. `what` names it.
+/// Checks a wavelength grid: at most [`crate::limits::MAX_GRID_POINTS`] samples, each within
+/// [`crate::limits::WAVELENGTH_NM`], strictly increasing. `what` names it.
 pub fn check_grid(grid: &[f64], what: &str) -> Result<()> {
+    if grid.len() > crate::limits::MAX_GRID_POINTS {
+        return Err(Error::invalid(
+            what,
+            format!(
+                "has {} wavelengths; at most {} are read on one axis (a 0.1 nm step over 200–1200 nm needs 10,001)",
+                grid.len(),
+                crate::limits::MAX_GRID_POINTS
+            ),
+        ));
+    }
     for (i, &l) in grid.iter().enumerate() {
         if !l.is_finite() || l <= 0.0 {
             return Err(Error::invalid(
                 format!("{what}[{i}]"),
                 format!("is {l}; wavelengths must be positive finite numbers in nm"),
             ));
+        }
+        if let Err(message) = crate::limits::check_wavelength(l) {
+            return Err(Error::invalid(format!("{what}[{i}]"), message));
         }
         if i > 0 && l <= grid[i - 1] {
             let kind = if l == grid[i - 1] {
@@ -205,6 +219,10 @@ pub fn bin_widths(grid: &[f64]) -> Vec<f64> {
     }
 }
 
+/// Most trapezoids [`hat_integrals`] spends on one grid interval: 0.25 nm steps over a
+/// 2,500 nm interval.
+pub const MAX_HAT_SUBSTEPS: usize = 10_000;
+
 /// For each sample of `grid`, ∫ f(λ)·h_i(λ) dλ where h_i is the hat function of the linear
 /// interpolation basis (1 at sample i, 0 at its neighbours). This projects a finely
 /// varying function (a light, a colour-matching function) onto a coarse grid so that
@@ -217,7 +235,8 @@ pub fn hat_integrals(grid: &[f64], f: impl Fn(f64) -> f64, substeps: usize) -> V
         out[0] = f(grid[0]);
         return out;
     }
-    let substeps = substeps.max(1);
+    // Bounded so that no grid spacing, however wide, makes the projection a long loop.
+    let substeps = substeps.clamp(1, MAX_HAT_SUBSTEPS);
     for i in 0..n.saturating_sub(1) {
         let (l0, l1) = (grid[i], grid[i + 1]);
         let h = (l1 - l0) / substeps as f64;

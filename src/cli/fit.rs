@@ -205,6 +205,27 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                 .with_context(|| format!("cannot create output folder {}", dir.display()))?;
         }
     }
+    let fit_one = |index: usize,
+                   input: &PathBuf,
+                   out: &PathBuf|
+     -> anyhow::Result<(Measurement, FitOutcome)> {
+        let eem = args.eem.options(index, args.inputs.len(), &read_options)?;
+        let (m, preprocessing) = crate::cli::eem::read_prepared(input, &eem, &read_options)?;
+        let mut outcome = fit(&m, &options)?;
+        if let Some(preprocessing) = preprocessing {
+            outcome.record_preprocessing(preprocessing);
+        }
+        if args.timing_runs > 1 {
+            let mut times = vec![outcome.report().seconds];
+            for _ in 1..args.timing_runs {
+                times.push(fit(&m, &options)?.report().seconds);
+            }
+            outcome.set_seconds(fluorite::numeric::median(&times));
+        }
+        write_atomic(out, outcome.to_json().as_bytes())?;
+        Ok((m, outcome))
+    };
+    let progress = crate::cli::progress::Progress::start("fitting", args.inputs.len(), args.quiet);
     // Files are independent: fit them in parallel, report in input order.
     let results: Vec<anyhow::Result<(Measurement, FitOutcome)>> = args
         .inputs
@@ -212,23 +233,13 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         .zip(&outputs)
         .enumerate()
         .map(|(index, (input, out))| {
-            let eem = args.eem.options(index, args.inputs.len(), &read_options)?;
-            let (m, preprocessing) = crate::cli::eem::read_prepared(input, &eem, &read_options)?;
-            let mut outcome = fit(&m, &options)?;
-            if let Some(preprocessing) = preprocessing {
-                outcome.record_preprocessing(preprocessing);
-            }
-            if args.timing_runs > 1 {
-                let mut times = vec![outcome.report().seconds];
-                for _ in 1..args.timing_runs {
-                    times.push(fit(&m, &options)?.report().seconds);
-                }
-                outcome.set_seconds(fluorite::numeric::median(&times));
-            }
-            write_atomic(out, outcome.to_json().as_bytes())?;
-            Ok((m, outcome))
+            progress.working_on(input);
+            let fitted = fit_one(index, input, out);
+            progress.done_one();
+            fitted
         })
         .collect();
+    progress.finish();
     let mut failed = 0;
     let mut flagged = 0;
     let mut rows = Vec::new();

@@ -13,6 +13,7 @@ mod import_spectra;
 mod joint;
 mod plot;
 mod printer;
+mod progress;
 mod render;
 mod stability;
 mod synth;

@@ -160,6 +160,9 @@ impl Light {
                             format!("power {v} must be a non-negative finite number"),
                         ));
                     }
+                    if let Err(message) = crate::limits::check_wavelength(l) {
+                        return Err(Error::parse(path, line, 1, format!("wavelength {message}")));
+                    }
                     wavelengths.push(l);
                     values.push(v);
                 }

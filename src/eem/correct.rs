@@ -46,7 +46,17 @@ impl Absorbance {
                 .map(|c| c.trim().trim_matches('"').parse::<f64>().ok())
                 .collect();
             match numbers.as_slice() {
-                [Some(l), Some(a), ..] if l.is_finite() && a.is_finite() => rows.push((*l, *a)),
+                [Some(l), Some(a), ..] if l.is_finite() && a.is_finite() => {
+                    if let Err(message) = crate::limits::check_wavelength(*l) {
+                        return Err(Error::parse(
+                            path,
+                            n + 1,
+                            1,
+                            format!("wavelength {message}"),
+                        ));
+                    }
+                    rows.push((*l, *a));
+                }
                 _ if rows.is_empty() => continue, // a header
                 _ => {
                     return Err(Error::parse(

@@ -220,8 +220,14 @@ pub(super) fn validate_refinement(
             format!("is {g}; give a distance in nm ≥ 0"),
         ));
     }
-    if max_iterations == 0 {
-        return Err(Error::invalid("--max-iterations", "is 0; give at least 1"));
+    if max_iterations == 0 || max_iterations > crate::limits::MAX_ITERATIONS {
+        return Err(Error::invalid(
+            "--max-iterations",
+            format!(
+                "is {max_iterations}; give a count from 1 to {} (fits here converge in hundreds)",
+                crate::limits::MAX_ITERATIONS
+            ),
+        ));
     }
     if !(tolerance > 0.0 && tolerance < 1.0) {
         return Err(Error::invalid(

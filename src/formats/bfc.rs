@@ -26,8 +26,8 @@ use super::{Parsed, ReadOptions, RowsAre};
 /// The line that identifies a BFC-450 matrix file.
 pub(super) const HEADER: &str = "BFC-450 Matrix File";
 
-/// Largest grid a grid line may announce (far beyond any instrument).
-const MAX_SAMPLES: f64 = 1e6;
+/// Largest grid a grid line may announce (see [`crate::limits::MAX_GRID_POINTS`]).
+const MAX_SAMPLES: f64 = crate::limits::MAX_GRID_POINTS as f64;
 
 /// True for the identifying header line.
 pub(super) fn is_header(line: &Line) -> bool {
@@ -96,6 +96,26 @@ impl GridLine {
                     ),
                 ));
             }
+        }
+        for (k, value) in [(0, em_start), (1, em_end), (4, ex_start)] {
+            if let Err(message) = crate::limits::check_wavelength(value) {
+                return Err(at(
+                    k + 1,
+                    format!("grid line field {}: {message}", GRID_FIELDS[k]),
+                ));
+            }
+        }
+        let ex_end = ex_start + (n_ex - 1.0) * ex_step;
+        if n_ex >= 1.0
+            && let Err(message) = crate::limits::check_wavelength(ex_end)
+        {
+            return Err(at(
+                6,
+                format!(
+                    "the last excitation wavelength, ex_start + (n_ex − 1)·ex_step = {ex_start} + {}·{ex_step}: {message}",
+                    n_ex - 1.0
+                ),
+            ));
         }
         let em_intervals = (em_end - em_start) / em_step;
         if em_intervals < -1e-6

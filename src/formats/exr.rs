@@ -147,6 +147,7 @@ fn quantity_nm(text: &str) -> Option<f64> {
 pub(super) fn read(path: &Path, bytes: &[u8]) -> Result<Parsed> {
     use exr::prelude::{ReadChannels, ReadLayers, read};
     let fail = |message: String| Error::parse(path, 0, 0, message);
+    check_image_size(bytes).map_err(fail)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -184,7 +185,17 @@ pub(super) fn read(path: &Path, bytes: &[u8]) -> Result<Parsed> {
     }
     grid.sort_by(f64::total_cmp);
     grid.dedup_by(|a, b| (*a - *b).abs() <= 1e-6);
+    for &nm in [grid.first(), grid.last()].into_iter().flatten() {
+        crate::limits::check_wavelength(nm)
+            .map_err(|message| fail(format!("a channel names the wavelength {message}")))?;
+    }
     let n = grid.len();
+    if n * n > crate::limits::MAX_CELLS {
+        return Err(fail(format!(
+            "the channels name {n} wavelengths, a {n} × {n} matrix; at most {} cells are read",
+            crate::limits::MAX_CELLS
+        )));
+    }
     let index = |nm: f64| crate::spectrum::find_wavelength(&grid, nm).unwrap_or(0);
     let mut values = vec![f64::NAN; n * n];
     let mut seen = vec![false; n * n];
@@ -247,6 +258,26 @@ pub(super) fn read(path: &Path, bytes: &[u8]) -> Result<Parsed> {
         ));
     }
     Ok(Parsed::surface(grid.clone(), grid, values, notes))
+}
+
+/// Refuses, from the header alone, an image whose samples (pixels × channels, summed over
+/// its parts) exceed [`crate::limits::MAX_IMAGE_SAMPLES`], before any pixel is decoded.
+fn check_image_size(bytes: &[u8]) -> std::result::Result<(), String> {
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .map_err(|e| format!("not a readable OpenEXR file: {e}"))?;
+    let mut samples: u64 = 0;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        let pixels = size.width() as u64 * size.height() as u64;
+        samples = samples.saturating_add(pixels.saturating_mul(header.channels.list.len() as u64));
+    }
+    if samples > crate::limits::MAX_IMAGE_SAMPLES {
+        return Err(format!(
+            "the image holds {samples} samples (pixels × channels); at most {} are read at once: crop or bin the image",
+            crate::limits::MAX_IMAGE_SAMPLES
+        ));
+    }
+    Ok(())
 }
 
 type Layer = exr::image::Layer<exr::image::AnyChannels<exr::image::FlatSamples>>;

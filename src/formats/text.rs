@@ -247,11 +247,13 @@ impl CellReader<'_> {
         }
     }
 
-    /// A wavelength in nm: must be present, finite and positive. `what` says which
+    /// A wavelength in nm: must be present and within [`crate::limits::WAVELENGTH_NM`]. `what` says which
     /// (`column wavelength`, `row wavelength`, `excitation wavelength`).
     pub fn wavelength(&self, cell: &str, line: usize, column: usize, what: &str) -> Result<f64> {
         match parse_number(cell, self.decimal_comma) {
-            Number::Finite(v) if v > 0.0 => Ok(v),
+            Number::Finite(v) if v > 0.0 => crate::limits::check_wavelength(v)
+                .map(|()| v)
+                .map_err(|message| self.error(line, column, format!("{what} {message}"))),
             Number::Finite(v) => Err(self.error(
                 line,
                 column,
@@ -268,7 +270,11 @@ impl CellReader<'_> {
             Number::Infinite => Err(self.error(
                 line,
                 column,
-                format!("{what} {} is infinite; wavelengths must be finite numbers in nm", quote(cell)),
+                format!(
+                    "{what} {} is infinite (or too large for a 64-bit number); wavelengths are in nm, within {}",
+                    quote(cell),
+                    crate::limits::range_text()
+                ),
             )),
             Number::Invalid => Err(self.error(
                 line,

@@ -79,6 +79,19 @@ impl RenderSettings {
                 ));
             }
         }
+        if self.paths() > crate::limits::MAX_RENDER_PATHS {
+            return Err(Error::invalid(
+                "--spp",
+                format!(
+                    "{} spp × {}×{} pixels is {} camera paths; at most {} are rendered at once (hours on any machine): lower --spp or --size",
+                    self.samples_per_pixel,
+                    self.width,
+                    self.height,
+                    self.paths(),
+                    crate::limits::MAX_RENDER_PATHS
+                ),
+            ));
+        }
         Ok(())
     }
 

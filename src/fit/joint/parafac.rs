@@ -196,6 +196,17 @@ pub fn fit(t: &Tensor, em_weights: &[f64], options: &ParafacOptions) -> Result<P
             format!("{k}: give 1 to {MAX_COMPONENTS} components"),
         ));
     }
+    if options.max_iterations == 0 || options.max_iterations as u64 > crate::limits::MAX_ITERATIONS
+    {
+        return Err(Error::invalid(
+            "--max-iterations",
+            format!(
+                "is {}; give a count from 1 to {}",
+                options.max_iterations,
+                crate::limits::MAX_ITERATIONS
+            ),
+        ));
+    }
     if t.samples == 0 || t.n_ex == 0 || t.n_em == 0 {
         return Err(Error::invalid(
             "joint fit",

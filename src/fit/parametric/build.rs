@@ -6,14 +6,19 @@ use super::*;
 /// Step (nm) of the tabulation a parametric material carries beside its forms.
 pub const TABULATION_STEP_NM: f64 = 1.0;
 
-/// The measurement grid refined to [`TABULATION_STEP_NM`] (grid points kept).
+/// The measurement grid refined to [`TABULATION_STEP_NM`] (grid points kept); over a range
+/// wider than [`crate::limits::MAX_TABULATION_SAMPLES`] nm, to the coarser step that keeps it
+/// within that many samples.
 pub fn fine_grid(coarse: &[f64]) -> Vec<f64> {
     let (Some(&first), Some(&last)) = (coarse.first(), coarse.last()) else {
         return Vec::new();
     };
-    let steps = ((last - first) / TABULATION_STEP_NM).floor() as usize;
+    let step = crate::limits::tabulation_step_nm(last - first, TABULATION_STEP_NM);
+    let steps = ((last - first) / step)
+        .floor()
+        .clamp(0.0, crate::limits::MAX_TABULATION_SAMPLES as f64) as usize;
     let mut grid: Vec<f64> = (0..=steps)
-        .map(|n| first + n as f64 * TABULATION_STEP_NM)
+        .map(|n| first + n as f64 * step)
         .chain(coarse.iter().copied())
         .collect();
     grid.sort_by(f64::total_cmp);
