@@ -48,6 +48,12 @@ pub enum Ending {
     Refused(String),
 }
 
+impl Default for Harness {
+    fn default() -> Self {
+        Harness::new()
+    }
+}
+
 impl Harness {
     /// Loads the corpus and the fixed inputs.
     pub fn new() -> Harness {
