@@ -150,8 +150,12 @@ fn cli_sample(harness: &Arc<Harness>, args: &Args, cli: &Path) -> u64 {
     let started = Instant::now();
     let dir = args.out.join("cli");
     std::fs::create_dir_all(&dir).expect("cli folder");
-    let indices: Vec<u64> = (args.first..args.first + args.count)
-        .step_by(args.cli_every as usize)
+    // Offset by k within each step so the sample walks through every seed file (a plain
+    // stride sharing a factor with the number of seeds would revisit a few).
+    let seeds = harness.seeds.len() as u64;
+    let indices: Vec<u64> = (0..args.count.div_ceil(args.cli_every))
+        .map(|k| args.first + k * args.cli_every + (k % seeds) % args.cli_every)
+        .filter(|&i| i < args.first + args.count)
         .collect();
     let next = AtomicU64::new(0);
     let failures = Mutex::new(Vec::new());

@@ -75,6 +75,10 @@ fn ends(name: &str, ext: &str) -> bool {
     name.to_ascii_lowercase().ends_with(ext)
 }
 
+/// A folder of `../shared/data`, which of its files to take, their kind, and at most how
+/// many.
+type SharedSource = (&'static str, fn(&str) -> bool, Kind, usize);
+
 /// Every seed, in a fixed order (so a seed and index name a mutant), and the sources
 /// left out with why (no `../shared/data`).
 pub fn corpus() -> (Vec<Seed>, Vec<String>) {
@@ -96,7 +100,7 @@ pub fn corpus() -> (Vec<Seed>, Vec<String>) {
         skipped.push("../shared/data is absent: only the shipped examples are mutated".into());
         return (seeds, skipped);
     };
-    let shared_seeds: [(&str, fn(&str) -> bool, Kind, usize); 6] = [
+    let shared_seeds: [SharedSource; 6] = [
         (
             "measured",
             |n| (ends(n, ".bfc") || ends(n, ".csv")) && !n.contains("_meta"),

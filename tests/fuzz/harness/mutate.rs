@@ -181,7 +181,8 @@ fn junk(bytes: &mut Vec<u8>, rng: &mut SplitMix64) -> String {
     let mut inserted = Vec::new();
     for _ in 0..1 + below(rng, 4) {
         if below(rng, 2) == 0 {
-            inserted.extend_from_slice(*pick(rng, JUNK));
+            let piece: &&[u8] = pick(rng, JUNK);
+            inserted.extend_from_slice(piece);
         } else {
             inserted.push(rng.next_u64() as u8);
         }
@@ -428,7 +429,7 @@ fn delete_or_duplicate_cell(bytes: &mut Vec<u8>, rng: &mut SplitMix64) -> String
     }
 }
 
-fn swap_delimiters(bytes: &mut Vec<u8>, rng: &mut SplitMix64) -> String {
+fn swap_delimiters(bytes: &mut [u8], rng: &mut SplitMix64) -> String {
     const DELIMITERS: [u8; 4] = [b',', b';', b'\t', b' '];
     let from = *pick(rng, &DELIMITERS);
     let to = *pick(rng, &DELIMITERS);
