@@ -7,6 +7,11 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::spectrum::{bin_widths, check_grid, find_wavelength};
 
+/// Largest magnitude of a cell: no radiance factor or instrument count comes near it, and
+/// beyond it the squares the fit sums overflow to infinity (a cell of −1e308 made
+/// L-BFGS's line search loop forever; found by tests/fuzz.rs).
+pub const MAX_CELL_MAGNITUDE: f64 = 1e100;
+
 /// How the matrix's values are expressed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -88,7 +93,8 @@ impl Measurement {
         Ok(m)
     }
 
-    /// Checks the invariants: grids valid, shape right, no infinities, a usable cell.
+    /// Checks the invariants: grids valid, shape right, no infinities or cells beyond
+    /// [`MAX_CELL_MAGNITUDE`], a usable cell.
     pub fn validate(&self) -> Result<()> {
         let what = |s: &str| format!("{}: {s}", self.name);
         if self.excitation_nm.is_empty() || self.emission_nm.is_empty() {
@@ -129,6 +135,20 @@ impl Measurement {
                 format!(
                     "cell at excitation {} nm, emission {} nm is infinite; use NaN or leave it empty for a missing cell",
                     self.excitation_nm[i], self.emission_nm[j]
+                ),
+            ));
+        }
+        if let Some(k) = self
+            .values
+            .iter()
+            .position(|v| v.abs() > MAX_CELL_MAGNITUDE)
+        {
+            let (i, j) = (k / self.emission_nm.len(), k % self.emission_nm.len());
+            return Err(Error::invalid(
+                what("values"),
+                format!(
+                    "cell at excitation {} nm, emission {} nm is {:e}, beyond ±{MAX_CELL_MAGNITUDE:e} (its square overflows the fit's sums); correct the cell, or use NaN or leave it empty for a missing cell",
+                    self.excitation_nm[i], self.emission_nm[j], self.values[k]
                 ),
             ));
         }

@@ -20,6 +20,11 @@ pub struct Absorbance {
     pub absorbance: Vec<f64>,
 }
 
+/// Largest absorbance magnitude (per cm) the inner-filter correction accepts: real spectra
+/// hold a few units, and beyond this the factor 10^(A/2) overflows the corrected cells to
+/// infinity (a 42-digit absorbance did; found by tests/fuzz.rs).
+pub const MAX_ABSORBANCE: f64 = 100.0;
+
 impl Absorbance {
     /// Reads a two-column text file (wavelength nm, absorbance per cm), separated by
     /// commas, semicolons, tabs or spaces; header lines before the numbers are skipped,
@@ -93,7 +98,8 @@ impl Absorbance {
 
     /// Refuses a spectrum [`inner_filter`] cannot use: fewer than two wavelengths, not
     /// one absorbance per wavelength, wavelengths not positive and strictly increasing,
-    /// or an absorbance that is not finite. `source` (the file) is named in errors.
+    /// or an absorbance that is not finite or beyond ±[`MAX_ABSORBANCE`]. `source` (the
+    /// file) is named in errors.
     pub fn validate(&self, source: &Path) -> Result<()> {
         let parameter = format!("--absorbance {}", source.display());
         let (n, k) = (self.wavelength_nm.len(), self.absorbance.len());
@@ -110,11 +116,13 @@ impl Absorbance {
             .wavelength_nm
             .iter()
             .zip(&self.absorbance)
-            .find(|(_, a)| !a.is_finite())
+            .find(|(_, a)| !(a.is_finite() && a.abs() <= MAX_ABSORBANCE))
         {
             return Err(Error::invalid(
                 parameter,
-                format!("absorbance at {l} nm is {a}; give a finite absorbance per cm"),
+                format!(
+                    "absorbance at {l} nm is {a}; give a finite absorbance per cm within ±{MAX_ABSORBANCE} (the correction multiplies by 10^(A/2))"
+                ),
             ));
         }
         Ok(())
