@@ -1,4 +1,4 @@
-//! The long fuzz campaign (issue 21): the mutator and runner of `tests/fuzz.rs` over any
+//! The long fuzz campaign (issue 21): the mutator and runner of `tests/suite/fuzz.rs` over any
 //! number of mutants, in release, through the library and, for a sample, through the
 //! `fluorite` binary. scripts/fuzz-campaign.sh drives it.
 //!
@@ -10,7 +10,7 @@
 //! Exit 0 when no mutant failed, 1 otherwise. `--replay I` writes mutant I of the seed
 //! to `--out` and prints its recipe and the command that replays it.
 
-#[path = "../tests/fuzz/harness/mod.rs"]
+#[path = "../tests/suite/fuzz/harness/mod.rs"]
 mod harness;
 
 use std::path::{Path, PathBuf};

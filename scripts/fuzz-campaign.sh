@@ -4,7 +4,7 @@
 # 8×8), in release, in parallel, each within a time budget, without a panic and under a
 # 1 GiB allocation bound; and every K-th mutant through the `fluorite` binary with a time
 # limit (exit code 0 or 2, 1 for `check`; never a timeout or a signal).
-# The mutator and runner are tests/fuzz/harness (shared with `cargo test --test fuzz`).
+# The mutator and runner are tests/suite/fuzz/harness (shared with `cargo test --test suite fuzz::`).
 #
 #   scripts/fuzz-campaign.sh [--seed S] [--count N] [--first I] [--workers W]
 #                            [--budget-ms MS] [--cli-every K] [--cli-timeout-s S]

@@ -9,7 +9,7 @@ use crate::spectrum::{bin_widths, check_grid, find_wavelength};
 
 /// Largest magnitude of a cell: no radiance factor or instrument count comes near it, and
 /// beyond it the squares the fit sums overflow to infinity (a cell of −1e308 made
-/// L-BFGS's line search loop forever; found by tests/fuzz.rs).
+/// L-BFGS's line search loop forever; found by tests/suite/fuzz.rs).
 pub const MAX_CELL_MAGNITUDE: f64 = 1e100;
 
 /// How the matrix's values are expressed.

@@ -22,7 +22,7 @@ pub struct Absorbance {
 
 /// Largest absorbance magnitude (per cm) the inner-filter correction accepts: real spectra
 /// hold a few units, and beyond this the factor 10^(A/2) overflows the corrected cells to
-/// infinity (a 42-digit absorbance did; found by tests/fuzz.rs).
+/// infinity (a 42-digit absorbance did; found by tests/suite/fuzz.rs).
 pub const MAX_ABSORBANCE: f64 = 100.0;
 
 impl Absorbance {

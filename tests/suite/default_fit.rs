@@ -259,7 +259,7 @@ fn a_pinned_yield_keeps_one_fluorophore_and_says_so() {
 #[test]
 fn measured_surfaces_meet_the_bound_by_default() {
     let Some(files) = common::measured_files() else {
-        eprintln!("skipped: ../shared/data/measured is absent");
+        crate::common::skipped("../shared/data/measured is absent");
         return;
     };
     for path in files {

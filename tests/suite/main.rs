@@ -29,6 +29,7 @@ mod fit_series;
 mod fit_synthetic;
 mod formats;
 mod formats_lab;
+mod fuzz;
 mod import;
 mod limits;
 mod model_search;

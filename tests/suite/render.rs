@@ -435,7 +435,7 @@ fn a_forms_block_changes_nothing_in_a_render() {
 #[test]
 fn furnace_matches_exact_radiance_for_a_material_built_from_dye_spectra() {
     let Some(material) = dye_material() else {
-        eprintln!("skipped: ../shared/data/spectra is absent");
+        crate::common::skipped("../shared/data/spectra is absent");
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -449,7 +449,7 @@ fn furnace_matches_exact_radiance_for_fitted_real_materials() {
     // The real surfaces fitted by scripts/regenerate.sh (committed under fits/measured/).
     let materials = fitted_materials();
     if materials.is_empty() {
-        eprintln!("skipped: no fitted real material (fits/measured/*.json) in the repository");
+        crate::common::skipped("no fitted real material (fits/measured/*.json) in the repository");
         return;
     }
     let dir = tempfile::tempdir().unwrap();

@@ -1,4 +1,4 @@
-//! The fuzzing harness shared by `tests/fuzz.rs` (the test suite's 5,000 mutants) and
+//! The fuzzing harness shared by `tests/suite/fuzz.rs` (the test suite's 5,000 mutants) and
 //! `examples/fuzz.rs` (the long campaign of scripts/fuzz-campaign.sh): a deterministic
 //! mutator of every format's example files, and a runner that sends each mutant through
 //! the library under a watchdog, a panic catcher and a counting allocator.

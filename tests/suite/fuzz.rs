@@ -34,7 +34,7 @@ fn workers() -> usize {
 fn every_seed_is_accepted_unmutated() {
     let harness = Harness::new();
     for note in &harness.skipped {
-        eprintln!("skipped: {note}");
+        crate::common::skipped(note);
     }
     let kinds = [
         Kind::Matrix,
@@ -102,7 +102,7 @@ fn five_thousand_mutants_end_in_ok_or_a_one_line_error() {
 #[test]
 fn a_cell_whose_square_overflows_is_refused_not_fitted_forever() {
     let Some(path) = harness::corpus::shared_data().map(|d| d.join("measured/HERPICER.BFC")) else {
-        eprintln!("skipped: ../shared/data is absent");
+        crate::common::skipped("../shared/data is absent");
         return;
     };
     let text = std::fs::read_to_string(&path).unwrap();
@@ -143,7 +143,7 @@ fn a_cell_whose_square_overflows_is_refused_not_fitted_forever() {
 fn an_absurd_absorbance_is_refused_naming_its_file() {
     let harness = Harness::new();
     if harness.seeds.iter().all(|s| s.kind != Kind::Absorbance) {
-        eprintln!("skipped: no absorbance seed (../shared/data is absent)");
+        crate::common::skipped("no absorbance seed (../shared/data is absent)");
         return;
     }
     let (which, mutant) = harness.mutant(21, 4553);
