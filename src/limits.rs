@@ -41,6 +41,21 @@ pub const MAX_TABULATION_SAMPLES: usize = 8_192;
 /// 1,024 samples per pixel is 8.5 × 10⁹.
 pub const MAX_RENDER_PATHS: u64 = 10_000_000_000;
 
+/// Most repetitions a count option may ask for (`--timing-runs`, `--repeats`, `--seeds`,
+/// `class --cases`): each repeats a fit or a sweep, so this many is already a day's work.
+pub const MAX_RUNS: usize = 100_000;
+
+/// Checks a count option (`flag`) against 1..=[`MAX_RUNS`].
+pub fn check_runs(value: usize, flag: &str) -> crate::Result<()> {
+    if value == 0 || value > MAX_RUNS {
+        return Err(crate::Error::invalid(
+            flag,
+            format!("is {value}; give a count from 1 to {MAX_RUNS}"),
+        ));
+    }
+    Ok(())
+}
+
 /// Checks that `nm` is a wavelength fluorite reads. The error message names the value and
 /// the range and asks for the typo to be fixed; the caller adds where it was read.
 pub fn check_wavelength(nm: f64) -> Result<(), String> {

@@ -37,9 +37,7 @@ fn parse_seed(text: &str) -> Result<u64, String> {
 
 /// Runs `fluorite class`.
 pub fn run(args: ClassArgs) -> anyhow::Result<ExitCode> {
-    if args.cases == 0 {
-        anyhow::bail!("--cases: is 0; give at least 1");
-    }
+    fluorite::limits::check_runs(args.cases, "--cases")?;
     let config = ClassConfig {
         cases: args.cases,
         seed: args.seed,

@@ -226,6 +226,7 @@ fn joint_run(args: &FitArgs) -> anyhow::Result<JointRun<'_>> {
 
 /// Runs `fluorite fit`.
 pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
+    fluorite::limits::check_runs(args.timing_runs, "--timing-runs")?;
     let lights = args.parsed_lights()?;
     let options = FitOptions {
         solver: args.solver,

@@ -37,9 +37,7 @@ pub struct StabilityArgs {
 /// Runs `fluorite stability`.
 pub fn run(args: StabilityArgs) -> anyhow::Result<ExitCode> {
     let chart_format = image_format(&args.chart, "--chart")?;
-    if args.seeds == 0 {
-        anyhow::bail!("--seeds: is 0; give at least 1");
-    }
+    fluorite::limits::check_runs(args.seeds, "--seeds")?;
     let config = if args.quick {
         Config::quick(args.seeds)
     } else {

@@ -268,14 +268,20 @@ pub fn prepare(
     };
     let wants_eem_steps = options.blank.is_some() || options.absorbance.is_some();
     if !arbitrary {
+        // A forced unit the data contradict would fit an unphysical material: refuse it
+        // and name the unit the data look like.
         if options.units == UnitsChoice::RadianceFactor && !verdict.radiance_factor {
-            m.notes.push(format!(
-                "--units radiance-factor given although the values cannot be radiance factors (largest cell {:.4e}, largest excitation-row sum {:.4e} at {} nm; bounds {} and {}): the material fitted from them will not be physical; --units arbitrary fits shapes and a scale only",
-                verdict.max_cell,
-                verdict.max_row_sum,
-                verdict.max_row_nm,
-                units::MAX_RADIANCE_FACTOR_CELL,
-                units::MAX_RADIANCE_FACTOR_ROW
+            return Err(Error::invalid(
+                "--units radiance-factor",
+                format!(
+                    "{}: the values cannot be radiance factors (largest cell {:.4e}, largest excitation-row sum {:.4e} at {} nm; bounds {} and {}); they look like an uncalibrated EEM: pass --units arbitrary (shapes and a scale), or drop --units to let fluorite infer them",
+                    m.name,
+                    verdict.max_cell,
+                    verdict.max_row_sum,
+                    verdict.max_row_nm,
+                    units::MAX_RADIANCE_FACTOR_CELL,
+                    units::MAX_RADIANCE_FACTOR_ROW
+                ),
             ));
         }
         if wants_eem_steps {

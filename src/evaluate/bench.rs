@@ -48,9 +48,7 @@ pub struct BenchRow {
 /// compete for cores) and tabulates time and accuracy. Parametric methods skip inputs
 /// without a calibrated diagonal (they would refuse them).
 pub fn run(inputs: &[Measurement], methods: &[Method], repeats: usize) -> Result<Vec<BenchRow>> {
-    if repeats == 0 {
-        return Err(Error::invalid("--repeats", "is 0; give at least 1"));
-    }
+    crate::limits::check_runs(repeats, "--repeats")?;
     let mut rows = Vec::new();
     for m in inputs {
         for method in methods {

@@ -255,16 +255,21 @@ fn cli_fits_a_stardom_sample_to_shapes_and_says_why() {
     assert_eq!(pre["units"], "arbitrary");
     assert_eq!(pre["scatter"].as_array().unwrap().len(), 4);
     assert!(pre["inner_filter"]["max_factor"].as_f64().unwrap() > 1.0);
-    // --units radiance-factor overrides, with a note that it is not physical.
+    // --units radiance-factor contradicts counts: an error naming the unit they look like,
+    // and the material already written is left as it was.
+    let before = std::fs::read(&out).unwrap();
     let o = Command::new(env!("CARGO_BIN_EXE_fluorite"))
         .args(["fit", input.to_str().unwrap(), "-o", out.to_str().unwrap()])
         .args(["--units", "radiance-factor", "-q"])
         .output()
         .unwrap();
-    assert!(o.status.success());
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
-    assert_ne!(json["schema"], "fluorite-fluorophore/1");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("cannot be radiance factors") && err.contains("--units arbitrary"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), before);
 }
 
 /// `fit EEM --plot` draws the shapes fit against the prepared matrix: the figures are

@@ -264,3 +264,42 @@ fn a_material_or_light_with_a_wavelength_typo_is_refused() {
     assert!(message.contains("light.csv:4:1"), "{message}");
     assert!(message.contains("100–100,000 nm"), "{message}");
 }
+
+#[test]
+fn ctrl_c_ends_a_long_run_with_nothing_half_written() {
+    let dir = common::temp_dir("interrupt");
+    // A class sweep of 100,000 cases runs for hours: it is certainly running when the
+    // interrupt comes.
+    let mut child = fluorite()
+        .args(["class", "--cases", "100000", "--report"])
+        .arg(dir.join("class.md"))
+        .arg("--csv")
+        .arg(dir.join("class.csv"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the binary starts");
+    std::thread::sleep(Duration::from_millis(1500));
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(status.success());
+    let start = Instant::now();
+    while child.try_wait().expect("waits").is_none() {
+        assert!(
+            start.elapsed() < WATCHDOG,
+            "the run did not end after Ctrl-C"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let out = child.wait_with_output().expect("output");
+    assert_eq!(out.status.code(), Some(130));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .collect();
+    assert!(left.is_empty(), "files left behind: {left:?}");
+}

@@ -532,11 +532,18 @@ fn bands_command_reports_each_curve() {
         vec!["missing.csv"],
         vec![file, "--tolerance", "0"],
         vec![file, "--max-bands", "0"],
-        vec![file, "--domain", "frequency"],
     ] {
         let out = run(&args);
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
     }
+    // A bad enum value is clap's usage error: it lists the values it takes.
+    let out = run(&[file, "--domain", "frequency"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("possible values: wavenumber, wavelength, both"),
+        "{err}"
+    );
 }

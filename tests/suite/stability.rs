@@ -3,7 +3,6 @@
 //! accuracy numbers (never its times).
 
 use crate::common;
-use std::path::Path;
 
 use fluorite::evaluate::stability::{
     self, Config, DELTA_E_TOLERANCE, RECOVERY_TOLERANCE, Sweep, case_data,
