@@ -229,16 +229,27 @@ pub const MAX_HAT_SUBSTEPS: usize = 10_000;
 /// Σ_i g_i·∫f·h_i = ∫ f·g for any spectrum g linear between the grid's samples.
 /// `f` is integrated with `substeps` trapezoids per grid interval.
 pub fn hat_integrals(grid: &[f64], f: impl Fn(f64) -> f64, substeps: usize) -> Vec<f64> {
+    hat_integrals_with(grid, f, |_| substeps)
+}
+
+/// [`hat_integrals`] with the number of trapezoids chosen per grid interval from its
+/// length in nm (`substeps_for(λ[i+1] − λ[i])`), so that a grid with one very wide interval
+/// does not spend that interval's count on every other one.
+pub fn hat_integrals_with(
+    grid: &[f64],
+    f: impl Fn(f64) -> f64,
+    substeps_for: impl Fn(f64) -> usize,
+) -> Vec<f64> {
     let n = grid.len();
     let mut out = vec![0.0; n];
     if n == 1 {
         out[0] = f(grid[0]);
         return out;
     }
-    // Bounded so that no grid spacing, however wide, makes the projection a long loop.
-    let substeps = substeps.clamp(1, MAX_HAT_SUBSTEPS);
     for i in 0..n.saturating_sub(1) {
         let (l0, l1) = (grid[i], grid[i + 1]);
+        // Bounded so that no grid spacing, however wide, makes the projection a long loop.
+        let substeps = substeps_for(l1 - l0).clamp(1, MAX_HAT_SUBSTEPS);
         let h = (l1 - l0) / substeps as f64;
         for s in 0..=substeps {
             let t = s as f64 / substeps as f64;

@@ -9,7 +9,7 @@ use std::sync::OnceLock;
 use crate::error::{Error, Result};
 use crate::material::Material;
 use crate::measurement::Measurement;
-use crate::spectrum::{Spectrum, hat_integrals, uniform_grid};
+use crate::spectrum::{Spectrum, hat_integrals, hat_integrals_with, uniform_grid};
 
 /// CIE XYZ tristimulus values.
 pub type Xyz = [f64; 3];
@@ -441,14 +441,19 @@ impl PatchColorimeter {
     /// Prepares the weights for `light` on the given grids.
     pub fn new(light: &Light, excitation_nm: &[f64], emission_nm: &[f64]) -> Self {
         let observer = cie1931();
-        // Substeps small enough that a 10 nm FWHM LED is resolved on a 10 nm grid.
+        // Substeps small enough that a 10 nm FWHM LED is resolved on a 10 nm grid: about
+        // 0.25 nm over the grid's mean spacing, and no more than an interval's own length
+        // needs at 0.25 nm (the same count on a uniform grid; far fewer on the short
+        // intervals of a grid with one very wide one).
         let sub = |grid: &[f64]| {
             let span = grid.last().unwrap_or(&0.0) - grid.first().unwrap_or(&0.0);
-            ((span / grid.len().max(2) as f64) / 0.25).ceil().max(4.0) as usize
+            let mean = ((span / grid.len().max(2) as f64) / 0.25).ceil().max(4.0) as usize;
+            move |interval_nm: f64| mean.min((interval_nm / 0.25).ceil().max(4.0) as usize)
         };
-        let light_weights = hat_integrals(excitation_nm, |l| light.power(l), sub(excitation_nm));
+        let light_weights =
+            hat_integrals_with(excitation_nm, |l| light.power(l), sub(excitation_nm));
         let channel = |c: usize, with_light: bool| {
-            hat_integrals(
+            hat_integrals_with(
                 emission_nm,
                 |l| observer.at(l)[c] * if with_light { light.power(l) } else { 1.0 },
                 sub(emission_nm),
