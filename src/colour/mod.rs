@@ -9,7 +9,7 @@ use std::sync::OnceLock;
 use crate::error::{Error, Result};
 use crate::material::Material;
 use crate::measurement::Measurement;
-use crate::spectrum::{Spectrum, hat_integrals, hat_integrals_with, uniform_grid};
+use crate::spectrum::{Spectrum, hat_integrals_with, uniform_grid};
 
 /// CIE XYZ tristimulus values.
 pub type Xyz = [f64; 3];
