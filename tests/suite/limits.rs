@@ -12,9 +12,7 @@ use std::time::{Duration, Instant};
 /// Far above what any of these commands needs; only a hang reaches it.
 const WATCHDOG: Duration = Duration::from_secs(120);
 
-fn fluorite() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_fluorite"))
-}
+use crate::common::fluorite;
 
 /// Runs `command`, killing it at the watchdog; panics if it had to.
 fn run_bounded(command: &mut Command) -> Output {

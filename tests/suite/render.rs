@@ -14,7 +14,6 @@
 use crate::common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use fluorite::colour::{Light, cie1931, delta_e2000, material_xyz, xyz_to_lab};
 use fluorite::render::{
@@ -1263,9 +1262,7 @@ fn library_rejects_impossible_settings() {
 // ---------------------------------------------------------------------------------------
 // The command line.
 
-fn fluorite() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_fluorite"))
-}
+use crate::common::fluorite;
 
 fn write_material(dir: &Path, name: &str, material: &Material) -> PathBuf {
     let path = dir.join(format!("{name}.json"));

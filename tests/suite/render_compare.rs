@@ -5,7 +5,6 @@
 use crate::common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use fluorite::colour::Light;
 use fluorite::render::compare::{object_pixels, strip_height};
@@ -15,9 +14,7 @@ use fluorite::synth::SynthSpec;
 const WIDTH: u32 = 160;
 const HEIGHT: u32 = 80;
 
-fn fluorite() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_fluorite"))
-}
+use crate::common::fluorite;
 
 /// 8-bit RGB pixels, width and height of a PNG.
 fn read_png(path: &Path) -> (Vec<u8>, u32, u32) {

@@ -7,7 +7,6 @@
 use crate::common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use fluorite::Units;
 use fluorite::eem::units::{classify, classify_percent};
@@ -162,9 +161,7 @@ fn a_rayleigh_line_is_no_reflectance() {
     );
 }
 
-fn fluorite() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_fluorite"))
-}
+use crate::common::fluorite;
 
 fn fit_json(input: &Path, out: &Path, extra: &[&str]) -> (serde_json::Value, String) {
     let o = common::succeed(

@@ -173,3 +173,22 @@ pub fn dorrit_classic_options(split_half: bool) -> fluorite::fit::joint::JointOp
         no_split_half: !split_half,
     }
 }
+
+/// The `fluorite` binary under test, as a command to add arguments to.
+pub fn fluorite() -> std::process::Command {
+    std::process::Command::new(env!("CARGO_BIN_EXE_fluorite"))
+}
+
+/// Runs the binary with `args` in `dir` and returns its output.
+pub fn run_in(args: &[&str], dir: &Path) -> std::process::Output {
+    fluorite()
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the binary runs")
+}
+
+/// A command's stderr as text.
+pub fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
