@@ -527,7 +527,13 @@ impl Material {
     /// Reads and validates a material file.
     pub fn load(path: &Path) -> Result<Material> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let material: Material = serde_json::from_str(&text).map_err(|e| {
+        Material::from_json(&text, path)
+    }
+
+    /// Parses and validates material JSON text, as [`Material::load`] reads a file;
+    /// `path` names the text in errors (its file, or a placeholder such as `<json>`).
+    pub fn from_json(text: &str, path: &Path) -> Result<Material> {
+        let material: Material = serde_json::from_str(text).map_err(|e| {
             Error::parse(
                 path,
                 e.line(),

@@ -47,20 +47,12 @@ pub fn total_radiance_factor(material: &Material, light: &Light) -> BakedSpectru
         .iter()
         .zip(&widths)
         .map(|(&l, &w)| {
-            let fluorescence: f64 = material
-                .fluorophores
-                .iter()
-                .zip(&reemitted)
-                .map(|(f, r)| r * f.emission.eval_zero_outside(l))
-                .sum();
+            let (value, fluorescence, lit) = beta_t(material, light, &reemitted, l);
             total += fluorescence * w;
-            let power = light.power(l);
-            if power > 0.0 {
-                material.diagonal(l) + fluorescence / power
-            } else {
+            if !lit {
                 unlit += fluorescence * w;
-                material.diagonal(l)
             }
+            value
         })
         .collect();
     BakedSpectrum {
@@ -68,6 +60,42 @@ pub fn total_radiance_factor(material: &Material, light: &Light) -> BakedSpectru
         wavelength_nm: grid,
         value,
         unlit_share: if total > 0.0 { unlit / total } else { 0.0 },
+    }
+}
+
+/// βT of `material` under `light` at any `wavelength_nm` (the values
+/// [`total_radiance_factor`] tabulates on its grid): d(λ) + Σ_f e_f(λ)·∫X_f·L / L(λ), and
+/// the plain d where the light has no power.
+pub fn total_radiance_factor_at(
+    material: &Material,
+    light: &Light,
+    wavelength_nm: &[f64],
+) -> Vec<f64> {
+    let reemitted = reemitted_energy(material, light);
+    wavelength_nm
+        .iter()
+        .map(|&l| beta_t(material, light, &reemitted, l).0)
+        .collect()
+}
+
+/// βT at `l` given each fluorophore's re-emitted energy: (βT, the fluorescence emitted
+/// at `l`, whether the light has power there).
+fn beta_t(material: &Material, light: &Light, reemitted: &[f64], l: f64) -> (f64, f64, bool) {
+    let fluorescence: f64 = material
+        .fluorophores
+        .iter()
+        .zip(reemitted)
+        .map(|(f, r)| r * f.emission.eval_zero_outside(l))
+        .sum();
+    let power = light.power(l);
+    if power > 0.0 {
+        (
+            material.diagonal(l) + fluorescence / power,
+            fluorescence,
+            true,
+        )
+    } else {
+        (material.diagonal(l), fluorescence, false)
     }
 }
 
@@ -83,4 +111,20 @@ pub fn strongest_fluorophore(material: &Material, light: &Light) -> Option<(usiz
         .enumerate()
         .max_by(|a, b| a.1.total_cmp(&b.1))?;
     Some((index, if total > 0.0 { most / total } else { 1.0 }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn beta_t_at_any_wavelength_is_the_tabulated_one() {
+        let material: Material =
+            serde_json::from_str(include_str!("../../data/red-pigment.truth.json")).unwrap();
+        for light in Light::standard() {
+            let baked = total_radiance_factor(&material, &light);
+            let at = total_radiance_factor_at(&material, &light, &baked.wavelength_nm);
+            assert_eq!(at, baked.value, "{}", light.name);
+        }
+    }
 }

@@ -37,7 +37,7 @@ use crate::material::Material;
 use crate::measurement::Measurement;
 
 pub use crate::files::{write_atomic, write_files};
-pub use baked::{BakedSpectrum, total_radiance_factor};
+pub use baked::{BakedSpectrum, total_radiance_factor, total_radiance_factor_at};
 pub use grid::parse_grid;
 pub use matrix::{default_grids, matrix};
 pub use options::ExportOptions;

@@ -1,0 +1,398 @@
+"""Typed stubs of the extension module ``fluorite._fluorite`` (re-exported by ``fluorite``).
+
+Array orientation everywhere: a measurement's ``values`` is float64 of shape
+``(n_excitation, n_emission)``; NaN marks a missing cell.
+"""
+
+import os
+from typing import Any, Dict, List, Literal, Optional, Protocol, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+STANDARD_LIGHTS: List[str]
+DEFAULT_TOLERANCE: float
+DEFAULT_COLOUR_WEIGHT: float
+WATER_RAMAN_SHIFT_CM: float
+
+FloatArray = npt.NDArray[np.float64]
+ArrayLike = Union[npt.ArrayLike, Sequence[float]]
+PathLike = Union[str, "os.PathLike[str]"]
+
+class _SpectrumLike(Protocol):
+    """Any object with ``.wavelengths`` and ``.values`` (e.g. colour's SpectralDistribution)."""
+
+    @property
+    def wavelengths(self) -> Any: ...
+    @property
+    def values(self) -> Any: ...
+
+LightLike = Union[str, "os.PathLike[str]", "Light", Tuple[ArrayLike, ArrayLike], _SpectrumLike]
+"""A built-in light name (d65, a, f11, uv), a CSV path, a Light, a pair
+(wavelengths, values) or an object with .wavelengths and .values."""
+
+Lights = Union[LightLike, Sequence[LightLike]]
+
+class FluoriteError(ValueError):
+    """A fluorite operation failed; the message is the command line's."""
+
+class Light:
+    """A light source: relative spectral power, zero outside its samples."""
+
+    def __init__(self, name_or_path: PathLike) -> None: ...
+    @staticmethod
+    def from_samples(wavelengths: ArrayLike, values: ArrayLike, name: str = "custom") -> "Light": ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def wavelengths(self) -> FloatArray: ...
+    @property
+    def values(self) -> FloatArray: ...
+
+class Measurement:
+    """A reradiation matrix; ``values`` is (n_excitation, n_emission), NaN = missing."""
+
+    def __init__(
+        self,
+        excitation: ArrayLike,
+        emission: ArrayLike,
+        values: ArrayLike,
+        *,
+        name: str = "measurement",
+        per_nm: bool = False,
+        units: Literal["radiance-factor", "auto", "percent", "arbitrary"] = "radiance-factor",
+        keep_scatter: bool = False,
+    ) -> None: ...
+    @property
+    def excitation(self) -> FloatArray:
+        """Excitation wavelengths (nm), shape (n_excitation,)."""
+    @property
+    def emission(self) -> FloatArray:
+        """Emission wavelengths (nm), shape (n_emission,)."""
+    @property
+    def values(self) -> FloatArray:
+        """The matrix, shape (n_excitation, n_emission), NaN = missing (a copy)."""
+    @property
+    def shape(self) -> Tuple[int, int]: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def source(self) -> Optional[str]: ...
+    @property
+    def sha256(self) -> Optional[str]: ...
+    @property
+    def kind(self) -> Literal["surface", "instrument-eem"]: ...
+    @property
+    def per_nm(self) -> bool: ...
+    @property
+    def has_diagonal(self) -> bool: ...
+    @property
+    def arbitrary_scale(self) -> bool: ...
+    @property
+    def preprocessing(self) -> Optional[Dict[str, Any]]: ...
+    @property
+    def notes(self) -> List[str]: ...
+
+class Fluorophore:
+    """One fluorescent component: a(λ), e(λ), c and the yield of its form."""
+
+    def __init__(
+        self,
+        absorption: Tuple[ArrayLike, ArrayLike],
+        emission: Tuple[ArrayLike, ArrayLike],
+        concentration: float,
+        quantum_yield: float,
+        *,
+        yield_form: Literal["energy", "photon"] = "energy",
+    ) -> None: ...
+    @property
+    def absorption(self) -> Tuple[FloatArray, FloatArray]: ...
+    @property
+    def emission(self) -> Tuple[FloatArray, FloatArray]: ...
+    @property
+    def concentration(self) -> float: ...
+    @property
+    def quantum_yield(self) -> float: ...
+    @property
+    def yield_form(self) -> Literal["energy", "photon"]: ...
+    @property
+    def k(self) -> float: ...
+    @property
+    def concentration_range(self) -> Optional[Tuple[float, float]]: ...
+    @property
+    def mean_emission(self) -> float: ...
+
+class Material:
+    """A diffuse fluorescent material (fluorite-material/1)."""
+
+    def __init__(
+        self,
+        name: str,
+        wavelengths: ArrayLike,
+        reflectance: ArrayLike,
+        fluorophores: Optional[Sequence[Fluorophore]] = None,
+    ) -> None: ...
+    @staticmethod
+    def load(path: PathLike) -> "Material": ...
+    @staticmethod
+    def from_json(text: str) -> "Material": ...
+    def to_json(self) -> str: ...
+    def save(self, path: PathLike) -> None: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def reflectance(self) -> Tuple[FloatArray, FloatArray]: ...
+    @property
+    def fluorophores(self) -> List[Fluorophore]: ...
+    @property
+    def report(self) -> Optional[Dict[str, Any]]: ...
+    def matrix(
+        self,
+        excitation: Optional[ArrayLike] = None,
+        emission: Optional[ArrayLike] = None,
+        *,
+        per_nm: bool = False,
+    ) -> FloatArray:
+        """The predicted matrix, shape (len(excitation), len(emission))."""
+    def colour(self, light: Optional[LightLike] = None) -> Dict[str, Any]:
+        """{'xyz', 'lab', 'white' (arrays; white Y = 100), 'light' (name)}."""
+    def total_radiance_factor(
+        self, light: Optional[LightLike] = None, wavelengths: Optional[ArrayLike] = None
+    ) -> FloatArray: ...
+    def check(self) -> List[Dict[str, Any]]:
+        """The broken laws (empty when the material conserves)."""
+    @staticmethod
+    def check_file(path: PathLike) -> List[Dict[str, Any]]:
+        """Every broken law of a material file, read leniently."""
+    def export(
+        self,
+        to: Literal["csv", "matrix", "bfc", "mitsuba", "pbrt", "pearray", "art", "exr", "rgb"],
+        path: PathLike,
+        *,
+        excitation: Optional[Union[ArrayLike, str]] = None,
+        emission: Optional[Union[ArrayLike, str]] = None,
+        per_nm: bool = False,
+        lights: Optional[Lights] = None,
+        space: Optional[Literal["srgb", "xyz"]] = None,
+    ) -> List[str]: ...
+
+class Fit:
+    """A fit's material (or shapes) and report."""
+
+    @property
+    def material(self) -> Optional[Material]: ...
+    @property
+    def shapes(self) -> Optional[Dict[str, Any]]: ...
+    @property
+    def delta_e(self) -> Dict[str, float]: ...
+    @property
+    def report(self) -> Dict[str, Any]: ...
+    @property
+    def warnings(self) -> List[str]: ...
+    @property
+    def converged(self) -> bool: ...
+    @property
+    def model(self) -> str: ...
+    @property
+    def seconds(self) -> float: ...
+    @property
+    def measurement(self) -> Measurement: ...
+    @property
+    def predicted(self) -> Optional[FloatArray]:
+        """The fitted model's matrix on the measurement's grids, (n_excitation, n_emission)."""
+    def to_json(self) -> str: ...
+    def save(self, path: PathLike) -> None: ...
+
+class ParafacFit:
+    """One PARAFAC model (K components) of a set of EEMs."""
+
+    @property
+    def components(self) -> int: ...
+    @property
+    def samples(self) -> List[str]: ...
+    @property
+    def excitation(self) -> FloatArray: ...
+    @property
+    def emission(self) -> FloatArray: ...
+    @property
+    def excitation_loadings(self) -> FloatArray:
+        """(K, n_excitation), each row max 1."""
+    @property
+    def emission_loadings(self) -> FloatArray:
+        """(K, n_emission), each row ∫e dλ = 1."""
+    @property
+    def scores(self) -> FloatArray:
+        """(n_samples, K)."""
+    @property
+    def shares(self) -> FloatArray: ...
+    @property
+    def explained_variance(self) -> float: ...
+    @property
+    def core_consistency(self) -> float: ...
+    @property
+    def split_half(self) -> Optional[Dict[str, Any]]: ...
+    @property
+    def residual_per_sample(self) -> FloatArray: ...
+    @property
+    def converged(self) -> bool: ...
+    @property
+    def iterations(self) -> int: ...
+    @property
+    def matches(self) -> Optional[List[Dict[str, Any]]]: ...
+    @property
+    def report(self) -> Dict[str, Any]: ...
+    def to_json(self) -> str: ...
+
+class JointResult:
+    """PARAFAC models of EEMs (``fits``) or a concentration series (``series``)."""
+
+    @property
+    def kind(self) -> Literal["parafac", "series"]: ...
+    @property
+    def fits(self) -> List[ParafacFit]: ...
+    @property
+    def series(self) -> Optional[Dict[str, Any]]: ...
+    @property
+    def materials(self) -> List[Material]: ...
+    @property
+    def concentrations(self) -> Optional[FloatArray]: ...
+    @property
+    def excitation_loadings(self) -> FloatArray: ...
+    @property
+    def emission_loadings(self) -> FloatArray: ...
+    @property
+    def excitation(self) -> FloatArray: ...
+    @property
+    def emission(self) -> FloatArray: ...
+    @property
+    def scores(self) -> FloatArray: ...
+    @property
+    def explained_variance(self) -> float: ...
+    @property
+    def core_consistency(self) -> float: ...
+    @property
+    def split_half(self) -> Optional[Dict[str, Any]]: ...
+    def write(self, dir: PathLike) -> List[str]: ...
+
+Units = Literal["auto", "radiance-factor", "percent", "arbitrary"]
+Format = Literal["wide", "long", "bfc", "webfluor", "exr"]
+Paths = Union[PathLike, Sequence[PathLike]]
+
+def read(
+    path: PathLike,
+    *,
+    format: Optional[Format] = None,
+    rows: Optional[Literal["excitation", "emission"]] = None,
+    zero_is_missing: Optional[bool] = None,
+    per_nm: bool = False,
+    units: Units = "auto",
+    blank: Optional[Paths] = None,
+    absorbance: Optional[Paths] = None,
+    keep_scatter: bool = False,
+    scatter_width: Optional[Dict[str, float]] = None,
+    bandwidth: Optional[float] = None,
+    raman_shift: float = 3400.0,
+) -> Measurement:
+    """Reads a reradiation matrix; values (n_excitation, n_emission), NaN = missing."""
+
+def fit(
+    measurement_or_path: Union[Measurement, PathLike],
+    *,
+    lights: Optional[Lights] = None,
+    model: Optional[str] = None,
+    max_delta_e: Optional[float] = None,
+    yield_form: Literal["auto", "energy", "photon"] = "auto",
+    quantum_yield: Optional[float] = None,
+    concentration: Optional[float] = None,
+    guard: Optional[float] = None,
+    solver: Literal["lbfgs", "gauss-newton", "nelder-mead", "init"] = "lbfgs",
+    start: Literal["closed-form", "flat"] = "closed-form",
+    max_iterations: int = 500,
+    tolerance: float = ...,
+    colour_weight: float = ...,
+    format: Optional[Format] = None,
+    rows: Optional[Literal["excitation", "emission"]] = None,
+    zero_is_missing: Optional[bool] = None,
+    per_nm: Optional[bool] = None,
+    units: Optional[Units] = None,
+    blank: Optional[Paths] = None,
+    absorbance: Optional[Paths] = None,
+    keep_scatter: Optional[bool] = None,
+    scatter_width: Optional[Dict[str, float]] = None,
+    bandwidth: Optional[float] = None,
+    raman_shift: Optional[float] = None,
+) -> Fit:
+    """Fits the fluorescent BBRRDF to a measurement or file (GIL released)."""
+
+def fit_many(
+    items: Sequence[Union[Measurement, PathLike]],
+    *,
+    threads: Optional[int] = None,
+    errors: Literal["raise", "return"] = "raise",
+    lights: Optional[Lights] = None,
+    model: Optional[str] = None,
+    max_delta_e: Optional[float] = None,
+    yield_form: Literal["auto", "energy", "photon"] = "auto",
+    quantum_yield: Optional[float] = None,
+    concentration: Optional[float] = None,
+    guard: Optional[float] = None,
+    solver: Literal["lbfgs", "gauss-newton", "nelder-mead", "init"] = "lbfgs",
+    start: Literal["closed-form", "flat"] = "closed-form",
+    max_iterations: int = 500,
+    tolerance: float = ...,
+    colour_weight: float = ...,
+    format: Optional[Format] = None,
+    rows: Optional[Literal["excitation", "emission"]] = None,
+    zero_is_missing: Optional[bool] = None,
+    per_nm: Optional[bool] = None,
+    units: Optional[Units] = None,
+    blank: Optional[Paths] = None,
+    absorbance: Optional[Paths] = None,
+    keep_scatter: Optional[bool] = None,
+    scatter_width: Optional[Dict[str, float]] = None,
+    bandwidth: Optional[float] = None,
+    raman_shift: Optional[float] = None,
+) -> List[Union[Fit, FluoriteError]]:
+    """Fits several items on a pool of Rust threads (GIL released), in input order."""
+
+def joint(
+    measurements: Sequence[Union[Measurement, PathLike]],
+    *,
+    components: Optional[Union[int, Sequence[int], range]] = None,
+    em_range: Optional[Tuple[float, float]] = None,
+    ex_range: Optional[Tuple[float, float]] = None,
+    no_split_half: bool = False,
+    max_iterations: int = 500,
+    lights: Optional[Lights] = None,
+    yield_form: Literal["auto", "energy", "photon"] = "auto",
+    guard: Optional[float] = None,
+    reference: Optional[PathLike] = None,
+    format: Optional[Format] = None,
+    rows: Optional[Literal["excitation", "emission"]] = None,
+    zero_is_missing: Optional[bool] = None,
+    per_nm: Optional[bool] = None,
+    units: Optional[Units] = None,
+    blank: Optional[Paths] = None,
+    absorbance: Optional[Paths] = None,
+    keep_scatter: Optional[bool] = None,
+    scatter_width: Optional[Dict[str, float]] = None,
+    bandwidth: Optional[float] = None,
+    raman_shift: Optional[float] = None,
+) -> JointResult:
+    """Joint fit of a sample set: PARAFAC of EEMs, or a concentration series."""
+
+def render(
+    material: Material,
+    *,
+    light: Optional[LightLike] = None,
+    scene: Literal["preview", "furnace"] = "preview",
+    spp: int = 64,
+    size: Optional[Tuple[int, int]] = None,
+    seed: int = 1,
+    compare: bool = False,
+    exposure: Optional[float] = None,
+    adapt: bool = True,
+    sampling: Literal["light", "paper"] = "light",
+) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8]]:
+    """Renders the material: (linear float32 HxWx3, sRGB uint8 HxWx3)."""
