@@ -229,7 +229,6 @@ impl FitArgs<'_, '_> {
             .as_deref()
             .map(|m| attached("fit", || m.parse::<ModelChoice>()))
             .transpose()?;
-        let defaults = FitOptions::default();
         Ok(FitOptions {
             solver: choice::<Solver>(self.solver, "solver")?,
             guard_nm: self.guard,
@@ -238,7 +237,10 @@ impl FitArgs<'_, '_> {
             concentration: self.concentration,
             max_iterations: self.max_iterations,
             tolerance: self.tolerance,
-            lights: crate::lights::lights(self.lights.as_ref())?.unwrap_or(defaults.lights),
+            lights: match crate::lights::lights(self.lights.as_ref())? {
+                Some(lights) => lights,
+                None => crate::lights::standard(),
+            },
             start: choice::<Start>(self.start, "start")?,
             model: match (model, self.max_delta_e) {
                 (Some(model), _) => model,

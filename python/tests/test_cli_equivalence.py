@@ -25,6 +25,8 @@ def cli_fits(cli, measured, tmp_path_factory):
         process = run_cli(cli, "fit", *measured, "-o", f"{folder}/", "-q", *extra)
         assert process.returncode == 0, process.stderr
         out[key] = {p.name: load_json(folder / f"{p.stem}.json") for p in measured}
+        if key == "default":
+            out["text"] = {p.name: (folder / f"{p.stem}.json").read_text() for p in measured}
     return out
 
 
@@ -38,6 +40,8 @@ def test_default_fit_matches_the_cli(cli_fits, measured, index):
     path = measured[index]
     fit = fluorite.fit(str(path))
     assert_same_json(json.loads(fit.to_json()), cli_fits["default"][path.name])
+    # Byte for byte, too: the library is deterministic whatever the build profile.
+    assert fit.to_json() == cli_fits["text"][path.name]
     assert fit.material is not None
     assert_same_json(json.loads(fit.material.to_json()), cli_fits["default"][path.name])
     # The attributes are the report's.
@@ -65,3 +69,16 @@ def test_save_writes_the_same_file(cli_fits, herpicer, tmp_path):
     # A material saved and loaded again is the same material.
     again = fluorite.Material.load(tmp_path / "h.json")
     assert again == fit.material
+
+
+def test_an_eem_fit_matches_the_cli(cli, shared_eems, tmp_path):
+    path = shared_eems[0]
+    process = run_cli(cli, "fit", path, "-o", tmp_path / "eem.json", "-q")
+    assert process.returncode == 0, process.stderr
+    fit = fluorite.fit(path)
+    assert fit.material is None and fit.predicted is None
+    assert fit.to_json() == (tmp_path / "eem.json").read_text()
+    shapes = fit.shapes
+    assert shapes["schema"] == "fluorite-fluorophore/1"
+    assert_same_json(shapes, load_json(tmp_path / "eem.json"))
+    assert fit.report["preprocessing"] == fit.measurement.preprocessing
