@@ -41,6 +41,15 @@ pub enum Error {
     /// A fit could not produce a valid material.
     #[error("fit failed: {0}")]
     Fit(String),
+    /// An error met while doing something the message names first (`--blank FILE`, `joint
+    /// fit: sample FILE`): the context, then the error itself.
+    #[error("{context}: {error}")]
+    Context {
+        /// What was being done, naming the file or option.
+        context: String,
+        /// The error met.
+        error: Box<Error>,
+    },
 }
 
 fn location(line: usize, column: usize) -> String {
@@ -72,6 +81,14 @@ impl Error {
             line,
             column,
             message: message.into(),
+        }
+    }
+
+    /// This error, preceded by `context` (what was being done when it happened).
+    pub fn context(self, context: impl Into<String>) -> Self {
+        Error::Context {
+            context: context.into(),
+            error: Box::new(self),
         }
     }
 

@@ -6,7 +6,9 @@
 //! EEMs); [`fit`] turns it into a [`Material`] (or, for sets of files, a joint fit);
 //! downstream modules ([`model`], [`colour`], [`check`], [`export`], [`plot`], [`render`])
 //! read the material and the fit's results (and, for comparisons, the measurement), and
-//! never read a measurement or run a fit themselves.
+//! never read a measurement or run a fit themselves. [`pipeline`] strings the steps
+//! together as a run does (read and prepare, fit one or many or jointly, write, plot and
+//! render beside): the command line and the Python package both call it.
 
 pub mod check;
 pub mod colour;
@@ -25,6 +27,7 @@ pub mod model;
 pub mod numeric;
 pub mod optimise;
 pub mod parametric;
+pub mod pipeline;
 pub mod plot;
 pub mod render;
 pub mod spectrum;

@@ -45,6 +45,10 @@ pub const MAX_RENDER_PATHS: u64 = 10_000_000_000;
 /// `class --cases`): each repeats a fit or a sweep, so this many is already a day's work.
 pub const MAX_RUNS: usize = 100_000;
 
+/// Most threads a parallel batch (`fit_many`) is given: far more than any machine's cores,
+/// few enough that asking for them cannot exhaust the system's threads.
+pub const MAX_THREADS: usize = 1024;
+
 /// Checks a count option (`flag`) against 1..=[`MAX_RUNS`].
 pub fn check_runs(value: usize, flag: &str) -> crate::Result<()> {
     if value == 0 || value > MAX_RUNS {

@@ -1,13 +1,10 @@
-//! Options of `fluorite fit` for raw instrument EEMs: units, blank, inner filter, scatter.
+//! Options of `fluorite fit` for raw instrument EEMs: units, blank, inner filter, scatter
+//! (prepared by [`fluorite::pipeline::input`]).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::Context;
-use fluorite::eem::correct::Absorbance;
-use fluorite::eem::scatter::{ScatterLine, ScatterOptions};
-use fluorite::eem::{EemOptions, Preprocessing, UnitsChoice, prepare};
-use fluorite::formats::{ReadOptions, read};
-use fluorite::measurement::Measurement;
+use fluorite::eem::UnitsChoice;
+use fluorite::pipeline::EemSettings;
 
 /// Arguments for uncalibrated EEMs (flattened into `fluorite fit`).
 #[derive(clap::Args, Debug, Clone)]
@@ -45,87 +42,20 @@ pub struct EemArgs {
 }
 
 impl EemArgs {
-    /// The options for input number `index` of `count`; reads blank and absorbance files.
-    pub fn options(
-        &self,
-        index: usize,
-        count: usize,
-        read_options: &ReadOptions,
-    ) -> anyhow::Result<EemOptions> {
-        let pick = |files: &[PathBuf],
-                    what: &str,
-                    shared: bool|
-         -> anyhow::Result<Option<PathBuf>> {
-            match files.len() {
-                0 => Ok(None),
-                1 if shared || count == 1 => Ok(Some(files[0].clone())),
-                n if n == count => Ok(Some(files[index].clone())),
-                n => anyhow::bail!(
-                    "--{what}: {n} files for {count} inputs; give {}one per input, in the inputs' order",
-                    if shared { "one for all inputs or " } else { "" }
-                ),
-            }
-        };
-        let blank = match pick(&self.blank, "blank", true)? {
-            Some(path) => {
-                let m = read(&path, read_options)
-                    .with_context(|| format!("--blank {}", path.display()))?;
-                Some((m, path))
-            }
-            None => None,
-        };
-        let absorbance = match pick(&self.absorbance, "absorbance", false)? {
-            Some(path) => Some((
-                Absorbance::read(&path)
-                    .with_context(|| format!("--absorbance {}", path.display()))?,
-                path,
-            )),
-            None => None,
-        };
-        let mut half_width_nm = [None; 4];
-        for item in &self.scatter_width {
-            let (line, nm) = item.split_once('=').with_context(|| {
-                format!("--scatter-width {item:?}: expected LINE=NM, e.g. rayleigh2=12 or all=10")
-            })?;
-            // The library checks the width (EemOptions::validate); a word is not one.
-            let nm: f64 = nm.trim().parse().ok().with_context(|| {
-                format!("--scatter-width {item:?}: {nm:?} is not a width in nm (a number ≥ 0)")
-            })?;
-            let line = line.trim().to_ascii_lowercase();
-            let mut matched = false;
-            for (k, l) in ScatterLine::ALL.iter().enumerate() {
-                if line == "all" || line == l.name() {
-                    half_width_nm[k] = Some(nm);
-                    matched = true;
-                }
-            }
-            if !matched {
-                anyhow::bail!(
-                    "--scatter-width {item:?}: unknown line {line:?}; use rayleigh1, raman1, rayleigh2, raman2 or all"
-                );
-            }
-        }
-        Ok(EemOptions {
+    /// The library's settings for these flags (scatter widths parsed; files still paths).
+    pub fn settings(&self) -> fluorite::Result<EemSettings> {
+        let mut settings = EemSettings {
             units: self.units,
-            zero_is_missing: read_options.zero_is_missing,
-            blank,
-            absorbance,
+            blank: self.blank.clone(),
+            absorbance: self.absorbance.clone(),
             keep_scatter: self.keep_scatter,
-            scatter: ScatterOptions {
-                half_width_nm,
-                bandwidth_nm: self.bandwidth,
-                raman_shift_cm: Some(self.raman_shift),
-            },
-        })
+            bandwidth_nm: self.bandwidth,
+            raman_shift_cm: self.raman_shift,
+            ..EemSettings::default()
+        };
+        for item in &self.scatter_width {
+            settings.parse_scatter_width(item)?;
+        }
+        Ok(settings)
     }
-}
-
-/// Reads `input` and prepares it (units, blank, inner filter, scatter).
-pub fn read_prepared(
-    input: &Path,
-    options: &EemOptions,
-    read_options: &ReadOptions,
-) -> anyhow::Result<(Measurement, Option<Preprocessing>)> {
-    let m = read(input, read_options)?;
-    Ok(prepare(m, options)?)
 }

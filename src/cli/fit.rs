@@ -1,14 +1,17 @@
-//! `fluorite fit`: read matrices, fit, write material JSON, print a summary per file.
+//! `fluorite fit`: read matrices, fit, write material JSON, print a summary per file (the
+//! work between reading and writing is [`fluorite::pipeline`]'s).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
 use fluorite::colour::Light;
-use fluorite::export::write_atomic;
-use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, Solver, Start, fit};
+use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, Solver, Start};
 use fluorite::formats::{Format, ReadOptions, RowsAre};
-use fluorite::measurement::Measurement;
+use fluorite::pipeline::single::{
+    Fitted, create_folders, fit_file_timed, output_paths, write_outcome,
+};
+use fluorite::pipeline::{InputOptions, JointRequest, beside};
 use rayon::prelude::*;
 
 use crate::cli::joint::{JointArgs, JointRun};
@@ -139,48 +142,6 @@ fn parse_model(text: &str) -> Result<ModelChoice, String> {
     text.parse::<ModelChoice>().map_err(|e| e.to_string())
 }
 
-/// Where each input's result goes.
-fn output_paths(args: &FitArgs) -> anyhow::Result<Vec<PathBuf>> {
-    let stem = |p: &Path| {
-        p.file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "material".into())
-    };
-    let into_folder = |dir: &Path| -> Vec<PathBuf> {
-        args.inputs
-            .iter()
-            .map(|p| dir.join(format!("{}.json", stem(p))))
-            .collect()
-    };
-    let paths = match &args.output {
-        None => into_folder(Path::new("fits")),
-        Some(out) => {
-            let is_folder = out.is_dir() || out.as_os_str().to_string_lossy().ends_with('/');
-            if is_folder {
-                into_folder(out)
-            } else if args.inputs.len() == 1 {
-                vec![out.clone()]
-            } else {
-                anyhow::bail!(
-                    "-o {}: several inputs need an output folder (an existing one, or a path ending in '/')",
-                    out.display()
-                );
-            }
-        }
-    };
-    let mut seen = std::collections::HashSet::new();
-    for (p, input) in paths.iter().zip(&args.inputs) {
-        if !seen.insert(p.clone()) {
-            anyhow::bail!(
-                "two inputs would write {} (second: {}); rename one or fit them separately",
-                p.display(),
-                input.display()
-            );
-        }
-    }
-    Ok(paths)
-}
-
 impl FitArgs {
     /// The lights `--lights` names.
     pub fn parsed_lights(&self) -> anyhow::Result<Vec<Light>> {
@@ -194,7 +155,7 @@ impl FitArgs {
 
 /// What a joint fit (`--joint`) takes from `fit`'s arguments; refuses the flags of single
 /// fits it has no use for rather than ignoring them.
-fn joint_run(args: &FitArgs) -> anyhow::Result<JointRun<'_>> {
+fn joint_run(args: &FitArgs, input: InputOptions) -> anyhow::Result<JointRun<'_>> {
     let single_fit_only = [
         ("--quantum-yield", args.quantum_yield.is_some()),
         ("--concentration", args.concentration.is_some()),
@@ -209,16 +170,19 @@ fn joint_run(args: &FitArgs) -> anyhow::Result<JointRun<'_>> {
             "{flag} applies to single fits, not to --joint (a joint fit writes its own figure and report); leave it out or fit the files one by one"
         );
     }
-    Ok(JointRun {
-        inputs: &args.inputs,
-        output: args.output.clone(),
-        joint: &args.joint,
-        eem: &args.eem,
+    let request = args.joint.request(JointRequest {
         yield_choice: args.yield_choice,
         guard_nm: args.guard,
         max_iterations: args.max_iterations,
         lights: args.parsed_lights()?,
         timing_runs: args.timing_runs,
+        ..JointRequest::default()
+    })?;
+    Ok(JointRun {
+        inputs: &args.inputs,
+        output: args.output.clone(),
+        input,
+        request,
         table: args.table,
         quiet: args.quiet,
     })
@@ -246,52 +210,32 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         max_delta_e: args.max_delta_e,
         colour_weight: args.colour_weight,
     };
-    let read_options = ReadOptions {
-        format: args.format,
-        rows: args.rows,
-        zero_is_missing: args.zero_is_missing,
-        per_nm: args.per_nm,
+    let input = InputOptions {
+        read: ReadOptions {
+            format: args.format,
+            rows: args.rows,
+            zero_is_missing: args.zero_is_missing,
+            per_nm: args.per_nm,
+        },
+        eem: args.eem.settings()?,
     };
     if args.joint.joint {
-        return crate::cli::joint::run(&joint_run(&args)?, &read_options);
+        return crate::cli::joint::run(&joint_run(&args, input)?, &args.joint);
     }
-    let outputs = output_paths(&args)?;
-    for out in &outputs {
-        if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("cannot create output folder {}", dir.display()))?;
-        }
-    }
-    let fit_one = |index: usize,
-                   input: &PathBuf,
-                   out: &PathBuf|
-     -> anyhow::Result<(Measurement, FitOutcome)> {
-        let eem = args.eem.options(index, args.inputs.len(), &read_options)?;
-        let (m, preprocessing) = crate::cli::eem::read_prepared(input, &eem, &read_options)?;
-        let mut outcome = fit(&m, &options)?;
-        if let Some(preprocessing) = preprocessing {
-            outcome.record_preprocessing(preprocessing);
-        }
-        if args.timing_runs > 1 {
-            let mut times = vec![outcome.report().seconds];
-            for _ in 1..args.timing_runs {
-                times.push(fit(&m, &options)?.report().seconds);
-            }
-            outcome.set_seconds(fluorite::numeric::median(&times));
-        }
-        write_atomic(out, outcome.to_json().as_bytes())?;
-        Ok((m, outcome))
-    };
-    let progress = crate::cli::progress::Progress::start("fitting", args.inputs.len(), args.quiet);
+    let outputs = output_paths(&args.inputs, args.output.as_deref())?;
+    create_folders(&outputs)?;
+    let count = args.inputs.len();
+    let progress = crate::cli::progress::Progress::start("fitting", count, args.quiet);
     // Files are independent: fit them in parallel, report in input order.
-    let results: Vec<anyhow::Result<(Measurement, FitOutcome)>> = args
+    let results: Vec<fluorite::Result<Fitted>> = args
         .inputs
         .par_iter()
         .zip(&outputs)
         .enumerate()
-        .map(|(index, (input, out))| {
-            progress.working_on(input);
-            let fitted = fit_one(index, input, out);
+        .map(|(index, (path, out))| {
+            progress.working_on(path);
+            let fitted = fit_file_timed(path, index, count, &input, &options, args.timing_runs)
+                .and_then(|fitted| write_outcome(out, &fitted.outcome).map(|()| fitted));
             progress.done_one();
             fitted
         })
@@ -304,9 +248,12 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         match result {
             Err(e) => {
                 failed += 1;
-                eprintln!("fluorite: error: {}", format!("{e:#}").replace('\n', " "));
+                eprintln!("fluorite: error: {}", e.to_string().replace('\n', " "));
             }
-            Ok((m, outcome)) => {
+            Ok(Fitted {
+                measurement: m,
+                outcome,
+            }) => {
                 let report = outcome.report();
                 if !report.converged || !report.warnings.is_empty() {
                     flagged += 1;
@@ -320,8 +267,9 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
                     report.model_search.is_some(),
                 ));
                 if args.plot {
-                    crate::cli::plot::plot_fit(&outcome, &m, out, args.quiet)
+                    let figures = beside::plot_fit(&outcome, &m, out)
                         .with_context(|| format!("plotting {}", out.display()))?;
+                    crate::cli::printer::figures(&figures, args.quiet);
                 }
                 if let FitOutcome::Material(material) = &outcome
                     && args.render

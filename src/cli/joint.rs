@@ -1,22 +1,17 @@
-//! `fluorite fit FILES... --joint --components K`: one joint fit of a sample set.
-//! EEMs (uncalibrated solution matrices) get a non-negative PARAFAC
-//! ([`fluorite::fit::joint`]); radiance-factor surface matrices of one material at
-//! several concentrations go to [`run_surface_series`].
+//! `fluorite fit FILES... --joint --components K`: one joint fit of a sample set, run by
+//! [`fluorite::pipeline::joint`] (EEMs: non-negative PARAFAC; radiance-factor surface
+//! matrices of one material at several concentrations: the concentration series); this
+//! file parses the flags and prints.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context;
-use fluorite::eem::UnitsChoice;
-use fluorite::files::write_files;
-use fluorite::fit::joint::parafac::ParafacOptions;
 use fluorite::fit::joint::reference::Reference;
-use fluorite::fit::joint::{JointOptions, fit_joint};
-use fluorite::formats::ReadOptions;
-use fluorite::measurement::Measurement;
-use fluorite::plot::ImageFormat;
+use fluorite::pipeline::InputOptions;
+use fluorite::pipeline::joint::{
+    JointOutcome, JointRequest, fit_samples, read_samples, select_samples,
+};
 
-use crate::cli::eem::EemArgs;
 use crate::cli::printer;
 
 /// The joint-fit options of `fluorite fit`.
@@ -49,31 +44,36 @@ pub struct JointArgs {
     pub no_split_half: bool,
 }
 
-/// What a joint fit takes from `fit`'s arguments (`fit` builds it, so this file needs
-/// nothing of `fit`'s).
+/// A joint fit as `fit` hands it over: its inputs, how to read them, the request (`fit`'s
+/// flags that apply, and these), and how to report.
 pub struct JointRun<'a> {
     /// The sample files.
     pub inputs: &'a [PathBuf],
     /// `-o`: the output folder.
     pub output: Option<PathBuf>,
-    /// The joint-fit flags.
-    pub joint: &'a JointArgs,
-    /// The raw-EEM flags, applied per file as `fit` does.
-    pub eem: &'a EemArgs,
-    /// `--yield` (series of surfaces).
-    pub yield_choice: fluorite::fit::YieldChoice,
-    /// `--guard` (series of surfaces).
-    pub guard_nm: Option<f64>,
-    /// `--max-iterations`: PARAFAC sweeps, or the series' Gauss-Newton.
-    pub max_iterations: u64,
-    /// `--lights` (series of surfaces).
-    pub lights: Vec<fluorite::colour::Light>,
-    /// `--timing-runs`.
-    pub timing_runs: usize,
+    /// How the samples are read and prepared, as single fits are.
+    pub input: InputOptions,
+    /// The fit asked for.
+    pub request: JointRequest,
     /// `--table`.
     pub table: bool,
     /// `-q`.
     pub quiet: bool,
+}
+
+impl JointArgs {
+    /// Completes `request` (built from `fit`'s flags) with the joint flags; reads the
+    /// reference file.
+    pub fn request(&self, request: JointRequest) -> fluorite::Result<JointRequest> {
+        Ok(JointRequest {
+            components: self.components.clone().map(|c| c.0).unwrap_or_default(),
+            em_range: self.em_range.map(|r| (r.0, r.1)),
+            ex_range: self.ex_range.map(|r| (r.0, r.1)),
+            no_split_half: self.no_split_half,
+            reference: self.reference.as_deref().map(Reference::read).transpose()?,
+            ..request
+        })
+    }
 }
 
 /// Component counts to fit.
@@ -130,176 +130,62 @@ fn parse_range(text: &str) -> Result<NmRange, String> {
     Ok(NmRange(lo, hi))
 }
 
-fn stem(p: &Path) -> String {
-    p.file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default()
-}
-
-/// Runs a joint fit of `args.inputs` (`fit --joint`).
-pub fn run(args: &JointRun, read_options: &ReadOptions) -> anyhow::Result<ExitCode> {
-    let joint = args.joint;
-    for name in &joint.exclude {
-        if !args
-            .inputs
-            .iter()
-            .any(|p| stem(p).eq_ignore_ascii_case(name))
-        {
-            anyhow::bail!(
-                "--exclude {name}: no input file is named {name} (the names are the file stems, e.g. QAB for QAB.csv)"
-            );
+/// Runs a joint fit (`fit --joint`) of the samples among `run.inputs` (without the files
+/// `--exclude` names and the `--reference` file) and prints its summary.
+pub fn run(run: &JointRun, joint: &JointArgs) -> anyhow::Result<ExitCode> {
+    let paths = select_samples(run.inputs, &joint.exclude, joint.reference.as_deref())?;
+    let samples = read_samples(&paths, &run.input)?;
+    let outcome = fit_samples(&samples, &run.request)?;
+    let out = run
+        .output
+        .clone()
+        .unwrap_or_else(|| outcome.default_output());
+    let written = outcome.write(&out)?;
+    let fits = match &outcome {
+        JointOutcome::Series(fit) => {
+            if !run.quiet {
+                print!("{}", printer::series_summary(fit));
+                for path in &written {
+                    println!("wrote {}", path.display());
+                }
+            }
+            return Ok(ExitCode::SUCCESS);
         }
-    }
-    // `fit dir/*.csv --reference dir/concentrations.csv` must not read the reference as
-    // a sample.
-    let reference = joint.reference.as_ref().and_then(|r| r.canonicalize().ok());
-    let inputs: Vec<&PathBuf> = args
-        .inputs
-        .iter()
-        .filter(|p| {
-            !joint
-                .exclude
-                .iter()
-                .any(|n| stem(p).eq_ignore_ascii_case(n))
-        })
-        .filter(|p| reference.is_none() || p.canonicalize().ok() != reference)
-        .collect();
-    let mut eems = Vec::new();
-    let mut surfaces = Vec::new();
-    for (index, input) in inputs.iter().enumerate() {
-        let eem = args.eem.options(index, inputs.len(), read_options)?;
-        let (m, preprocessing) = crate::cli::eem::read_prepared(input, &eem, read_options)
-            .with_context(|| {
-                format!(
-                    "joint fit: sample {} (a file that is not a sample can be left out with --exclude {})",
-                    input.display(),
-                    stem(input)
-                )
-            })?;
-        match preprocessing {
-            Some(_) => eems.push(m),
-            None => surfaces.push(m),
-        }
-    }
-    if !surfaces.is_empty() {
-        if let (Some(e), Some(s)) = (eems.first(), surfaces.first()) {
-            anyhow::bail!(
-                "a joint fit needs one kind of matrix: {} is an uncalibrated EEM, {} a radiance-factor surface matrix; fit them separately (or set --units)",
-                e.name,
-                s.name
-            );
-        }
-        return run_surface_series(args, &surfaces);
-    }
-    run_eem_set(args, &eems)
-}
-
-/// Joint fit of radiance-factor surface matrices of one material at several
-/// concentrations (shared r, a, e and yield; c per file).
-pub fn run_surface_series(args: &JointRun, surfaces: &[Measurement]) -> anyhow::Result<ExitCode> {
-    let options = fluorite::fit::series::SeriesOptions {
-        yield_choice: args.yield_choice,
-        guard_nm: args.guard_nm,
-        max_iterations: args.max_iterations,
-        lights: args.lights.clone(),
-        ..Default::default()
+        JointOutcome::Eem(fits) => fits,
     };
-    let fit = fluorite::fit::series::fit_concentration_series(surfaces, &options)?;
-    let out = args
-        .output
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("fits/series"));
-    let written = fit.write(&out, "series")?;
-    if !args.quiet {
-        print!("{}", crate::cli::printer::series_summary(&fit));
-        for path in &written {
-            println!("wrote {}", path.display());
-        }
-    }
-    Ok(ExitCode::SUCCESS)
-}
-
-/// Joint PARAFAC of a set of prepared EEMs, for each requested K.
-fn run_eem_set(args: &JointRun, eems: &[Measurement]) -> anyhow::Result<ExitCode> {
-    let joint = args.joint;
-    let ks = joint
-        .components
-        .clone()
-        .map(|c| c.0)
-        .unwrap_or_else(|| vec![ParafacOptions::default().components]);
-    let out = args
-        .output
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("fits/joint"));
-    let reference = joint
-        .reference
-        .as_ref()
-        .map(|p| Reference::read(p))
-        .transpose()?;
-    if !args.quiet {
+    if !run.quiet {
         println!(
             "joint fit of {} EEMs ({}), {} and units {} per file as `fit` does",
-            eems.len(),
-            eems.iter()
-                .map(|m| m.name.as_str())
+            samples.len(),
+            samples
+                .iter()
+                .map(|s| s.measurement.name.as_str())
                 .collect::<Vec<_>>()
                 .join(", "),
-            if args.eem.keep_scatter {
+            if run.input.eem.keep_scatter {
                 "scatter kept"
             } else {
                 "scatter masked"
             },
-            match args.eem.units {
-                UnitsChoice::Auto => "inferred",
-                UnitsChoice::RadianceFactor | UnitsChoice::Arbitrary | UnitsChoice::Percent => {
-                    "as --units says"
-                }
+            match run.input.eem.units {
+                fluorite::eem::UnitsChoice::Auto => "inferred",
+                _ => "as --units says",
             }
         );
     }
     let mut rows = Vec::new();
-    for &k in &ks {
-        let options = JointOptions {
-            parafac: ParafacOptions {
-                components: k,
-                max_iterations: args.max_iterations.max(1) as usize,
-                ..ParafacOptions::default()
-            },
-            em_range: joint.em_range.map(|r| (r.0, r.1)),
-            ex_range: joint.ex_range.map(|r| (r.0, r.1)),
-            no_split_half: joint.no_split_half,
-        };
-        let mut fit = fit_joint(eems, &options)?;
-        if args.timing_runs > 1 {
-            let quick = JointOptions {
-                no_split_half: true,
-                ..options.clone()
-            };
-            let mut times = vec![fit.seconds];
-            for _ in 1..args.timing_runs {
-                times.push(fit_joint(eems, &quick)?.seconds);
-            }
-            fit.seconds = fluorite::numeric::median(&times);
+    for f in fits {
+        let dir = outcome.folder(&out, f.fit.components.len());
+        if !run.quiet {
+            print!(
+                "{}",
+                printer::joint_summary(&f.fit, &dir, f.matches.as_deref())
+            );
         }
-        let dir = if ks.len() > 1 {
-            out.join(format!("k{k}"))
-        } else {
-            out.clone()
-        };
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("cannot create output folder {}", dir.display()))?;
-        let mut files = fit.files(&dir);
-        let figure = fluorite::plot::joint::components(&fit, ImageFormat::Png)?;
-        files.push((dir.join("components.png"), figure));
-        write_files(&files)?;
-        let matches = reference.as_ref().map(|r| r.best_matches(&fit));
-        if !args.quiet {
-            print!("{}", printer::joint_summary(&fit, &dir, matches.as_deref()));
-        }
-        rows.push(printer::joint_sweep_row(&fit, matches.as_deref()));
+        rows.push(printer::joint_sweep_row(&f.fit, f.matches.as_deref()));
     }
-    if ks.len() > 1 || args.table {
-        let table = printer::joint_sweep_table(&rows, reference.as_ref());
+    if fits.len() > 1 || run.table {
+        let table = printer::joint_sweep_table(&rows, run.request.reference.as_ref());
         print!("{table}");
         std::fs::create_dir_all(&out)?;
         fluorite::files::write_atomic(&out.join("sweep.md"), table.as_bytes())?;

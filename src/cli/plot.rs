@@ -4,12 +4,10 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::Context;
-
 use fluorite::Material;
-use fluorite::fit::FitOutcome;
 use fluorite::formats::{self, Format, ReadOptions, RowsAre};
-use fluorite::plot::{self, ImageFormat, PlotOptions};
+use fluorite::pipeline::beside::write_figures;
+use fluorite::plot::ImageFormat;
 
 /// Arguments of `fluorite plot`.
 #[derive(clap::Args)]
@@ -61,38 +59,6 @@ pub fn run(args: PlotArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Plots a fit just made, handed over in memory (`fit --plot`): the material, or an EEM's
-/// shapes, beside the JSON it was written to, named after it, against the measurement it
-/// was fitted to (as prepared: masked scatter is drawn as masked). `quiet` (`fit -q`)
-/// prints nothing but what was skipped.
-pub fn plot_fit(
-    outcome: &FitOutcome,
-    measurement: &fluorite::Measurement,
-    material_path: &Path,
-    quiet: bool,
-) -> anyhow::Result<()> {
-    let shapes_material;
-    let material = match outcome {
-        FitOutcome::Material(material) => material.as_ref(),
-        FitOutcome::Shapes(shapes) => {
-            shapes_material = plot::shapes_material(shapes);
-            &shapes_material
-        }
-    };
-    write_figures(
-        material,
-        Some(measurement),
-        material_path,
-        None,
-        ImageFormat::Png,
-    )
-    .map(|written| {
-        if !quiet {
-            print_written(&written);
-        }
-    })
-}
-
 /// Loads, renders every figure in memory, then writes them all; prints each written path
 /// and what was skipped. Returns the written paths.
 fn plot_files(
@@ -107,9 +73,9 @@ fn plot_files(
         Some(path) => Some(formats::read(path, read_options)?),
         None => recorded_source(&material, material_path, read_options)?,
     };
-    let written = write_figures(&material, data.as_ref(), material_path, output_dir, format)?;
-    print_written(&written);
-    Ok(written)
+    let figures = write_figures(&material, data.as_ref(), material_path, output_dir, format)?;
+    crate::cli::printer::figures(&figures, false);
+    Ok(figures.written)
 }
 
 /// The matrix `material` records as its source (`fit.source`, `fit.source_sha256`), read
@@ -162,54 +128,4 @@ fn recorded_source(
         source.display()
     );
     Ok(Some(formats::read(source, read_options)?))
-}
-
-fn print_written(written: &[PathBuf]) {
-    for path in written {
-        println!("wrote {}", path.display());
-    }
-}
-
-/// Renders every figure of `material` (against `data`) in memory, then writes them all
-/// into `output_dir` or beside `material_path`, named after it; prints what was skipped
-/// and returns the written paths.
-fn write_figures(
-    material: &Material,
-    data: Option<&fluorite::Measurement>,
-    material_path: &Path,
-    output_dir: Option<&Path>,
-    format: ImageFormat,
-) -> anyhow::Result<Vec<PathBuf>> {
-    let plots = plot::plot(
-        material,
-        data,
-        &PlotOptions {
-            format,
-            guard_nm: None,
-        },
-    )?;
-    let dir = match output_dir {
-        Some(dir) => {
-            std::fs::create_dir_all(dir).with_context(|| {
-                format!(
-                    "{}: cannot create the output folder; choose another with -o DIR",
-                    dir.display()
-                )
-            })?;
-            dir.to_path_buf()
-        }
-        None => match material_path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        },
-    };
-    let stem = material_path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| material.name.clone());
-    let written = plot::write_plots(&plots, &dir, &stem)?;
-    for reason in &plots.skipped {
-        eprintln!("fluorite: skipped {reason}");
-    }
-    Ok(written)
 }

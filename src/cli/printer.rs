@@ -614,6 +614,18 @@ pub fn furnace_row(
     )
 }
 
+/// Prints the figures written (unless `quiet`) and, always, what was skipped.
+pub fn figures(figures: &fluorite::pipeline::beside::Figures, quiet: bool) {
+    if !quiet {
+        for path in &figures.written {
+            println!("wrote {}", path.display());
+        }
+    }
+    for reason in &figures.skipped {
+        eprintln!("fluorite: skipped {reason}");
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,20 +3,17 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Instant;
 
 use anyhow::Context;
 use fluorite::Material;
 use fluorite::colour::Light;
 use fluorite::error::Error;
-use fluorite::render::compare::develop_compare;
-use fluorite::render::image::{Develop, check_exposure, develop};
+use fluorite::render::image::check_exposure;
+use fluorite::render::picture::{Picture, Rendered, render_picture};
 use fluorite::render::report::furnace_noise;
 
 use crate::cli::printer;
-use fluorite::render::{
-    DEFAULT_EXPOSURE_EV, RenderSettings, Scene, SceneKind, SpectralSampling, render,
-};
+use fluorite::render::{RenderSettings, SceneKind, SpectralSampling};
 
 /// The built-in scene to render.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -139,63 +136,36 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             SceneArg::Furnace => SceneKind::Furnace,
         },
         compare: args.compare,
-        sampling: args.sampling,
-        exposure: args.exposure,
-        exr: args.exr,
+        sampling: args.sampling.into(),
+        exposure_ev: args.exposure,
         adapt: !args.no_adapt,
-        quiet: args.quiet,
-        output: args
-            .output
-            .clone()
-            .unwrap_or_else(|| material_path.with_extension("png")),
+        exr: args.exr,
     };
-    render_picture(&material, material_path, &picture)?;
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| material_path.with_extension("png"));
+    render_to(&material, material_path, &picture, &output, args.quiet)?;
     Ok(ExitCode::SUCCESS)
 }
 
-/// One picture to render: everything but the material.
-struct Picture {
-    light: Light,
-    settings: RenderSettings,
-    kind: SceneKind,
-    compare: bool,
-    sampling: SamplingArg,
-    /// Given exposure (stops); None: the default, automatic with `compare`.
-    exposure: Option<f64>,
-    exr: bool,
-    adapt: bool,
-    quiet: bool,
-    output: PathBuf,
-}
-
-/// Renders `material` (read from or written to `material_path`, for messages) into the
-/// picture's PNG (display-referred) and, with `exr`, a scene-referred EXR beside it.
-fn render_picture(
+/// Renders `material` (read from or written to `material_path`, for messages) into
+/// `output` (display-referred PNG) and, with [`Picture::exr`], a scene-referred EXR beside
+/// it; shows progress and a summary line unless `quiet`.
+fn render_to(
     material: &Material,
     material_path: &Path,
     picture: &Picture,
+    output: &Path,
+    quiet: bool,
 ) -> anyhow::Result<()> {
-    let Picture {
-        light,
-        settings,
-        kind,
-        compare,
-        exposure,
-        output,
-        ..
-    } = picture;
-    let (width, height) = (settings.width, settings.height);
-    settings.validate()?;
-    if let Some(ev) = exposure {
-        check_exposure(*ev)?;
+    picture.settings.validate()?;
+    if let Some(ev) = picture.exposure_ev {
+        check_exposure(ev)?;
     }
     check_output_folder(output)?;
-    let mut scene = Scene::build(*kind, material, light, *compare, settings.aspect())
-        .with_context(|| format!("cannot render {}", material_path.display()))?;
-    scene.set_spectral_sampling(picture.sampling.into());
-
-    let progress = (!picture.quiet && std::io::stderr().is_terminal()).then(|| {
-        let bar = indicatif::ProgressBar::new(height as u64);
+    let progress = (!quiet && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(picture.settings.height as u64);
         bar.set_style(
             indicatif::ProgressStyle::with_template(
                 "rendering {bar:40.cyan/blue} {pos}/{len} rows, {elapsed} (eta {eta})",
@@ -204,105 +174,60 @@ fn render_picture(
         );
         bar
     });
-    let started = Instant::now();
-    let film = render(&scene, settings, &|| {
+    let rendered = render_picture(material, picture, &|| {
         if let Some(bar) = &progress {
             bar.inc(1);
         }
-    })?;
-    let seconds = started.elapsed().as_secs_f64();
+    })
+    .with_context(|| format!("cannot render {}", material_path.display()))?;
     if let Some(bar) = &progress {
         bar.finish_and_clear();
     }
-
-    let exposure_ev = exposure.unwrap_or(DEFAULT_EXPOSURE_EV);
-    let description = format!(
-        "{} under {}{}, scene {:?}, {} spp, seed {}{}{}",
-        material.name,
-        light.name,
-        if *compare {
-            " (right: same reflectance without fluorescence)"
-        } else {
-            ""
-        },
-        kind,
-        settings.samples_per_pixel,
-        settings.seed,
-        // The compare picture states its exposure itself (it may be automatic).
-        if *compare {
-            String::new()
-        } else {
-            format!(", exposure {exposure_ev:+} EV")
-        },
-        if picture.adapt {
-            ", adapted to D65"
-        } else {
-            ", not adapted"
-        }
-    );
-    let develop_as = Develop {
-        adapt: picture.adapt,
-        exposure_ev,
-        description,
-        exr: picture.exr,
-    };
-    let (png, exr) = if *compare {
-        let developed = develop_compare(
-            &film,
-            &scene,
-            settings,
-            &develop_as,
-            exposure.is_none(),
-            (&material.name, &light.name),
-        )?;
-        (developed.png, developed.exr)
-    } else {
-        develop(&film, scene.light(), &develop_as)?
-    };
-    let exr = exr.map(|bytes| (output.with_extension("exr"), bytes));
-    let mut files = vec![(output.clone(), png)];
+    let exr = rendered
+        .exr
+        .as_ref()
+        .map(|bytes| (output.with_extension("exr"), bytes.clone()));
+    let mut files = vec![(output.to_path_buf(), rendered.png.clone())];
     files.extend(exr.iter().cloned());
     fluorite::files::write_files(&files)?;
-    if !picture.quiet {
-        let paths = settings.paths();
-        eprintln!(
-            "wrote {}{} ({width}×{height}, {} spp, light {}): {:.2} s, {:.2} M paths/s",
-            output.display(),
-            exr.as_ref()
-                .map(|(p, _)| format!(" and {}", p.display()))
-                .unwrap_or_default(),
-            settings.samples_per_pixel,
-            light.name,
-            seconds,
-            paths as f64 / seconds / 1e6
+    if !quiet {
+        print_rendered(
+            output,
+            exr.as_ref().map(|(p, _)| p.as_path()),
+            picture,
+            &rendered,
         );
     }
     Ok(())
 }
 
+/// The summary line of a render written to `output` (and `exr`).
+fn print_rendered(output: &Path, exr: Option<&Path>, picture: &Picture, rendered: &Rendered) {
+    let settings = &picture.settings;
+    eprintln!(
+        "wrote {}{} ({}×{}, {} spp, light {}): {:.2} s, {:.2} M paths/s",
+        output.display(),
+        exr.map(|p| format!(" and {}", p.display()))
+            .unwrap_or_default(),
+        settings.width,
+        settings.height,
+        settings.samples_per_pixel,
+        picture.light.name,
+        rendered.seconds,
+        settings.paths() as f64 / rendered.seconds / 1e6
+    );
+}
+
 /// Renders the default preview of a material just fitted, handed over in memory (`fit
-/// --render`):
-/// `<stem>.png` next to the material JSON, daylight (D65), default size and samples;
-/// `quiet` (`fit -q`) prints nothing.
+/// --render`): `<stem>.png` next to the material JSON, daylight (D65), default size and
+/// samples; `quiet` (`fit -q`) prints nothing.
 pub fn preview(material: &Material, material_path: &Path, quiet: bool) -> anyhow::Result<()> {
-    let (width, height) = parse_size(DEFAULT_SIZE)?;
-    let picture = Picture {
-        light: Light::parse("d65")?,
-        settings: RenderSettings {
-            width,
-            height,
-            ..RenderSettings::default()
-        },
-        kind: SceneKind::Preview,
-        compare: false,
-        sampling: SamplingArg::Light,
-        exposure: None,
-        exr: false,
-        adapt: true,
-        quiet,
-        output: material_path.with_extension("png"),
-    };
-    render_picture(material, material_path, &picture)
+    let (output, picture, rendered) =
+        fluorite::pipeline::beside::preview(material, material_path, &|| {})?;
+    if !quiet {
+        print_rendered(&output, None, &picture, &rendered);
+    }
+    Ok(())
 }
 
 /// Image size of a picture when `--size` is not given.

@@ -8,6 +8,7 @@
 //!   estimation with multiple importance sampling, Russian roulette).
 //! - [`image`]: the exposure rule, sRGB PNG and linear EXR.
 //! - [`compare`]: the `--compare` picture: automatic exposure and the label strip.
+//! - [`picture`]: one picture of a material, rendered and developed.
 //! - [`report`]: furnace noise and time, to compare sampling rules.
 //!
 //! [`render`] produces a film of CIE XYZ for pictures; [`spectral_radiance`] estimates
@@ -19,6 +20,7 @@ pub mod compare;
 pub mod geometry;
 pub mod image;
 pub mod integrator;
+pub mod picture;
 pub mod report;
 pub mod rng;
 pub mod scene;
