@@ -11,9 +11,8 @@ use pyo3::prelude::*;
 use crate::convert::{array2, choice, is_path, to_py, type_name};
 use crate::material::PyMaterial;
 use crate::measurement::{PyMeasurement, ReadArgs};
-use crate::pipeline::input::{InputOptions, Prepared, read_input};
-use crate::pipeline::single::{fit_many as fit_all, fit_prepared};
 use crate::{FluoriteError, attached, detached, error, invalid};
+use fluorite::pipeline::{InputOptions, Prepared, fit_many as fit_all, fit_prepared, read_input};
 
 /// The result of a fit: the material (or, for an uncalibrated EEM, the fluorophore's
 /// shapes) and the fit's report.
@@ -441,12 +440,6 @@ pub fn fit_many<'py>(
             ));
         }
     };
-    if threads == Some(0) {
-        return Err(invalid(
-            "threads",
-            "is 0; give at least 1 (None: one per core)",
-        ));
-    }
     let read = ReadArgs {
         format,
         rows,
@@ -494,7 +487,7 @@ pub fn fit_many<'py>(
             .filter_map(|p| p.as_ref().ok())
             .cloned()
             .collect();
-        let outcomes = fit_all(&ready, &options, threads);
+        let outcomes = fit_all(&ready, &options, threads)?;
         Ok((inputs, outcomes))
     })?;
     let mut outcomes = outcomes.into_iter();

@@ -11,9 +11,9 @@ use pyo3::types::PyDict;
 use crate::convert::{array1, array2, choice, is_path, items, to_py, type_name};
 use crate::material::PyMaterial;
 use crate::measurement::{PyMeasurement, ReadArgs};
-use crate::pipeline::input::{Prepared, read_input};
-use crate::pipeline::joint::{JointOutcome, JointRequest, fit_samples};
 use crate::{detached, invalid};
+use fluorite::pipeline::joint::fit_samples;
+use fluorite::pipeline::{JointOutcome, JointRequest, Prepared, read_input};
 
 /// One PARAFAC model of a set of EEMs (one component count K).
 ///

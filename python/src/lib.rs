@@ -18,8 +18,6 @@ mod joint;
 mod lights;
 mod material;
 mod measurement;
-// TEMPORARY: the library's `pipeline` and `render::picture` until they land on main.
-mod pipeline;
 mod render;
 
 create_exception!(

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use fluorite::eem::{EemOptions, Preprocessing, UnitsChoice, prepare};
+use fluorite::eem::{Preprocessing, UnitsChoice};
 use fluorite::formats::{Format, RowsAre};
 use fluorite::{Measurement, Units};
 use numpy::{PyArray1, PyArray2};
@@ -10,8 +10,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::convert::{array1, array2, choice, floats, floats2, paths, to_py};
-use crate::pipeline::input::{InputOptions, Prepared, read_input};
 use crate::{attached, detached, invalid};
+use fluorite::pipeline::{EemSettings, InputOptions, Prepared, read_input};
 
 /// A bispectral reradiation (Donaldson) matrix on its own grids.
 ///
@@ -81,16 +81,15 @@ impl PyMeasurement {
                 values,
                 if per_nm { Units::PerNm } else { Units::PerBin },
             )?;
-            let options = EemOptions {
-                units: units_choice,
-                keep_scatter,
-                ..EemOptions::default()
+            let input = InputOptions {
+                eem: EemSettings {
+                    units: units_choice,
+                    keep_scatter,
+                    ..EemSettings::default()
+                },
+                ..InputOptions::default()
             };
-            let (measurement, preprocessing) = prepare(m, &options)?;
-            Ok(Prepared {
-                measurement,
-                preprocessing,
-            })
+            Prepared::from_measurement(m, &input)
         })?;
         Ok(PyMeasurement { prepared })
     }

@@ -6,8 +6,8 @@ use pyo3::prelude::*;
 
 use crate::convert::{image, items};
 use crate::material::PyMaterial;
-use crate::pipeline::picture::{Picture, render_picture};
 use crate::{detached, invalid};
+use fluorite::render::picture::{Picture, render_picture};
 
 /// The linear (float32) and display (uint8) images of a render.
 type Images<'py> = (Bound<'py, PyArray3<f32>>, Bound<'py, PyArray3<u8>>);
@@ -88,7 +88,6 @@ pub fn render<'py>(
         }
     };
     let picture = Picture {
-        light,
         settings: RenderSettings {
             width,
             height,
@@ -100,12 +99,14 @@ pub fn render<'py>(
         sampling,
         exposure_ev: exposure,
         adapt,
+        exr: false,
+        ..Picture::new(light)
     };
     let material = material.get().material.clone();
     let rendered = detached(py, "render", move || {
         render_picture(&material, &picture, &|| {})
     })?;
-    let (w, h) = (rendered.width as usize, rendered.height as usize);
+    let (w, h) = (rendered.film.width as usize, rendered.film.height as usize);
     let linear: Vec<f32> = rendered.scene_linear.iter().flatten().copied().collect();
     Ok((
         image(py, h, w, linear)?,
