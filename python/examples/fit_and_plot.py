@@ -50,9 +50,11 @@ def main():
     top = np.nanmax(np.where(off, measured, np.nan))
     extent = [em[0], em[-1], ex[-1], ex[0]]
 
+    cmap = plt.get_cmap("magma").copy()
+    cmap.set_bad("0.8")  # the diagonal, left out, in grey
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.5), constrained_layout=True)
     for ax, data, title in ((axes[0], measured, "measured"), (axes[1], fitted, f"fitted ({fit.model})")):
-        image = ax.imshow(np.where(off, data, np.nan), extent=extent, aspect="auto", vmin=0, vmax=top, cmap="magma")
+        image = ax.imshow(np.where(off, data, np.nan), extent=extent, aspect="auto", vmin=0, vmax=top, cmap=cmap)
         ax.set_title(f"{measurement.name}: {title}")
         ax.set_xlabel("emission λo (nm)")
         ax.set_ylabel("excitation λi (nm)")

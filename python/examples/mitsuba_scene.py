@@ -11,7 +11,7 @@ that light and only under it.
 
 This script runs the export; when the ``mitsuba`` module is importable
 (``pip install mitsuba``) it also loads the scene with ``mi.load_file``, renders it in a
-spectral variant and writes ``<stem>_<light>.exr``; otherwise it says so and stops
+spectral variant and writes ``<stem>_<light>.exr`` and ``.png``; otherwise it says so and stops
 after the export.
 """
 
@@ -57,7 +57,8 @@ def main():
     image = mi.render(scene, spp=args.spp)
     out = Path(scene_file).with_suffix(".exr")
     mi.util.write_bitmap(str(out), image)
-    print(f"rendered {scene_file} in Mitsuba {mi.__version__}: wrote {out}")
+    mi.util.write_bitmap(str(out.with_suffix(".png")), image)  # sRGB-encoded preview
+    print(f"rendered {scene_file} in Mitsuba {mi.__version__}: wrote {out} and {out.with_suffix('.png')}")
     return 0
 
 
