@@ -515,3 +515,29 @@ pub fn fit_many<'py>(
     }
     Ok(out)
 }
+
+/// For `benchmarks/overhead.py`: the wall time of `runs` default fits of `measurement`
+/// timed inside Rust around the whole library call (`pipeline::fit_prepared`, GIL
+/// released, no Python in between), in seconds: the Rust fit the Python call is
+/// compared with.
+#[pyfunction]
+pub fn _fit_seconds(
+    py: Python<'_>,
+    measurement: &Bound<'_, PyMeasurement>,
+    runs: usize,
+) -> PyResult<Vec<f64>> {
+    let prepared = measurement.get().prepared.clone();
+    let options = FitOptions {
+        lights: crate::lights::standard(),
+        ..FitOptions::default()
+    };
+    detached(py, "_fit_seconds", || {
+        (0..runs)
+            .map(|_| {
+                let started = std::time::Instant::now();
+                fit_prepared(&prepared, &options)?;
+                Ok(started.elapsed().as_secs_f64())
+            })
+            .collect()
+    })
+}
