@@ -28,6 +28,24 @@ pub struct PyParafacFit {
     matches: Option<Vec<AnalyteMatch>>,
 }
 
+impl PyParafacFit {
+    /// One row per component of the spectrum `spectrum` picks, as a float64 (K, n) array.
+    fn loadings<'py>(
+        &self,
+        py: Python<'py>,
+        spectrum: impl Fn(&fluorite::fit::joint::JointComponent) -> &Vec<f64>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let rows: Vec<&Vec<f64>> = self.fit.components.iter().map(spectrum).collect();
+        let n = rows.first().map_or(0, |r| r.len());
+        array2(
+            py,
+            rows.len(),
+            n,
+            rows.into_iter().flatten().copied().collect(),
+        )
+    }
+}
+
 #[pymethods]
 impl PyParafacFit {
     /// K, the number of components.
@@ -69,37 +87,13 @@ impl PyParafacFit {
     /// Absorption (excitation) loadings, float64 (K, n_excitation), each max 1.
     #[getter]
     fn excitation_loadings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let rows: Vec<&Vec<f64>> = self
-            .fit
-            .components
-            .iter()
-            .map(|c| &c.absorption.value)
-            .collect();
-        let n = rows.first().map_or(0, |r| r.len());
-        array2(
-            py,
-            rows.len(),
-            n,
-            rows.into_iter().flatten().copied().collect(),
-        )
+        self.loadings(py, |c| &c.absorption.value)
     }
 
     /// Emission loadings, float64 (K, n_emission), each with ∫e dλ = 1 (1/nm).
     #[getter]
     fn emission_loadings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let rows: Vec<&Vec<f64>> = self
-            .fit
-            .components
-            .iter()
-            .map(|c| &c.emission.value)
-            .collect();
-        let n = rows.first().map_or(0, |r| r.len());
-        array2(
-            py,
-            rows.len(),
-            n,
-            rows.into_iter().flatten().copied().collect(),
-        )
+        self.loadings(py, |c| &c.emission.value)
     }
 
     /// Scores, float64 (n_samples, K), in the data's (arbitrary) units.
