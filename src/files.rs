@@ -36,6 +36,44 @@ pub fn interrupt() {
     }
 }
 
+/// An error naming `path` once [`interrupt`] ran: long loops call it between steps so that
+/// an interrupted run stops promptly.
+pub fn check_interrupted(path: &Path) -> Result<()> {
+    refuse_if_interrupted(path)
+}
+
+/// A temporary path beside `path` for a file written piece by piece (large images), to be
+/// moved into place with [`persist_staged`]; [`interrupt`] removes it.
+pub fn stage_beside(path: &Path) -> Result<PathBuf> {
+    refuse_if_interrupted(path)?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = dir.join(format!(".fluorite-{}-{name}", std::process::id()));
+    staged().push(tmp.clone());
+    Ok(tmp)
+}
+
+/// Moves a file written with [`stage_beside`] into place (atomically: a rename).
+pub fn persist_staged(tmp: &Path, path: &Path) -> Result<()> {
+    let mut pending = staged();
+    refuse_if_interrupted(path)?;
+    pending.retain(|p| p != tmp);
+    std::fs::rename(tmp, path).map_err(|e| Error::io(path, e))
+}
+
+/// Removes a file written with [`stage_beside`] that will not be kept.
+pub fn discard_staged(tmp: &Path) {
+    let mut pending = staged();
+    pending.retain(|p| p != tmp);
+    let _ = std::fs::remove_file(tmp);
+}
+
 fn refuse_if_interrupted(path: &Path) -> Result<()> {
     if INTERRUPTED.load(Ordering::SeqCst) {
         return Err(Error::io(

@@ -19,6 +19,7 @@ pub mod export;
 pub mod files;
 pub mod fit;
 pub mod formats;
+pub mod image;
 pub mod import;
 pub mod limits;
 pub mod material;

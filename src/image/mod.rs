@@ -1,0 +1,15 @@
+//! Bispectral images: a reradiation matrix per pixel, fitted into a material map (shared
+//! fluorophores, a concentration per fluorophore and pixel, a reflectance per pixel).
+//!
+//! [`source`] streams an image's pixels block by block, [`sink`] writes images tile by
+//! tile, [`layout`] names the cells of a pixel, [`map`] is the material map every
+//! downstream step reads.
+
+pub mod layout;
+pub mod map;
+pub mod sink;
+pub mod source;
+
+pub use layout::{Cell, Layout};
+pub use map::MaterialMap;
+pub use source::{ExrImage, PixelBlock};

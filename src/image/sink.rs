@@ -1,0 +1,232 @@
+//! Writing OpenEXR images block by block: the pixels of each tile are asked for when the
+//! tile is written, so an image of any size is written with a few tiles in memory. The
+//! file is written beside its target and renamed into place when complete.
+
+use std::collections::HashMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+
+use exr::block::UncompressedBlock;
+use exr::block::writer::ChunksWriter;
+use exr::compression::Compression;
+use exr::math::{RoundingMode, Vec2};
+use exr::meta::BlockDescription;
+use exr::meta::attribute::{
+    AttributeValue, ChannelDescription, LevelMode, LineOrder, SampleType, Text, TileDescription,
+};
+use exr::meta::header::Header;
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+
+/// Tile edge of every image fluorite writes: a 64 × 64 tile of a 49 × 41 bispectral
+/// image is 19 MB as 32-bit floats, whatever the image's width.
+pub const TILE: usize = 64;
+
+/// Tiles produced and compressed together per thread.
+const TILES_PER_THREAD: usize = 2;
+
+/// A pixel rectangle of an image being written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rect {
+    /// First column.
+    pub x: usize,
+    /// First row.
+    pub y: usize,
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+}
+
+/// What an image written by [`write_image`] holds.
+#[derive(Debug, Clone)]
+pub struct ImageSpec {
+    /// Pixels per row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Channel names, in the order the producer gives each pixel's values.
+    pub channels: Vec<String>,
+    /// 16-bit floats instead of 32-bit.
+    pub half: bool,
+    /// Lossless ZIP compression (smaller files, slower) instead of none.
+    pub zip: bool,
+    /// Text attributes of the header (name, value).
+    pub attributes: Vec<(String, String)>,
+}
+
+/// OpenEXR text: Latin-1, other characters become `?`.
+fn text(s: &str) -> Text {
+    let latin1: String = s
+        .chars()
+        .map(|c| if (c as u32) < 256 { c } else { '?' })
+        .collect();
+    Text::new_or_none(latin1).unwrap_or_else(|| Text::from("?"))
+}
+
+/// Writes `path` tile by tile: `produce(rect)` returns the rectangle's pixels, row by row,
+/// each pixel's values in `spec.channels`' order. Tiles are produced in parallel, a few at
+/// a time, and written in order; `progress` gets the tiles written so far and the total.
+pub fn write_image(
+    path: &Path,
+    spec: &ImageSpec,
+    produce: impl Fn(Rect) -> Result<Vec<f32>> + Sync,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<()> {
+    let fail = |message: String| Error::invalid(path.display().to_string(), message);
+    if spec.width == 0 || spec.height == 0 || spec.channels.is_empty() {
+        return Err(fail("an image needs pixels and channels".into()));
+    }
+    // The file lists its channels sorted by name; `order[k]` is the producer's index of
+    // the file's k-th channel.
+    let mut order: Vec<usize> = (0..spec.channels.len()).collect();
+    order.sort_by(|&a, &b| spec.channels[a].cmp(&spec.channels[b]));
+    if let Some(w) = order
+        .windows(2)
+        .find(|w| spec.channels[w[0]] == spec.channels[w[1]])
+    {
+        return Err(fail(format!(
+            "channel {} is named twice",
+            spec.channels[w[0]]
+        )));
+    }
+    let sample_type = if spec.half {
+        SampleType::F16
+    } else {
+        SampleType::F32
+    };
+    let channels = order
+        .iter()
+        .map(|&k| ChannelDescription::new(text(&spec.channels[k]), sample_type, true))
+        .collect();
+    let mut header = Header::new(text("bispectral"), (spec.width, spec.height), channels)
+        .with_encoding(
+            if spec.zip {
+                Compression::ZIP16
+            } else {
+                Compression::Uncompressed
+            },
+            BlockDescription::Tiles(TileDescription {
+                tile_size: Vec2(TILE, TILE),
+                level_mode: LevelMode::Singular,
+                rounding_mode: RoundingMode::Down,
+            }),
+            LineOrder::Increasing,
+        );
+    header.own_attributes.layer_name = None;
+    let mut other: HashMap<Text, AttributeValue> = HashMap::new();
+    for (name, value) in &spec.attributes {
+        other.insert(text(name), AttributeValue::Text(text(value)));
+    }
+    header.own_attributes.other = other;
+    header.own_attributes.software_name =
+        Some(text(&format!("fluorite {}", env!("CARGO_PKG_VERSION"))));
+    let tmp = crate::files::stage_beside(path)?;
+    let written = write_tiles(&tmp, header, spec, &order, &produce, &mut progress);
+    match written {
+        Ok(()) => crate::files::persist_staged(&tmp, path),
+        Err(e) => {
+            crate::files::discard_staged(&tmp);
+            Err(e)
+        }
+    }
+}
+
+fn write_tiles(
+    tmp: &Path,
+    header: Header,
+    spec: &ImageSpec,
+    order: &[usize],
+    produce: &(impl Fn(Rect) -> Result<Vec<f32>> + Sync),
+    progress: &mut impl FnMut(usize, usize),
+) -> Result<()> {
+    let io = |e: std::io::Error| Error::io(tmp, e);
+    let file = File::create(tmp).map_err(io)?;
+    let blocks: Vec<(usize, exr::block::BlockIndex)> =
+        exr::block::enumerate_ordered_header_block_indices(std::slice::from_ref(&header)).collect();
+    let total = blocks.len();
+    let channel_count = spec.channels.len();
+    let bytes = if spec.half { 2 } else { 4 };
+    let mut failure: Option<Error> = None;
+    let group = TILES_PER_THREAD * rayon::current_num_threads().max(1);
+    let headers: exr::meta::Headers = exr::prelude::SmallVec::from_vec(vec![header]);
+    let encode_failure = |e: exr::error::Error| {
+        Error::io(
+            tmp,
+            std::io::Error::other(format!("OpenEXR writing failed: {e}")),
+        )
+    };
+    exr::block::write(
+        BufWriter::with_capacity(1 << 20, file),
+        headers,
+        true,
+        |meta, writer| {
+            for (g, group_blocks) in blocks.chunks(group).enumerate() {
+                if let Err(e) = crate::files::check_interrupted(tmp) {
+                    failure = Some(e);
+                    return Err(exr::error::Error::Aborted);
+                }
+                let chunks: Vec<Result<(usize, exr::block::chunk::Chunk)>> = group_blocks
+                .par_iter()
+                .map(|&(index, block)| {
+                    let rect = Rect {
+                        x: block.pixel_position.x(),
+                        y: block.pixel_position.y(),
+                        width: block.pixel_size.x(),
+                        height: block.pixel_size.y(),
+                    };
+                    let values = produce(rect)?;
+                    if values.len() != rect.width * rect.height * channel_count {
+                        return Err(Error::invalid(
+                            "image writer",
+                            format!(
+                                "a tile of {}×{} pixels got {} values for {channel_count} channels",
+                                rect.width,
+                                rect.height,
+                                values.len()
+                            ),
+                        ));
+                    }
+                    let mut data = Vec::with_capacity(values.len() * bytes);
+                    for row in 0..rect.height {
+                        for &c in order {
+                            for x in 0..rect.width {
+                                let v = values[(row * rect.width + x) * channel_count + c];
+                                if bytes == 2 {
+                                    data.extend_from_slice(
+                                        &exr::prelude::f16::from_f32(v).to_ne_bytes(),
+                                    );
+                                } else {
+                                    data.extend_from_slice(&v.to_ne_bytes());
+                                }
+                            }
+                        }
+                    }
+                    let chunk = UncompressedBlock { index: block, data }
+                        .compress_to_chunk(&meta.headers)
+                        .map_err(encode_failure)?;
+                    Ok((index, chunk))
+                })
+                .collect();
+                for chunk in chunks {
+                    match chunk {
+                        Ok((index, chunk)) => writer.write_chunk(index, chunk)?,
+                        Err(e) => {
+                            failure = Some(e);
+                            return Err(exr::error::Error::Aborted);
+                        }
+                    }
+                }
+                progress(((g + 1) * group).min(total), total);
+            }
+            Ok(())
+        },
+    )
+    .map_err(|e| failure.take().unwrap_or_else(|| encode_failure(e)))?;
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    Ok(())
+}

@@ -1,0 +1,379 @@
+//! Reading a bispectral OpenEXR image as a stream of pixel blocks.
+//!
+//! The file is never held whole: a pass reads the file's chunks (scanline blocks or
+//! tiles of the full-resolution level) in file order, a few at a time, decompresses and
+//! converts them in parallel, and hands each block's result to a fold in file order. The
+//! memory a pass holds is a few chunks, whatever the image's size, and its result does not
+//! depend on the number of threads.
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+
+use exr::block::UncompressedBlock;
+use exr::block::chunk::Chunk;
+use exr::block::reader::ChunksReader;
+use exr::meta::MetaData;
+use exr::meta::attribute::SampleType;
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::formats::exr::{Channel, parse_channel};
+
+use super::layout::{Cell, Layout};
+
+/// Chunks decoded together per thread in a pass: enough to keep every thread busy,
+/// few enough that a pass holds only a handful of chunks.
+const CHUNKS_PER_THREAD: usize = 2;
+
+/// A block of pixels: a scanline block or a tile of the image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PixelBlock {
+    /// Column of the block's first pixel.
+    pub x: usize,
+    /// Row of the block's first pixel.
+    pub y: usize,
+    /// Pixels per row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Cells per pixel (the layout's length).
+    pub cells: usize,
+    /// Values, pixel-major (row by row, then column), each pixel's cells in the layout's
+    /// canonical order. Non-finite values are kept as read.
+    pub values: Vec<f32>,
+}
+
+impl PixelBlock {
+    /// The cells of pixel `index` (row-major within the block).
+    pub fn pixel(&self, index: usize) -> &[f32] {
+        &self.values[index * self.cells..(index + 1) * self.cells]
+    }
+
+    /// Number of pixels.
+    pub fn pixel_count(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// Image pixel index (row-major over the whole image of `image_width`) of block pixel
+    /// `index`.
+    pub fn image_index(&self, index: usize, image_width: usize) -> usize {
+        (self.y + index / self.width) * image_width + self.x + index % self.width
+    }
+}
+
+/// A bispectral EXR image opened for streaming.
+#[derive(Debug, Clone)]
+pub struct ExrImage {
+    /// The file.
+    pub path: PathBuf,
+    /// Pixels per row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// The cells its channels hold.
+    pub layout: Layout,
+    /// The part (layer) read.
+    layer: usize,
+    /// Per channel of that part (in the file's order): its cell's canonical index, or
+    /// None for channels outside the layout (R, G, B, emissive).
+    channel_cells: Vec<Option<usize>>,
+    /// Per channel: bytes per sample.
+    channel_bytes: Vec<usize>,
+    /// Per channel: sample type.
+    channel_types: Vec<SampleType>,
+    /// Full-resolution chunks of the part.
+    chunks: usize,
+    /// Whether the part holds any 16-bit float channel.
+    pub half: bool,
+    /// Notes for the report (ignored channels).
+    pub notes: Vec<String>,
+}
+
+impl ExrImage {
+    /// Opens `path` and reads its header: the channels must follow the bispectral layout.
+    pub fn open(path: &Path) -> Result<ExrImage> {
+        let fail = |message: String| Error::parse(path, 0, 0, message);
+        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let meta = MetaData::read_from_buffered(BufReader::new(file), false)
+            .map_err(|e| fail(format!("not a readable OpenEXR file: {e}")))?;
+        let mut chosen = None;
+        for (index, header) in meta.headers.iter().enumerate() {
+            if header.deep {
+                continue;
+            }
+            let reflective = header.channels.list.iter().any(|c| {
+                matches!(
+                    parse_channel(&c.name.to_string()),
+                    Some(Channel::Diagonal(_) | Channel::Reradiation(..))
+                )
+            });
+            if reflective {
+                chosen = Some(index);
+                break;
+            }
+        }
+        let Some(layer) = chosen else {
+            return Err(fail(
+                "no reflective spectral channel (T.<λ>nm or T.<λi>nm.<λo>nm): this is not a bispectral image (channels must follow the spectral OpenEXR layout of Fichet, Mercier and Wilkie); write one with `fluorite synth --image` or the spectral-exr tools".into(),
+            ));
+        };
+        let header = &meta.headers[layer];
+        let mut grid = Vec::new();
+        let mut named = Vec::new();
+        let mut notes = Vec::new();
+        let mut ignored = Vec::new();
+        for c in &header.channels.list {
+            let name = c.name.to_string();
+            if c.sampling.x() != 1 || c.sampling.y() != 1 {
+                return Err(fail(format!(
+                    "channel {name} is subsampled ({}×{}); bispectral images hold every channel at every pixel",
+                    c.sampling.x(),
+                    c.sampling.y()
+                )));
+            }
+            match parse_channel(&name) {
+                Some(Channel::Diagonal(l)) => {
+                    grid.push(l);
+                    named.push(Some((l, l)));
+                }
+                Some(Channel::Reradiation(i, o)) => {
+                    if o <= i {
+                        return Err(fail(format!(
+                            "channel {name}: the layout's reradiation channels go from a shorter to a longer wavelength (λo > λi), here {i} nm → {o} nm"
+                        )));
+                    }
+                    grid.extend([i, o]);
+                    named.push(Some((i, o)));
+                }
+                _ => {
+                    ignored.push(name);
+                    named.push(None);
+                }
+            }
+        }
+        if !ignored.is_empty() {
+            notes.push(format!(
+                "{} channel(s) outside the bispectral layout ignored: {}",
+                ignored.len(),
+                ignored
+                    .iter()
+                    .take(6)
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        grid.sort_by(f64::total_cmp);
+        grid.dedup_by(|a, b| (*a - *b).abs() <= 1e-6);
+        for &nm in [grid.first(), grid.last()].into_iter().flatten() {
+            crate::limits::check_wavelength(nm)
+                .map_err(|message| fail(format!("a channel names the wavelength {message}")))?;
+        }
+        let index = |nm: f64| crate::spectrum::find_wavelength(&grid, nm).unwrap_or(0);
+        let cells: Vec<Option<Cell>> = named
+            .iter()
+            .map(|n| {
+                n.map(|(i, o)| {
+                    if i == o {
+                        Cell::Diagonal(index(i))
+                    } else {
+                        Cell::Reradiation(index(i), index(o))
+                    }
+                })
+            })
+            .collect();
+        let mut listed: Vec<Cell> = cells.iter().flatten().copied().collect();
+        listed.sort();
+        if let Some(w) = listed.windows(2).find(|w| w[0] == w[1]) {
+            let (i, o) = match w[0] {
+                Cell::Diagonal(i) => (i, i),
+                Cell::Reradiation(i, o) => (i, o),
+            };
+            return Err(fail(format!(
+                "two channels name the cell {} nm → {} nm (e.g. `500nm` and `500,0nm`); keep one",
+                grid[i], grid[o]
+            )));
+        }
+        let layout = Layout::new(grid, listed).map_err(|e| fail(e.to_string()))?;
+        let channel_cells = cells
+            .iter()
+            .map(|c| c.and_then(|c| layout.position(c)))
+            .collect();
+        let channel_types: Vec<SampleType> =
+            header.channels.list.iter().map(|c| c.sample_type).collect();
+        let channel_bytes = channel_types
+            .iter()
+            .map(|t| match t {
+                SampleType::F16 => 2,
+                SampleType::F32 | SampleType::U32 => 4,
+            })
+            .collect();
+        let half = channel_types.contains(&SampleType::F16);
+        let width = header.layer_size.x();
+        let height = header.layer_size.y();
+        if width * height < 2 {
+            return Err(fail(format!(
+                "the image has {} pixel(s): an image fit shares its fluorophores across pixels; fit a single matrix with `fluorite fit {}`",
+                width * height,
+                path.display()
+            )));
+        }
+        let chunks = header
+            .enumerate_ordered_blocks()
+            .filter(|(_, tile)| tile.location.level_index == exr::math::Vec2(0, 0))
+            .count();
+        Ok(ExrImage {
+            path: path.to_path_buf(),
+            width,
+            height,
+            layout,
+            layer,
+            channel_cells,
+            channel_bytes,
+            channel_types,
+            chunks,
+            half,
+            notes,
+        })
+    }
+
+    /// Number of pixels.
+    pub fn pixels(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// Number of full-resolution chunks (blocks) a pass reads.
+    pub fn blocks(&self) -> usize {
+        self.chunks
+    }
+
+    /// One pass over the image: `map` runs on every block (in parallel, a few chunks at
+    /// a time), and `fold` receives the results in the file's chunk order. `progress` is
+    /// called with the number of blocks done after each group.
+    pub fn pass<T: Send>(
+        &self,
+        map: impl Fn(&PixelBlock) -> Result<T> + Sync,
+        mut fold: impl FnMut(T) -> Result<()>,
+        mut progress: impl FnMut(usize),
+    ) -> Result<()> {
+        let fail = |message: String| Error::parse(&self.path, 0, 0, message);
+        let file = File::open(&self.path).map_err(|e| Error::io(&self.path, e))?;
+        let layer = self.layer;
+        let reader = exr::block::read(BufReader::with_capacity(1 << 20, file), false)
+            .map_err(|e| fail(format!("not a readable OpenEXR file: {e}")))?;
+        let mut chunks = reader
+            .filter_chunks(false, |_, tile, block| {
+                block.layer == layer && tile.level_index == exr::math::Vec2(0, 0)
+            })
+            .map_err(|e| fail(format!("cannot read the chunk offsets: {e}")))?;
+        let meta = chunks.meta_data().clone();
+        let group = CHUNKS_PER_THREAD * rayon::current_num_threads().max(1);
+        let mut done = 0;
+        loop {
+            crate::files::check_interrupted(&self.path)?;
+            let mut batch: Vec<Chunk> = Vec::with_capacity(group);
+            for chunk in chunks.by_ref().take(group) {
+                batch.push(chunk.map_err(|e| {
+                    fail(format!(
+                        "chunk {} of {} cannot be read ({e}): the file is truncated or damaged",
+                        done + batch.len() + 1,
+                        self.chunks
+                    ))
+                })?);
+            }
+            if batch.is_empty() {
+                break;
+            }
+            let count = batch.len();
+            let results: Vec<Result<T>> = batch
+                .into_par_iter()
+                .enumerate()
+                .map(|(k, chunk)| {
+                    let block = UncompressedBlock::decompress_chunk(chunk, &meta, false)
+                        .map_err(|e| {
+                            fail(format!(
+                                "chunk {} of {} cannot be decompressed ({e}): the file is truncated or damaged",
+                                done + k + 1,
+                                self.chunks
+                            ))
+                        })?;
+                    let pixels = self.convert(&block)?;
+                    map(&pixels)
+                })
+                .collect();
+            for r in results {
+                fold(r?)?;
+            }
+            done += count;
+            progress(done);
+        }
+        if done != self.chunks {
+            return Err(fail(format!(
+                "{done} of {} chunks were read: the file is truncated",
+                self.chunks
+            )));
+        }
+        Ok(())
+    }
+
+    /// A decompressed block's samples, converted to f32 in canonical cell order.
+    fn convert(&self, block: &UncompressedBlock) -> Result<PixelBlock> {
+        let width = block.index.pixel_size.x();
+        let height = block.index.pixel_size.y();
+        let cells = self.layout.len();
+        let mut values = vec![0f32; width * height * cells];
+        let bytes_per_line: usize = self.channel_bytes.iter().map(|b| b * width).sum();
+        if block.data.len() != bytes_per_line * height {
+            return Err(Error::parse(
+                &self.path,
+                0,
+                0,
+                format!(
+                    "a block at row {} holds {} bytes where its {width}×{height} pixels need {}: the file is damaged",
+                    block.index.pixel_position.y(),
+                    block.data.len(),
+                    bytes_per_line * height
+                ),
+            ));
+        }
+        let data = &block.data;
+        let mut offset = 0;
+        for row in 0..height {
+            for (c, &bytes) in self.channel_bytes.iter().enumerate() {
+                let line = &data[offset..offset + bytes * width];
+                offset += bytes * width;
+                let Some(cell) = self.channel_cells[c] else {
+                    continue;
+                };
+                let out = |x: usize| (row * width + x) * cells + cell;
+                match self.channel_types[c] {
+                    SampleType::F32 => {
+                        for (x, b) in line.chunks_exact(4).enumerate() {
+                            values[out(x)] = f32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
+                        }
+                    }
+                    SampleType::F16 => {
+                        for (x, b) in line.chunks_exact(2).enumerate() {
+                            values[out(x)] =
+                                exr::prelude::f16::from_ne_bytes([b[0], b[1]]).to_f32();
+                        }
+                    }
+                    SampleType::U32 => {
+                        for (x, b) in line.chunks_exact(4).enumerate() {
+                            values[out(x)] = u32::from_ne_bytes([b[0], b[1], b[2], b[3]]) as f32;
+                        }
+                    }
+                }
+            }
+        }
+        Ok(PixelBlock {
+            x: block.index.pixel_position.x(),
+            y: block.index.pixel_position.y(),
+            width,
+            height,
+            cells,
+            values,
+        })
+    }
+}
