@@ -9,6 +9,7 @@ mod class;
 mod eem;
 mod export;
 mod fit;
+mod fit_image;
 mod import_spectra;
 mod joint;
 mod plot;
@@ -35,6 +36,9 @@ struct Cli {
 enum Command {
     /// Fit the fluorescent BBRRDF to measured matrices and write material JSON.
     Fit(fit::FitArgs),
+    /// Fit a bispectral image into a material map: shared fluorophores, per-pixel
+    /// concentrations and reflectance.
+    FitImage(fit_image::FitImageArgs),
     /// Write synthetic matrices with known ground truth.
     Synth(synth::SynthArgs),
     /// Render a material in the built-in spectral path tracer.
@@ -61,9 +65,10 @@ enum Command {
 
 /// The guide page each subcommand's help names (`More: docs/<page>`), and the top-level
 /// help's.
-const GUIDE_PAGES: [(&str, &str); 12] = [
+const GUIDE_PAGES: [(&str, &str); 13] = [
     ("fluorite", "docs/README.md"),
     ("fit", "docs/fitting.md"),
+    ("fit-image", "docs/images.md"),
     ("synth", "docs/formats.md"),
     ("render", "docs/render.md"),
     ("plot", "docs/plots.md"),
@@ -124,6 +129,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
     };
     match cli.command {
         Command::Fit(args) => fit::run(args),
+        Command::FitImage(args) => fit_image::run(args),
         Command::Synth(args) => synth::run(args),
         Command::Render(args) => render::run(args),
         Command::Plot(args) => plot::run(args),

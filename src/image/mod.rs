@@ -13,3 +13,4 @@ pub mod source;
 pub use layout::{Cell, Layout};
 pub use map::MaterialMap;
 pub use source::{ExrImage, PixelBlock};
+pub mod fit;

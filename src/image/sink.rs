@@ -53,7 +53,8 @@ pub struct ImageSpec {
     pub half: bool,
     /// Lossless ZIP compression (smaller files, slower) instead of none.
     pub zip: bool,
-    /// Text attributes of the header (name, value).
+    /// Text attributes of the header (name, value). `spectralLayoutVersion` is written as
+    /// its own attribute; the others are joined into the standard `comments` attribute.
     pub attributes: Vec<(String, String)>,
 }
 
@@ -116,11 +117,22 @@ pub fn write_image(
             LineOrder::Increasing,
         );
     header.own_attributes.layer_name = None;
+    // The exr crate keeps custom attributes in a hash map and writes them in random
+    // order: one custom attribute (the layout's version) keeps files byte-reproducible;
+    // every other attribute goes into the standard `comments` text.
     let mut other: HashMap<Text, AttributeValue> = HashMap::new();
+    let mut comments = Vec::new();
     for (name, value) in &spec.attributes {
-        other.insert(text(name), AttributeValue::Text(text(value)));
+        if name == crate::formats::exr::VERSION_ATTRIBUTE {
+            other.insert(text(name), AttributeValue::Text(text(value)));
+        } else {
+            comments.push(format!("{name}: {value}"));
+        }
     }
     header.own_attributes.other = other;
+    if !comments.is_empty() {
+        header.own_attributes.comments = Some(text(&comments.join("; ")));
+    }
     header.own_attributes.software_name =
         Some(text(&format!("fluorite {}", env!("CARGO_PKG_VERSION"))));
     let tmp = crate::files::stage_beside(path)?;

@@ -1,0 +1,157 @@
+//! The compressed image on disk: one fixed-size record of 32-bit floats per pixel,
+//! addressed by pixel index, so passes after the projection read it in any order and
+//! memory never holds more than the records in use. Page cache, not the process, keeps
+//! it close.
+//!
+//! A record: `[mask, energy, y (rank), diagonal (diagonal cells), off-diagonal XYZ per
+//! light (3 each)]`: mask 0 for a pixel whose cells are all finite, energy Σ x² over its
+//! reradiation cells, y its reradiation cells' coordinates in the shared basis.
+
+use std::fs::File;
+use std::os::unix::fs::FileExt;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+
+/// Where each part of a record lies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RecordLayout {
+    /// Basis vectors (length of y).
+    pub rank: usize,
+    /// Diagonal cells.
+    pub diagonal: usize,
+    /// Lights.
+    pub lights: usize,
+}
+
+impl RecordLayout {
+    /// Floats per record.
+    pub fn len(&self) -> usize {
+        2 + self.rank + self.diagonal + 3 * self.lights
+    }
+
+    /// Whether a record is empty (never: it always holds the mask and the energy).
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// The range of y in a record.
+    pub fn y(&self) -> std::ops::Range<usize> {
+        2..2 + self.rank
+    }
+
+    /// The range of the diagonal cells.
+    pub fn diagonal(&self) -> std::ops::Range<usize> {
+        2 + self.rank..2 + self.rank + self.diagonal
+    }
+
+    /// The range of the off-diagonal XYZ of light `l`.
+    pub fn xyz(&self, l: usize) -> std::ops::Range<usize> {
+        let start = 2 + self.rank + self.diagonal + 3 * l;
+        start..start + 3
+    }
+}
+
+/// A scratch file of `pixels` records.
+#[derive(Debug)]
+pub struct Scratch {
+    path: PathBuf,
+    file: File,
+    /// The record layout.
+    pub layout: RecordLayout,
+    /// Number of records.
+    pub pixels: usize,
+}
+
+impl Scratch {
+    /// Creates (or truncates) the scratch file.
+    pub fn create(path: &Path, layout: RecordLayout, pixels: usize) -> Result<Scratch> {
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(path)
+            .map_err(|e| Error::io(path, e))?;
+        file.set_len((pixels * layout.len() * 4) as u64)
+            .map_err(|e| Error::io(path, e))?;
+        Ok(Scratch {
+            path: path.to_path_buf(),
+            file,
+            layout,
+            pixels,
+        })
+    }
+
+    /// Opens an existing scratch file, checking its size.
+    pub fn open(path: &Path, layout: RecordLayout, pixels: usize) -> Result<Scratch> {
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .open(path)
+            .map_err(|e| Error::io(path, e))?;
+        let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        if len != (pixels * layout.len() * 4) as u64 {
+            return Err(Error::invalid(
+                path.display().to_string(),
+                "the scratch file of an earlier run has the wrong size; delete the work folder",
+            ));
+        }
+        Ok(Scratch {
+            path: path.to_path_buf(),
+            file,
+            layout,
+            pixels,
+        })
+    }
+
+    /// Writes the records of pixels `first..first + records.len() / record length`.
+    pub fn write(&self, first: usize, records: &[f32]) -> Result<()> {
+        let bytes: Vec<u8> = records.iter().flat_map(|v| v.to_le_bytes()).collect();
+        self.file
+            .write_all_at(&bytes, (first * self.layout.len() * 4) as u64)
+            .map_err(|e| Error::io(&self.path, e))
+    }
+
+    /// Reads the records of pixels `first..first + count`.
+    pub fn read(&self, first: usize, count: usize) -> Result<Vec<f32>> {
+        let mut bytes = vec![0u8; count * self.layout.len() * 4];
+        self.file
+            .read_exact_at(&mut bytes, (first * self.layout.len() * 4) as u64)
+            .map_err(|e| Error::io(&self.path, e))?;
+        Ok(bytes
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect())
+    }
+
+    /// The noise σ per reradiation cell, independent of any model: the energy of the
+    /// unmasked pixels outside the basis, per dimension outside it (`cells` reradiation
+    /// cells per pixel). The basis holds the fluorescence; what it leaves is noise.
+    pub fn noise_sigma(&self, cells: usize) -> Result<f64> {
+        const CHUNK: usize = 8192;
+        let len = self.layout.len();
+        let (mut outside, mut pixels) = (0.0f64, 0usize);
+        for first in (0..self.pixels).step_by(CHUNK) {
+            let records = self.read(first, CHUNK.min(self.pixels - first))?;
+            for r in records.chunks_exact(len) {
+                if r[0] != 0.0 {
+                    continue;
+                }
+                let inside: f64 = r[self.layout.y()]
+                    .iter()
+                    .map(|&v| f64::from(v).powi(2))
+                    .sum();
+                outside += (f64::from(r[1]) - inside).max(0.0);
+                pixels += 1;
+            }
+        }
+        let dimensions = (cells.saturating_sub(self.layout.rank)).max(1) * pixels.max(1);
+        Ok((outside / dimensions as f64).sqrt())
+    }
+
+    /// Flushes to disk (before a stage is recorded as done).
+    pub fn sync(&self) -> Result<()> {
+        self.file.sync_all().map_err(|e| Error::io(&self.path, e))
+    }
+}

@@ -1,0 +1,536 @@
+//! The fluorophores every pixel shares: a K-component non-negative PARAFAC of the pixels ×
+//! excitation × emission tensor of reradiation cells (model.md §8), fitted in the
+//! compressed coordinates of the scratch file.
+//!
+//! Each pixel's reradiation x_p ≈ Σ_k s_pk·B_k with B_k[(i, o)] = β_k(i)·ε_k(o) on the
+//! layout's cells (β max 1, Σ_o ε = 1: ε is the emission per bin). With x_p ≈ Q·y_p:
+//! - the scores s_p = NNLS(BᵀB, (QᵀB)ᵀ·y_p), exact per pixel;
+//! - the sums Sᵀ·S and Sᵀ·X ≈ (Sᵀ·Y)·Qᵀ give β and ε by hierarchical ALS on their rows,
+//!   with the layout's mask (only λo > λi exists) in the row Gram matrices.
+//!
+//! One iteration reads every record once; the start comes from the joint fit's
+//! non-negative PARAFAC on a regular grid of pixels rebuilt from their coordinates.
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::fit::joint::parafac;
+
+use super::nnls;
+use super::scratch::Scratch;
+
+/// Records read together by one task of a pass.
+const CHUNK: usize = 4096;
+/// Coordinate-descent sweeps of each factor update.
+const INNER_SWEEPS: usize = 3;
+/// Ridge of the row updates, relative to the best-determined row: an excitation row
+/// whose emission lies almost wholly outside its cells (λo > λi only) tells nothing of
+/// β there, and without a ridge its noise, divided by a vanishing Gram entry, would set
+/// the absorption's maximum.
+const RIDGE: f64 = 1e-4;
+
+/// How the layout's reradiation cells map onto excitation and emission indices.
+#[derive(Debug, Clone)]
+pub struct Cells {
+    /// Per reradiation cell: its excitation index (into the excitation wavelengths).
+    pub excitation: Vec<usize>,
+    /// Per reradiation cell: its emission index (into the emission wavelengths).
+    pub emission: Vec<usize>,
+    /// Excitation wavelengths (nm).
+    pub excitation_nm: Vec<f64>,
+    /// Emission wavelengths (nm).
+    pub emission_nm: Vec<f64>,
+}
+
+impl Cells {
+    /// Number of reradiation cells.
+    pub fn len(&self) -> usize {
+        self.excitation.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.excitation.is_empty()
+    }
+}
+
+/// Shared spectra of K fluorophores and how their fit went.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Shared {
+    /// Components.
+    pub k: usize,
+    /// β_k(i), K × excitation, max 1 each.
+    pub excitation: Vec<f64>,
+    /// ε_k(o), K × emission, Σ = 1 each (per bin).
+    pub emission: Vec<f64>,
+    /// Σ over unmasked pixels of the squared residual of the reradiation cells
+    /// (compressed estimate).
+    pub loss: f64,
+    /// Σ over unmasked pixels of their reradiation energy.
+    pub energy: f64,
+    /// Iterations over all pixels.
+    pub iterations: usize,
+    /// Whether the relative loss change fell below the tolerance.
+    pub converged: bool,
+    /// Largest score of each component over the pixels.
+    pub max_scores: Vec<f64>,
+}
+
+impl Shared {
+    /// B_k over the reradiation cells.
+    pub fn cell_vector(&self, cells: &Cells, k: usize) -> Vec<f64> {
+        let (ni, no) = (cells.excitation_nm.len(), cells.emission_nm.len());
+        (0..cells.len())
+            .map(|j| {
+                self.excitation[k * ni + cells.excitation[j]]
+                    * self.emission[k * no + cells.emission[j]]
+            })
+            .collect()
+    }
+}
+
+/// What every pass needs: the projection of the components on the basis and their Gram.
+pub struct Projected {
+    /// K.
+    pub k: usize,
+    /// G = QᵀB, rank × K row-major.
+    pub g: Vec<f64>,
+    /// H = BᵀB, K × K.
+    pub h: Vec<f64>,
+}
+
+impl Projected {
+    /// For the components of `shared` and the `basis` (m × rank).
+    pub fn new(shared: &Shared, cells: &Cells, basis: &[f64], rank: usize) -> Projected {
+        let k = shared.k;
+        let vectors: Vec<Vec<f64>> = (0..k).map(|c| shared.cell_vector(cells, c)).collect();
+        let mut g = vec![0.0; rank * k];
+        for (c, b) in vectors.iter().enumerate() {
+            for (j, &v) in b.iter().enumerate() {
+                if v != 0.0 {
+                    for a in 0..rank {
+                        g[a * k + c] += basis[j * rank + a] * v;
+                    }
+                }
+            }
+        }
+        let mut h = vec![0.0; k * k];
+        for a in 0..k {
+            for b in a..k {
+                let d = crate::numeric::dot(&vectors[a], &vectors[b]);
+                h[a * k + b] = d;
+                h[b * k + a] = d;
+            }
+        }
+        Projected { k, g, h }
+    }
+
+    /// The scores of a pixel with coordinates `y`.
+    pub fn scores(&self, y: &[f32]) -> [f64; nnls::MAX_UNKNOWNS] {
+        let k = self.k;
+        let mut rhs = [0.0; nnls::MAX_UNKNOWNS];
+        for (a, &v) in y.iter().enumerate() {
+            let v = f64::from(v);
+            for c in 0..k {
+                rhs[c] += self.g[a * k + c] * v;
+            }
+        }
+        nnls::solve(&self.h, &rhs[..k])
+    }
+}
+
+/// Sums over pixels of one iteration.
+#[derive(Debug, Clone)]
+struct Sums {
+    sts: Vec<f64>,
+    sty: Vec<f64>,
+    loss: f64,
+    energy: f64,
+    max_scores: Vec<f64>,
+}
+
+impl Sums {
+    fn zero(k: usize, rank: usize) -> Sums {
+        Sums {
+            sts: vec![0.0; k * k],
+            sty: vec![0.0; k * rank],
+            loss: 0.0,
+            energy: 0.0,
+            max_scores: vec![0.0; k],
+        }
+    }
+
+    fn add(&mut self, o: &Sums) {
+        for (a, b) in self.sts.iter_mut().zip(&o.sts) {
+            *a += b;
+        }
+        for (a, b) in self.sty.iter_mut().zip(&o.sty) {
+            *a += b;
+        }
+        self.loss += o.loss;
+        self.energy += o.energy;
+        for (a, b) in self.max_scores.iter_mut().zip(&o.max_scores) {
+            *a = a.max(*b);
+        }
+    }
+}
+
+/// One pass over the scratch records: scores of every unmasked pixel and the sums.
+fn score_pass(scratch: &Scratch, p: &Projected) -> Result<Sums> {
+    let rank = scratch.layout.rank;
+    let k = p.k;
+    let chunks: Vec<usize> = (0..scratch.pixels.div_ceil(CHUNK)).collect();
+    let partial: Vec<Result<Sums>> = chunks
+        .par_iter()
+        .map(|&chunk| {
+            let first = chunk * CHUNK;
+            let count = CHUNK.min(scratch.pixels - first);
+            let records = scratch.read(first, count)?;
+            let mut sums = Sums::zero(k, rank);
+            let len = scratch.layout.len();
+            for r in records.chunks_exact(len) {
+                if r[0] != 0.0 {
+                    continue;
+                }
+                let y = &r[scratch.layout.y()];
+                let s = p.scores(y);
+                let mut gs = 0.0;
+                let mut shs = 0.0;
+                for a in 0..k {
+                    sums.max_scores[a] = sums.max_scores[a].max(s[a]);
+                    for b in 0..k {
+                        sums.sts[a * k + b] += s[a] * s[b];
+                        shs += s[a] * p.h[a * k + b] * s[b];
+                    }
+                    for (t, &v) in y.iter().enumerate() {
+                        let v = f64::from(v);
+                        sums.sty[a * rank + t] += s[a] * v;
+                        gs += s[a] * p.g[t * k + a] * v;
+                    }
+                }
+                let energy = f64::from(r[1]);
+                sums.energy += energy;
+                sums.loss += energy - 2.0 * gs + shs;
+            }
+            Ok(sums)
+        })
+        .collect();
+    let mut total = Sums::zero(k, rank);
+    for s in partial {
+        total.add(&s?);
+    }
+    Ok(total)
+}
+
+/// Updates β and ε from Sᵀ·S and Sᵀ·X (K × m) by row-wise coordinate descent.
+fn update_factors(shared: &mut Shared, cells: &Cells, sts: &[f64], stx: &[f64]) {
+    let k = shared.k;
+    let (ni, no) = (cells.excitation_nm.len(), cells.emission_nm.len());
+    let m = cells.len();
+    // Cells by excitation row and by emission column.
+    let mut rows: Vec<Vec<usize>> = vec![Vec::new(); ni];
+    let mut columns: Vec<Vec<usize>> = vec![Vec::new(); no];
+    for j in 0..m {
+        rows[cells.excitation[j]].push(j);
+        columns[cells.emission[j]].push(j);
+    }
+    // The largest Gram diagonal of each component over the rows (columns) sets the ridge.
+    let ridge_rows: Vec<f64> = (0..k)
+        .map(|a| {
+            rows.iter()
+                .map(|row| {
+                    row.iter()
+                        .map(|&j| shared.emission[a * no + cells.emission[j]].powi(2))
+                        .sum::<f64>()
+                })
+                .fold(0.0, f64::max)
+                * RIDGE
+                * sts[a * k + a]
+        })
+        .collect();
+    let ridge_columns: Vec<f64> = (0..k)
+        .map(|a| {
+            columns
+                .iter()
+                .map(|column| {
+                    column
+                        .iter()
+                        .map(|&j| shared.excitation[a * ni + cells.excitation[j]].powi(2))
+                        .sum::<f64>()
+                })
+                .fold(0.0, f64::max)
+                * RIDGE
+                * sts[a * k + a]
+        })
+        .collect();
+    for _ in 0..INNER_SWEEPS {
+        // Excitation rows.
+        for (i, row) in rows.iter().enumerate() {
+            let mut gram = vec![0.0; k * k];
+            let mut rhs = vec![0.0; k];
+            for &j in row {
+                let o = cells.emission[j];
+                for a in 0..k {
+                    let ea = shared.emission[a * no + o];
+                    rhs[a] += stx[a * m + j] * ea;
+                    for b in 0..k {
+                        gram[a * k + b] += ea * shared.emission[b * no + o];
+                    }
+                }
+            }
+            for a in 0..k {
+                let diagonal = sts[a * k + a] * gram[a * k + a] + ridge_rows[a];
+                if diagonal <= 0.0 {
+                    continue;
+                }
+                let others: f64 = (0..k)
+                    .filter(|&b| b != a)
+                    .map(|b| sts[a * k + b] * gram[a * k + b] * shared.excitation[b * ni + i])
+                    .sum();
+                shared.excitation[a * ni + i] = ((rhs[a] - others) / diagonal).max(0.0);
+            }
+        }
+        // Emission columns.
+        for (o, column) in columns.iter().enumerate() {
+            let mut gram = vec![0.0; k * k];
+            let mut rhs = vec![0.0; k];
+            for &j in column {
+                let i = cells.excitation[j];
+                for a in 0..k {
+                    let ba = shared.excitation[a * ni + i];
+                    rhs[a] += stx[a * m + j] * ba;
+                    for b in 0..k {
+                        gram[a * k + b] += ba * shared.excitation[b * ni + i];
+                    }
+                }
+            }
+            for a in 0..k {
+                let diagonal = sts[a * k + a] * gram[a * k + a] + ridge_columns[a];
+                if diagonal <= 0.0 {
+                    continue;
+                }
+                let others: f64 = (0..k)
+                    .filter(|&b| b != a)
+                    .map(|b| sts[a * k + b] * gram[a * k + b] * shared.emission[b * no + o])
+                    .sum();
+                shared.emission[a * no + o] = ((rhs[a] - others) / diagonal).max(0.0);
+            }
+        }
+    }
+    normalise(shared, ni, no);
+}
+
+/// β max 1, Σ ε = 1 (the scale goes to the scores, which the next pass recomputes).
+fn normalise(shared: &mut Shared, ni: usize, no: usize) {
+    for a in 0..shared.k {
+        let ex = &mut shared.excitation[a * ni..(a + 1) * ni];
+        let peak = ex.iter().cloned().fold(0.0, f64::max);
+        if peak > 0.0 {
+            ex.iter_mut().for_each(|v| *v /= peak);
+        }
+        let em = &mut shared.emission[a * no..(a + 1) * no];
+        let sum: f64 = em.iter().sum();
+        if sum > 0.0 {
+            em.iter_mut().for_each(|v| *v /= sum);
+        }
+    }
+}
+
+/// The pixels the successive projection algorithm picks (Araújo et al. 2001; the
+/// endmember search of hyperspectral unmixing): each the unmasked pixel farthest from the
+/// span of those picked before, in the compressed coordinates. With non-negative mixtures
+/// these are the purest pixels of each fluorophore, wherever they lie in the image.
+fn extreme_pixels(scratch: &Scratch, count: usize) -> Result<Vec<usize>> {
+    let rank = scratch.layout.rank;
+    let len = scratch.layout.len();
+    let mut picked: Vec<usize> = Vec::new();
+    // Orthonormal directions of the picked pixels' coordinates.
+    let mut directions: Vec<Vec<f64>> = Vec::new();
+    for _ in 0..count.min(rank) {
+        let chunks: Vec<usize> = (0..scratch.pixels.div_ceil(CHUNK)).collect();
+        let best: Vec<Result<(f64, usize)>> = chunks
+            .par_iter()
+            .map(|&chunk| {
+                let first = chunk * CHUNK;
+                let count = CHUNK.min(scratch.pixels - first);
+                let records = scratch.read(first, count)?;
+                let mut best = (f64::NEG_INFINITY, usize::MAX);
+                for (q, r) in records.chunks_exact(len).enumerate() {
+                    if r[0] != 0.0 {
+                        continue;
+                    }
+                    let y = &r[scratch.layout.y()];
+                    let mut norm: f64 = y.iter().map(|&v| f64::from(v).powi(2)).sum();
+                    for d in &directions {
+                        let dot: f64 = d.iter().zip(y).map(|(a, &b)| a * f64::from(b)).sum();
+                        norm -= dot * dot;
+                    }
+                    if norm > best.0 {
+                        best = (norm, first + q);
+                    }
+                }
+                Ok(best)
+            })
+            .collect();
+        let mut winner = (f64::NEG_INFINITY, usize::MAX);
+        for b in best {
+            let b = b?;
+            if b.0 > winner.0 {
+                winner = b;
+            }
+        }
+        if winner.1 == usize::MAX || winner.0 <= 0.0 {
+            break;
+        }
+        let record = scratch.read(winner.1, 1)?;
+        let mut v: Vec<f64> = record[scratch.layout.y()]
+            .iter()
+            .map(|&x| f64::from(x))
+            .collect();
+        for d in &directions {
+            let dot: f64 = d.iter().zip(&v).map(|(a, b)| a * b).sum();
+            for (x, a) in v.iter_mut().zip(d) {
+                *x -= dot * a;
+            }
+        }
+        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm <= 0.0 {
+            break;
+        }
+        v.iter_mut().for_each(|x| *x /= norm);
+        directions.push(v);
+        picked.push(winner.1);
+    }
+    Ok(picked)
+}
+
+/// Pixels the start is fitted on: the extreme pixels, then a regular grid.
+const START_EXTREMES: usize = 16;
+
+/// The start: the joint fit's non-negative PARAFAC on a few pixels (the extreme ones and
+/// a regular grid, `pixels` in all), rebuilt from their coordinates (x ≈ Q·y, which also
+/// removes most of their noise).
+pub fn start(
+    scratch: &Scratch,
+    cells: &Cells,
+    basis: &[f64],
+    width: usize,
+    height: usize,
+    k: usize,
+    pixels: usize,
+) -> Result<Shared> {
+    let rank = scratch.layout.rank;
+    let (ni, no) = (cells.excitation_nm.len(), cells.emission_nm.len());
+    let mut chosen = extreme_pixels(scratch, START_EXTREMES)?;
+    let grid = pixels.saturating_sub(chosen.len()).max(1);
+    let stride = ((width * height) as f64 / grid as f64)
+        .sqrt()
+        .ceil()
+        .max(1.0) as usize;
+    for y in (stride / 2..height).step_by(stride) {
+        for x in (stride / 2..width).step_by(stride) {
+            if !chosen.contains(&(y * width + x)) {
+                chosen.push(y * width + x);
+            }
+        }
+    }
+    let mut values = Vec::new();
+    let mut samples = 0;
+    for &p in &chosen {
+        let record = scratch.read(p, 1)?;
+        if record[0] != 0.0 {
+            continue;
+        }
+        let coordinates = &record[scratch.layout.y()];
+        let mut matrix = vec![f64::NAN; ni * no];
+        for j in 0..cells.len() {
+            let v: f64 = (0..rank)
+                .map(|a| basis[j * rank + a] * f64::from(coordinates[a]))
+                .sum();
+            matrix[cells.excitation[j] * no + cells.emission[j]] = v;
+        }
+        values.extend(matrix);
+        samples += 1;
+    }
+    if samples == 0 {
+        return Err(Error::invalid(
+            "image",
+            "every pixel is masked (each holds a non-finite cell): nothing to fit",
+        ));
+    }
+    let tensor = parafac::Tensor {
+        samples,
+        n_ex: ni,
+        n_em: no,
+        values,
+    };
+    let fitted = parafac::fit(
+        &tensor,
+        &vec![1.0; no],
+        &parafac::ParafacOptions {
+            components: k,
+            max_iterations: 300,
+            tolerance: 1e-7,
+        },
+    )?;
+    let mut shared = Shared {
+        k,
+        excitation: fitted.factors.excitation,
+        emission: fitted.factors.emission,
+        loss: f64::INFINITY,
+        energy: 0.0,
+        iterations: 0,
+        converged: false,
+        max_scores: vec![0.0; k],
+    };
+    normalise(&mut shared, ni, no);
+    Ok(shared)
+}
+
+/// Refines `shared` on every pixel of `scratch` until the loss changes by less than
+/// `tolerance` (relative) or `max_iterations` passes; `progress` gets each iteration.
+pub fn refine(
+    scratch: &Scratch,
+    cells: &Cells,
+    basis: &[f64],
+    mut shared: Shared,
+    max_iterations: usize,
+    tolerance: f64,
+    mut progress: impl FnMut(usize),
+) -> Result<Shared> {
+    let rank = scratch.layout.rank;
+    let k = shared.k;
+    let m = cells.len();
+    let mut previous = f64::INFINITY;
+    for iteration in 1..=max_iterations {
+        crate::files::check_interrupted(std::path::Path::new("image fit"))?;
+        let projected = Projected::new(&shared, cells, basis, rank);
+        let sums = score_pass(scratch, &projected)?;
+        shared.loss = sums.loss.max(0.0);
+        shared.energy = sums.energy;
+        shared.max_scores = sums.max_scores.clone();
+        shared.iterations = iteration;
+        progress(iteration);
+        let change = (previous - sums.loss).abs() / sums.energy.max(f64::MIN_POSITIVE);
+        if change < tolerance {
+            shared.converged = true;
+            break;
+        }
+        previous = sums.loss;
+        if iteration == max_iterations {
+            break;
+        }
+        // Sᵀ·X ≈ (Sᵀ·Y)·Qᵀ.
+        let mut stx = vec![0.0; k * m];
+        for a in 0..k {
+            for j in 0..m {
+                stx[a * m + j] = (0..rank)
+                    .map(|t| sums.sty[a * rank + t] * basis[j * rank + t])
+                    .sum();
+            }
+        }
+        update_factors(&mut shared, cells, &sums.sts, &stx);
+    }
+    Ok(shared)
+}
