@@ -35,7 +35,8 @@ struct Cli {
 enum Command {
     /// Fit the fluorescent BBRRDF to measured matrices and write material JSON.
     Fit(fit::FitArgs),
-    /// Write synthetic matrices with known ground truth.
+    /// Write synthetic matrices (or, with --image, bispectral images) with known ground
+    /// truth.
     Synth(synth::SynthArgs),
     /// Render a material in the built-in spectral path tracer.
     Render(render::RenderArgs),

@@ -30,6 +30,7 @@ mod fit_synthetic;
 mod formats;
 mod formats_lab;
 mod fuzz;
+mod image_synth;
 mod import;
 mod limits;
 mod model_search;
