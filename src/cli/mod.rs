@@ -39,7 +39,8 @@ enum Command {
     /// Fit a bispectral image into a material map: shared fluorophores, per-pixel
     /// concentrations and reflectance.
     FitImage(fit_image::FitImageArgs),
-    /// Write synthetic matrices with known ground truth.
+    /// Write synthetic matrices (or, with --image, bispectral images) with known ground
+    /// truth.
     Synth(synth::SynthArgs),
     /// Render a material in the built-in spectral path tracer.
     Render(render::RenderArgs),

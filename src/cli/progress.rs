@@ -57,6 +57,11 @@ impl Progress {
         self.bar.set_message(name);
     }
 
+    /// Sets the number of items done (for work reported in steps of several items).
+    pub fn set_done(&self, done: usize) {
+        self.bar.set_position(done as u64);
+    }
+
     /// Counts one item done.
     pub fn done_one(&self) {
         self.bar.inc(1);

@@ -3,12 +3,13 @@
 //!
 //! [`source`] streams an image's pixels block by block, [`sink`] writes images tile by
 //! tile, [`layout`] names the cells of a pixel, [`map`] is the material map every
-//! downstream step reads.
+//! downstream step reads, [`synth`] writes synthetic images with their truth.
 
 pub mod layout;
 pub mod map;
 pub mod sink;
 pub mod source;
+pub mod synth;
 
 pub use layout::{Cell, Layout};
 pub use map::MaterialMap;
