@@ -225,6 +225,7 @@ impl MaterialMap {
 
 /// Every channel of the first part of a (small) EXR, read whole: width, height, channel
 /// names, and each channel's samples row-major.
+#[allow(clippy::type_complexity)] // four parts, destructured where it is called
 pub fn read_whole(path: &Path) -> Result<(usize, usize, Vec<String>, Vec<Vec<f32>>)> {
     use exr::prelude::{ReadChannels, ReadLayers, read};
     let image = read()
