@@ -42,6 +42,13 @@ $fluorite synth --out data/ --preset green-dye,red-pigment,brightener,two-dyes,p
 
 if [ "$timings" = false ]; then
   $fluorite fit data/*.csv -o fits/ --plot --render
+  # A material map to try the textured renderer on (examples/material_map.rs: two-dyes'
+  # fluorophores, one per half), and its renders shown in docs/render.md.
+  cargo run --release --quiet --example material_map -- data/two-dyes.truth.json fits/maps/two-dyes
+  $fluorite render fits/maps/two-dyes/material-map.json --scene plane --light uv --spp 64 \
+    --size 480x240 -q -o fits/maps/two-dyes/plane-uv.png
+  $fluorite render fits/maps/two-dyes/material-map.json --compare --light uv --spp 64 \
+    --size 480x240 -q -o fits/maps/two-dyes/sphere-compare-uv.png
   # Models a scene needs: the search for the smallest parametric model meeting
   # ΔE2000 ≤ 1 under D65, A, F11 and UV, on the examples and (below) on the real surfaces.
   mkdir -p fits/models

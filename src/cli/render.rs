@@ -1,4 +1,5 @@
-//! `fluorite render`: preview a material in the built-in spectral path tracer.
+//! `fluorite render`: preview a material, or a material map, in the built-in spectral path
+//! tracer.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -11,6 +12,7 @@ use fluorite::error::Error;
 use fluorite::render::image::check_exposure;
 use fluorite::render::picture::{Picture, Rendered, render_picture};
 use fluorite::render::report::furnace_noise;
+use fluorite::render::{MaterialSource, MaterialTexture, is_material_map};
 
 use crate::cli::printer;
 use fluorite::render::{RenderSettings, SceneKind, SpectralSampling};
@@ -22,6 +24,9 @@ pub enum SceneArg {
     Preview,
     /// The material on a sphere alone in a uniform environment of the light (for checks).
     Furnace,
+    /// The material on a rectangle facing the camera in a uniform environment of the light:
+    /// each point shows its flat-patch colour; a material map spans it once, upright.
+    Plane,
 }
 
 /// How paths draw wavelengths.
@@ -46,7 +51,9 @@ impl From<SamplingArg> for SpectralSampling {
 /// Arguments of `fluorite render`.
 #[derive(clap::Args)]
 pub struct RenderArgs {
-    /// Material JSON to render (fluorite-material/1); with `--report`, one or more.
+    /// Material JSON to render (fluorite-material/1), or a material map
+    /// (fluorite-material-map/1: `material-map.json` or any JSON of that schema, its
+    /// textures beside it), shown textured; with `--report`, one or more materials.
     #[arg(required = true, num_args = 1..)]
     pub materials: Vec<PathBuf>,
     /// Output PNG [default: the material's path with the extension .png].
@@ -56,8 +63,8 @@ pub struct RenderArgs {
     /// (wavelength_nm,power).
     #[arg(long, default_value = "d65")]
     pub light: String,
-    /// Place a twin sphere with the same reflectance r and no fluorescence (c = 0) to the
-    /// right of the material's sphere.
+    /// Place a twin sphere (rectangle with `--scene plane`) with the same reflectance r and
+    /// no fluorescence (c = 0) to the right of the material's.
     #[arg(long)]
     pub compare: bool,
     /// Scene to render.
@@ -121,7 +128,6 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         )
         .into());
     };
-    let material = Material::load(material_path)?;
     let (width, height) = parse_size(args.size.as_deref().unwrap_or(DEFAULT_SIZE))?;
     let picture = Picture {
         light: Light::parse(&args.light)?,
@@ -134,6 +140,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         kind: match args.scene {
             SceneArg::Preview => SceneKind::Preview,
             SceneArg::Furnace => SceneKind::Furnace,
+            SceneArg::Plane => SceneKind::Plane,
         },
         compare: args.compare,
         sampling: args.sampling.into(),
@@ -145,15 +152,42 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         .output
         .clone()
         .unwrap_or_else(|| material_path.with_extension("png"));
-    render_to(&material, material_path, &picture, &output, args.quiet)?;
+    if is_material_map(material_path) {
+        let texture = MaterialTexture::load(material_path)?;
+        render_to(
+            MaterialSource::Map(&texture),
+            material_path,
+            &picture,
+            &output,
+            args.quiet,
+        )?;
+        if texture.masked() > 0 && !args.quiet {
+            eprintln!(
+                "note: {} of {} texels of {} are masked (non-finite values); they show as a neutral grey of reflectance {}",
+                texture.masked(),
+                texture.width * texture.height,
+                material_path.display(),
+                fluorite::render::texture::MASKED_REFLECTANCE
+            );
+        }
+    } else {
+        let material = Material::load(material_path)?;
+        render_to(
+            MaterialSource::Uniform(&material),
+            material_path,
+            &picture,
+            &output,
+            args.quiet,
+        )?;
+    }
     Ok(ExitCode::SUCCESS)
 }
 
-/// Renders `material` (read from or written to `material_path`, for messages) into
-/// `output` (display-referred PNG) and, with [`Picture::exr`], a scene-referred EXR beside
-/// it; shows progress and a summary line unless `quiet`.
+/// Renders `material` (a material or a map, read from or written to `material_path`, for
+/// messages) into `output` (display-referred PNG) and, with [`Picture::exr`], a
+/// scene-referred EXR beside it; shows progress and a summary line unless `quiet`.
 fn render_to(
-    material: &Material,
+    material: MaterialSource,
     material_path: &Path,
     picture: &Picture,
     output: &Path,
@@ -253,6 +287,16 @@ fn report(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         .split(',')
         .map(|l| Light::parse(l.trim()))
         .collect::<fluorite::Result<Vec<_>>>()?;
+    if let Some(map) = args.materials.iter().find(|p| is_material_map(p)) {
+        return Err(Error::invalid(
+            "--report",
+            format!(
+                "{} is a material map; the furnace report measures single materials: render the map without --report",
+                map.display()
+            ),
+        )
+        .into());
+    }
     let materials = args
         .materials
         .iter()

@@ -137,6 +137,50 @@ impl Shape {
         }
     }
 
+    /// Texture coordinates (u, v) ∈ [0, 1]² of a point on the shape, row 0 of a texture
+    /// at v = 0:
+    /// - sphere: longitude and latitude, u = φ/2π, v = θ/π, with θ the angle from +y and
+    ///   φ running from −z through −x, +z (u = ½) and +x, so that the whole texture wraps
+    ///   once, its seam faces −z and a camera on +z sees its middle half upright;
+    /// - quad: u = s along `edge_u`, v = 1 − t along `edge_v` (edge_u pointing right and
+    ///   edge_v up, the texture appears upright from the front);
+    /// - infinite plane: the point's coordinates along two axes in the plane, modulo 1 (the
+    ///   texture repeats every scene unit).
+    #[inline]
+    pub fn uv_at(&self, p: Vec3) -> (f32, f32) {
+        match self {
+            Shape::Sphere { centre, radius } => {
+                let d = (p - *centre) / *radius;
+                let u = 0.5 + d.x.atan2(d.z) / std::f32::consts::TAU;
+                let v = d.y.clamp(-1.0, 1.0).acos() / std::f32::consts::PI;
+                (u.clamp(0.0, 1.0), v)
+            }
+            Shape::Plane { point, normal } => {
+                let (a, b) = normal.any_orthonormal_pair();
+                let h = p - *point;
+                (h.dot(a).rem_euclid(1.0), h.dot(b).rem_euclid(1.0))
+            }
+            Shape::Quad(q) => {
+                let h = p - q.corner;
+                let s = q.w.dot(h.cross(q.edge_v));
+                let t = q.w.dot(q.edge_u.cross(h));
+                (s.clamp(0.0, 1.0), (1.0 - t).clamp(0.0, 1.0))
+            }
+        }
+    }
+
+    /// Whether u and v of [`Shape::uv_at`] are periodic (the texture continues across
+    /// u = 1 to u = 0): a sphere's longitude, both on an infinite plane, neither on a
+    /// quad.
+    #[inline]
+    pub fn uv_wraps(&self) -> [bool; 2] {
+        match self {
+            Shape::Sphere { .. } => [true, false],
+            Shape::Plane { .. } => [true, true],
+            Shape::Quad(_) => [false, false],
+        }
+    }
+
     /// The outward (front) unit normal at a point on the shape.
     #[inline]
     pub fn normal_at(&self, p: Vec3) -> Vec3 {
@@ -260,6 +304,30 @@ mod tests {
         };
         assert!((plane.intersect(&down, f32::INFINITY).unwrap() - 2.0).abs() < 1e-5);
         assert!(plane.intersect(&down, 1.0).is_none());
+    }
+
+    #[test]
+    fn texture_coordinates_follow_the_stated_conventions() {
+        let sphere = Shape::Sphere {
+            centre: Vec3::new(1.0, 2.0, 3.0),
+            radius: 2.0,
+        };
+        let at = |d: Vec3| sphere.uv_at(Vec3::new(1.0, 2.0, 3.0) + 2.0 * d.normalize());
+        let close = |(u, v): (f32, f32), (eu, ev): (f32, f32)| {
+            assert!((u - eu).abs() < 1e-5 && (v - ev).abs() < 1e-5, "{u} {v}");
+        };
+        close(at(Vec3::Z), (0.5, 0.5));
+        close(at(Vec3::X), (0.75, 0.5));
+        close(at(-Vec3::X), (0.25, 0.5));
+        close(at(Vec3::Y), (at(Vec3::Y).0, 0.0));
+        close(at(-Vec3::Y), (at(-Vec3::Y).0, 1.0));
+        close(at(Vec3::new(0.0, 1.0, 1.0)), (0.5, 0.25));
+        assert_eq!(sphere.uv_wraps(), [true, false]);
+        // A quad with edge_u right and edge_v up: its top-left corner is (0, 0).
+        let quad = Shape::Quad(Quad::new(Vec3::ZERO, Vec3::X * 4.0, Vec3::Y * 2.0));
+        close(quad.uv_at(Vec3::new(0.0, 2.0, 0.0)), (0.0, 0.0));
+        close(quad.uv_at(Vec3::new(1.0, 0.5, 0.0)), (0.25, 0.75));
+        assert_eq!(quad.uv_wraps(), [false, false]);
     }
 
     #[test]

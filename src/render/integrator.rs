@@ -21,6 +21,10 @@
 //! towards the area lights and by the continued path, combined with the power heuristic.
 //! Russian roulette ends paths whose weight has fallen.
 //!
+//! A surface is first evaluated at the hit ([`Surface::at`](super::surface::Surface::at)):
+//! a material map's texel there has its own d, F and G, and each fluorophore's k is
+//! scaled by the texel's concentration; every rule here then reads that point alike.
+//!
 //! That is the paper's rule ([`SpectralSampling::Paper`]); by default
 //! ([`SpectralSampling::LightAware`]) a fluorescent surface draws its event by one-sample
 //! multiple importance sampling of that rule (share α = [`DEFENSIVE_SHARE`]) and of the
@@ -38,7 +42,8 @@ use glam::{Vec3, Vec4};
 use super::geometry::{RAY_EPSILON, Ray, Shape, cosine_sample};
 use super::rng::Rng;
 use super::scene::{Scene, SpectralSampling};
-use super::spectra::{FluorophoreTables, Lookup, SurfaceTables};
+use super::spectra::{FluorophoreTables, Lookup};
+use super::surface::SurfacePoint;
 
 /// Wavelengths a camera path carries.
 pub const CHANNELS: usize = 4;
@@ -66,18 +71,17 @@ pub const DEFENSIVE_SHARE: f32 = 0.2;
 /// changed.
 #[inline]
 fn scatter(
-    surface: &SurfaceTables,
+    surface: &SurfacePoint,
     lambda: &mut Vec4,
-    at: &Lookup,
     light: Vec4,
     sampling: SpectralSampling,
     rng: &mut Rng,
 ) -> (Vec4, bool) {
-    let d = surface.diagonal.gather(at);
+    let d = surface.diagonal;
     if !surface.is_fluorescent() {
         return (d, false);
     }
-    let f = surface.fluorescent_albedo.gather(at);
+    let f = surface.fluorescent_albedo;
     let total = d + f;
     let mut wavelengths = lambda.to_array();
     let fluorescent = f.to_array();
@@ -100,7 +104,7 @@ fn scatter(
     // or k·x·a·L·e, mass T = d·L(λo) + G). The weight f/(α·p1 + (1 − α)·p2) is
     // 1/(α/(d + F) + (1 − α)·L(λo)/T) for the elastic branch and
     // x·a/(α·x·a/(d + F) + (1 − α)·ĝ/T) at the excitation wavelength (ĝ ≈ x·a·L).
-    let lit = surface.lit_albedo.gather(at);
+    let lit = surface.lit_albedo;
     let lit_totals = (d * light + lit).to_array();
     let lits = lit.to_array();
     let diagonal = d.to_array();
@@ -144,23 +148,23 @@ fn scatter(
     (Vec4::from_array(weights), changed)
 }
 
-/// The fluorophore and excitation wavelength of a fluorescent event by the paper's rule, seen from emission wavelength
-/// `lambda_o` (F = the surface's fluorescent albedo there).
+/// The fluorophore and excitation wavelength of a fluorescent event by the paper's rule,
+/// seen from emission wavelength `lambda_o` (F = the surface's fluorescent albedo there).
 #[inline]
 fn excite<'s>(
-    surface: &'s SurfaceTables,
+    surface: &SurfacePoint<'s>,
     lambda_o: f32,
     albedo: f32,
     rng: &mut Rng,
 ) -> (&'s FluorophoreTables, f32) {
-    let fluorophores = &surface.fluorophores;
+    let fluorophores = surface.fluorophores;
     let chosen = if fluorophores.len() == 1 {
         &fluorophores[0]
     } else {
         let mut u = rng.next_f32() * albedo;
-        let mut chosen = &fluorophores[fluorophores.len() - 1];
-        for f in fluorophores {
-            let share = f.albedo.eval(lambda_o);
+        let mut chosen = surface.fallback(false);
+        for (j, f) in fluorophores.iter().enumerate() {
+            let share = surface.scale(j) * f.albedo.eval(lambda_o);
             if u < share {
                 chosen = f;
                 break;
@@ -179,7 +183,7 @@ fn excite<'s>(
 /// λi ∝ ĝ; `mass` = G there).
 #[inline]
 fn excite_mixed<'s>(
-    surface: &'s SurfaceTables,
+    surface: &SurfacePoint<'s>,
     lambda_o: f32,
     mass: f32,
     by_light: bool,
@@ -188,19 +192,18 @@ fn excite_mixed<'s>(
     if !by_light {
         return excite(surface, lambda_o, mass, rng);
     }
-    let fluorophores = &surface.fluorophores;
+    let fluorophores = surface.fluorophores;
     // Some fluorophore absorbs the light: the caller draws this rule only when G > 0.
-    let last_lit = fluorophores.iter().rev().find(|f| f.lit.is_some());
     let chosen = if fluorophores.len() == 1 {
         &fluorophores[0]
     } else {
         let mut u = rng.next_f32() * mass;
-        let mut chosen = last_lit.unwrap_or(&fluorophores[0]);
-        for f in fluorophores {
-            let share = f
-                .lit
-                .as_ref()
-                .map_or(0.0, |l| f.k * l.absorbed * f.emission.eval(lambda_o));
+        let mut chosen = surface.fallback(true);
+        for (j, f) in fluorophores.iter().enumerate() {
+            let share = surface.scale(j)
+                * f.lit
+                    .as_ref()
+                    .map_or(0.0, |l| f.k * l.absorbed * f.emission.eval(lambda_o));
             if u < share {
                 chosen = f;
                 break;
@@ -270,8 +273,8 @@ pub fn trace(scene: &Scene, mut ray: Ray, mut lambda: Vec4, rng: &mut Rng) -> Ve
             break;
         };
         let normal = if cos_hit < 0.0 { outward } else { -outward };
-        let (albedo, changed) =
-            scatter(&surfaces[surface], &mut lambda, &at, emitted, sampling, rng);
+        let local = surfaces[surface].at(&object.shape, point, &at, lambda);
+        let (albedo, changed) = scatter(&local, &mut lambda, emitted, sampling, rng);
         weight *= albedo;
         if changed {
             at = Lookup::new(lambda);
@@ -293,14 +296,12 @@ pub fn trace(scene: &Scene, mut ray: Ray, mut lambda: Vec4, rng: &mut Rng) -> Ve
                 weight * (emitted + Vec4::splat(mean_light)) / start_light
             }
         };
-        let survival = if bounce == 0
-            && sampling == SpectralSampling::LightAware
-            && surfaces[surface].is_fluorescent()
-        {
-            1.0
-        } else {
-            importance.max_element().min(1.0)
-        };
+        let survival =
+            if bounce == 0 && sampling == SpectralSampling::LightAware && local.is_fluorescent() {
+                1.0
+            } else {
+                importance.max_element().min(1.0)
+            };
         if rng.next_f32() >= survival {
             break;
         }

@@ -1,9 +1,13 @@
-//! The built-in spectral renderer: previews a [`Material`](crate::Material) on a sphere,
-//! sampling the fluorescent BBRRDF as the paper describes (model.md §6).
+//! The built-in spectral renderer: previews a [`Material`](crate::Material), or a material
+//! map that varies one over a texture, on a sphere or a rectangle, sampling the
+//! fluorescent BBRRDF as the paper describes (model.md §6).
 //!
 //! - [`spectra`]: spectra tabulated at 1 nm over 300–780 nm and the sampling tables.
-//! - [`geometry`]: rays, spheres, planes, quads, the camera, cosine sampling.
-//! - [`scene`]: scenes, and the built-in preview and furnace scenes.
+//! - [`geometry`]: rays, spheres, planes, quads, the camera, cosine sampling, texture
+//!   coordinates.
+//! - [`texture`]: a material map's textures, checked and looked up at (u, v).
+//! - [`surface`]: a scene's surfaces, uniform or textured, and either at one hit point.
+//! - [`scene`]: scenes, and the built-in preview, furnace and plane scenes.
 //! - [`integrator`]: the path tracer (hero wavelengths, fluorescent events, next-event
 //!   estimation with multiple importance sampling, Russian roulette).
 //! - [`image`]: the exposure rule, sRGB PNG and linear EXR.
@@ -25,6 +29,8 @@ pub mod report;
 pub mod rng;
 pub mod scene;
 pub mod spectra;
+pub mod surface;
+pub mod texture;
 pub mod wavelengths;
 
 use glam::Vec4;
@@ -36,6 +42,8 @@ pub use geometry::{Camera, Quad, Ray, Shape};
 pub use image::DEFAULT_EXPOSURE_EV;
 pub use scene::{Object, Scene, SceneKind, SpectralSampling};
 pub use spectra::{LAMBDA_MAX_NM, LAMBDA_MIN_NM, LightSpectrum, Observer, SurfaceTables};
+pub use surface::{MaterialSource, Surface, SurfacePoint, TexturedSurface};
+pub use texture::{MaterialTexture, is_material_map};
 pub use wavelengths::WavelengthSampler;
 
 use integrator::{CHANNELS, trace};

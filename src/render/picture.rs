@@ -1,18 +1,19 @@
-//! One picture of a material: build the scene, render it, develop it into the display
-//! image (PNG), the scene-referred linear image and, if asked, an EXR. `fluorite render`,
-//! `fit --render` and the Python package's `render` all go through [`render_picture`].
+//! One picture of a material or a material map: build the scene, render it, develop it
+//! into the display image (PNG), the scene-referred linear image and, if asked, an EXR.
+//! `fluorite render`, `fit --render` and the Python package's `render` all go through
+//! [`render_picture`].
 
 use std::time::Instant;
 
 use crate::colour::Light;
 use crate::error::Result;
-use crate::material::Material;
 
 use super::compare::develop_compare;
 use super::image::{
     DEFAULT_EXPOSURE_EV, Develop, check_exposure, develop, film_to_linear_srgb, to_srgb8,
     xyz_to_srgb_matrix,
 };
+use super::surface::MaterialSource;
 use super::{Film, RenderSettings, Scene, SceneKind, SpectralSampling, render};
 
 /// Everything a picture needs but the material.
@@ -24,7 +25,8 @@ pub struct Picture {
     pub settings: RenderSettings,
     /// The built-in scene.
     pub kind: SceneKind,
-    /// A twin sphere with the same reflectance and no fluorescence to the right.
+    /// A twin sphere (or rectangle) with the same reflectance and no fluorescence to the
+    /// right.
     pub compare: bool,
     /// How paths draw wavelengths.
     pub sampling: SpectralSampling,
@@ -77,13 +79,15 @@ pub struct Rendered {
     pub seconds: f64,
 }
 
-/// Renders `material` as `picture` says. `on_row` is called once per finished row, from
-/// worker threads.
-pub fn render_picture(
-    material: &Material,
+/// Renders `material` (a [`Material`](crate::Material) or a material map's
+/// [`MaterialTexture`](super::texture::MaterialTexture)) as `picture` says. `on_row` is
+/// called once per finished row, from worker threads.
+pub fn render_picture<'m>(
+    material: impl Into<MaterialSource<'m>>,
     picture: &Picture,
     on_row: &(dyn Fn() + Sync),
 ) -> Result<Rendered> {
+    let material = material.into();
     let Picture {
         light,
         settings,
@@ -105,7 +109,7 @@ pub fn render_picture(
     let exposure = exposure_ev.unwrap_or(DEFAULT_EXPOSURE_EV);
     let description = format!(
         "{} under {}{}, scene {:?}, {} spp, seed {}{}{}",
-        material.name,
+        material.name(),
         light.name,
         if *compare {
             " (right: same reflectance without fluorescence)"
@@ -140,7 +144,7 @@ pub fn render_picture(
             settings,
             &develop_as,
             exposure_ev.is_none(),
-            (&material.name, &light.name),
+            (material.name(), &light.name),
         )?;
         (
             developed.png,

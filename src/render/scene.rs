@@ -1,14 +1,15 @@
 //! Scenes: objects with surfaces and emission, one light spectrum shared by every emitter
-//! and the environment, a camera; and the two built-in scenes (preview, furnace).
+//! and the environment, a camera; and the built-in scenes (preview, furnace, plane), which
+//! show a material or a material map ([`MaterialSource`]).
 
 use glam::Vec3;
 
 use crate::colour::Light;
 use crate::error::{Error, Result};
-use crate::material::Material;
 
 use super::geometry::{Camera, Quad, Ray, Shape};
-use super::spectra::{LightSpectrum, SurfaceTables, Table};
+use super::spectra::{LightSpectrum, SurfaceTables};
+use super::surface::{MaterialSource, Surface};
 use super::wavelengths::WavelengthSampler;
 
 /// Reflectance of the neutral grey ground of the preview scene.
@@ -22,6 +23,11 @@ pub const FURNACE_ENVIRONMENT: f32 = 1.0;
 pub const SPHERE_RADIUS: f32 = 1.0;
 /// Horizontal distance of each sphere's centre from the middle in `--compare` renders.
 pub const COMPARE_OFFSET: f32 = 1.15;
+/// Half the longer side of the plane scene's rectangle (scene units; the shorter side
+/// follows the texture's aspect).
+pub const PLANE_HALF_SIZE: f32 = 1.0;
+/// Gap between the material's rectangle and its twin in `--compare` plane renders.
+pub const PLANE_COMPARE_GAP: f32 = 0.3;
 
 /// Which built-in scene to render.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -33,6 +39,11 @@ pub enum SceneKind {
     /// The material on a sphere alone in a uniform environment (for checks: its exact
     /// radiance is known, model.md §6).
     Furnace,
+    /// The material on a rectangle facing the camera, alone in a uniform environment of
+    /// the light: every point shows the flat-patch colour of its material (model.md §7),
+    /// exactly known (model.md §6). Its texture coordinates span a material map once,
+    /// upright; the rectangle has the map's aspect (a square for a uniform material).
+    Plane,
 }
 
 /// An object of a scene.
@@ -61,7 +72,7 @@ pub struct Hit {
 #[derive(Debug, Clone)]
 pub struct Scene {
     objects: Vec<Object>,
-    surfaces: Vec<SurfaceTables>,
+    surfaces: Vec<Surface>,
     /// Objects that are emitting quads: the targets of next-event estimation.
     lights: Vec<usize>,
     light: LightSpectrum,
@@ -104,9 +115,11 @@ impl Scene {
         }
     }
 
-    /// Adds a surface; returns its index for [`Object::surface`]. Its light-aware
-    /// excitation samplers are built for the scene's light spectrum.
-    pub fn add_surface(&mut self, mut surface: SurfaceTables) -> usize {
+    /// Adds a surface (uniform [`SurfaceTables`] or a textured surface); returns its
+    /// index for [`Object::surface`]. Its light-aware excitation samplers are built for
+    /// the scene's light spectrum.
+    pub fn add_surface(&mut self, surface: impl Into<Surface>) -> usize {
+        let mut surface = surface.into();
         surface.light_with(&self.light.radiance);
         self.surfaces.push(surface);
         self.surfaces.len() - 1
@@ -175,7 +188,7 @@ impl Scene {
     }
 
     /// The surfaces.
-    pub fn surfaces(&self) -> &[SurfaceTables] {
+    pub fn surfaces(&self) -> &[Surface] {
         &self.surfaces
     }
 
@@ -192,21 +205,15 @@ impl Scene {
     /// The density of the camera paths' wavelengths: the observer's under
     /// [`SpectralSampling::Paper`], else guided by the light spectrum L (the emitters,
     /// the environment) and by each surface's radiance in a furnace of the light,
-    /// d·L + G (G its light-aware fluorescent albedo), see [`WavelengthSampler`].
+    /// d·L + G (G its light-aware fluorescent albedo; a map's mean over its texels), see
+    /// [`WavelengthSampler`].
     pub fn wavelength_sampler(&self) -> WavelengthSampler {
         if self.sampling == SpectralSampling::Paper {
             return WavelengthSampler::observer();
         }
-        let light = self.light.radiance.values();
         let mut guides = vec![self.light.radiance.clone()];
         for surface in &self.surfaces {
-            let radiance = light
-                .iter()
-                .zip(surface.diagonal.values())
-                .zip(surface.lit_albedo.values())
-                .map(|((l, d), g)| d * l + g)
-                .collect();
-            guides.push(Table::from_values(radiance));
+            guides.push(surface.furnace_guide(&self.light.radiance));
         }
         WavelengthSampler::guided(&guides)
     }
@@ -244,12 +251,14 @@ impl Scene {
             .any(|(i, o)| i != skip && o.shape.intersect(ray, t_max).is_some())
     }
 
-    /// A built-in scene showing `material` under `light`. With `compare`, a twin sphere
-    /// with the same reflectance r and no fluorescence stands to the right of the
-    /// material's sphere. `aspect` is the image's width / height.
-    pub fn build(
+    /// A built-in scene showing `material` (a [`Material`](crate::Material) or a
+    /// material map's [`MaterialTexture`](super::texture::MaterialTexture)) under
+    /// `light`. With `compare`, a twin with the same reflectance r and no fluorescence
+    /// stands to the right of the material's sphere (or rectangle). `aspect` is the
+    /// image's width / height.
+    pub fn build<'m>(
         kind: SceneKind,
-        material: &Material,
+        material: impl Into<MaterialSource<'m>>,
         light: &Light,
         compare: bool,
         aspect: f32,
@@ -260,41 +269,27 @@ impl Scene {
                 format!("is {aspect}; the image needs a positive width and height"),
             ));
         }
+        let source = material.into();
         let light = LightSpectrum::new(light)?;
-        let surface = SurfaceTables::new(material)?;
-        let twin = if compare {
-            let plain = Material::new(
-                format!("{} without fluorescence", material.name),
-                material.reflectance.clone(),
-                Vec::new(),
-            );
-            Some(SurfaceTables::new(&plain)?)
-        } else {
-            None
-        };
+        let surface = source.surface()?;
+        let twin = if compare { Some(source.twin()?) } else { None };
         let centre_y = match kind {
             SceneKind::Preview => SPHERE_RADIUS,
             SceneKind::Furnace => 0.0,
+            SceneKind::Plane => return plane_scene(light, surface, twin, source.aspect(), aspect),
         };
         let x = if compare { -COMPARE_OFFSET } else { 0.0 };
-        let eye = match kind {
-            SceneKind::Preview => Vec3::new(0.0, 2.4, 8.0),
-            SceneKind::Furnace => Vec3::new(0.0, 0.0, 6.0),
-        };
-        let target = match kind {
-            SceneKind::Preview => Vec3::new(0.0, 0.85, 0.0),
-            SceneKind::Furnace => Vec3::ZERO,
+        let (eye, target) = match kind {
+            SceneKind::Preview => (Vec3::new(0.0, 2.4, 8.0), Vec3::new(0.0, 0.85, 0.0)),
+            _ => (Vec3::new(0.0, 0.0, 6.0), Vec3::ZERO),
         };
         // Half the width and height of what must be in frame, at the target.
         let half_width = x.abs() + SPHERE_RADIUS + if compare { 0.9 } else { 1.4 };
         let half_height: f32 = match kind {
             SceneKind::Preview => 1.55,
-            SceneKind::Furnace => 1.3,
+            _ => 1.3,
         };
-        let distance = (target - eye).length();
-        let half_tan = (half_height.max(half_width / aspect)) / distance;
-        let vfov = 2.0 * half_tan.atan().to_degrees();
-        let camera = Camera::look_at(eye, target, vfov, aspect);
+        let camera = framing(eye, target, half_width, half_height, aspect);
 
         let mut scene = Scene::new(light, camera);
         let material_surface = scene.add_surface(surface);
@@ -316,7 +311,7 @@ impl Scene {
             })?;
         }
         match kind {
-            SceneKind::Furnace => scene.set_environment(FURNACE_ENVIRONMENT)?,
+            SceneKind::Furnace | SceneKind::Plane => scene.set_environment(FURNACE_ENVIRONMENT)?,
             SceneKind::Preview => {
                 let ground = scene.add_surface(SurfaceTables::grey("ground", GROUND_REFLECTANCE));
                 scene.add_object(Object {
@@ -348,6 +343,76 @@ impl Scene {
         }
         Ok(scene)
     }
+}
+
+/// A camera at `eye` looking at `target` whose view holds `half_width` and `half_height`
+/// (scene units, at the target) in an image of `aspect` = width / height.
+fn framing(eye: Vec3, target: Vec3, half_width: f32, half_height: f32, aspect: f32) -> Camera {
+    let distance = (target - eye).length();
+    let half_tan = (half_height.max(half_width / aspect)) / distance;
+    let vfov = 2.0 * half_tan.atan().to_degrees();
+    Camera::look_at(eye, target, vfov, aspect)
+}
+
+/// [`SceneKind::Plane`]: `surface` on a rectangle facing the camera (the longer side
+/// 2·[`PLANE_HALF_SIZE`], width / height = `texture_aspect`), with `twin` on another to
+/// its right, in a uniform environment of the light; `aspect` is the image's.
+fn plane_scene(
+    light: LightSpectrum,
+    surface: Surface,
+    twin: Option<Surface>,
+    texture_aspect: f32,
+    aspect: f32,
+) -> Result<Scene> {
+    let texture_aspect = if texture_aspect > 0.0 && texture_aspect.is_finite() {
+        texture_aspect
+    } else {
+        1.0
+    };
+    let (half_w, half_h) = if texture_aspect >= 1.0 {
+        (PLANE_HALF_SIZE, PLANE_HALF_SIZE / texture_aspect)
+    } else {
+        (PLANE_HALF_SIZE * texture_aspect, PLANE_HALF_SIZE)
+    };
+    let x = if twin.is_some() {
+        -(half_w + 0.5 * PLANE_COMPARE_GAP)
+    } else {
+        0.0
+    };
+    let margin = 0.15 * PLANE_HALF_SIZE;
+    let camera = framing(
+        Vec3::new(0.0, 0.0, 6.0),
+        Vec3::ZERO,
+        x.abs() + half_w + margin,
+        half_h + margin,
+        aspect,
+    );
+    let mut scene = Scene::new(light, camera);
+    // From the bottom-left corner, edge_u to the right and edge_v up: the front faces
+    // the camera and the texture stands upright ([`Shape::uv_at`]).
+    let rectangle = |centre_x: f32| {
+        Shape::Quad(Quad::new(
+            Vec3::new(centre_x - half_w, -half_h, 0.0),
+            Vec3::X * (2.0 * half_w),
+            Vec3::Y * (2.0 * half_h),
+        ))
+    };
+    let material_surface = scene.add_surface(surface);
+    scene.add_object(Object {
+        shape: rectangle(x),
+        surface: Some(material_surface),
+        emission: 0.0,
+    })?;
+    if let Some(twin) = twin {
+        let twin_surface = scene.add_surface(twin);
+        scene.add_object(Object {
+            shape: rectangle(-x),
+            surface: Some(twin_surface),
+            emission: 0.0,
+        })?;
+    }
+    scene.set_environment(FURNACE_ENVIRONMENT)?;
+    Ok(scene)
 }
 
 /// ∫ cos θ dω over the quad as seen from `point` with unit `normal` (the quad above the

@@ -309,7 +309,7 @@ const MAX_EXCITATION_PROPOSALS: usize = 64;
 
 impl FluorophoreTables {
     /// The tables of one fluorophore of a material.
-    fn new(f: &crate::material::Fluorophore) -> FluorophoreTables {
+    pub(super) fn new(f: &crate::material::Fluorophore) -> FluorophoreTables {
         let absorption = Table::from_fn(|nm| f.absorption.eval_zero_outside(nm));
         let emission = Table::from_fn(|nm| f.emission.eval_zero_outside(nm));
         let emission_mean_nm = f.emission_mean_nm();
@@ -355,6 +355,25 @@ impl FluorophoreTables {
             lit: None,
             cdf,
         }
+    }
+
+    /// Builds the light-aware excitation sampler under a scene's light spectrum `light`
+    /// ([`FluorophoreTables::lit`]).
+    pub(super) fn light_with(&mut self, light: &Table) {
+        let xa: Vec<f32> = self
+            .absorption
+            .values
+            .iter()
+            .enumerate()
+            .map(|(i, a)| a * self.excitation_factor(table_nm(i) as f32))
+            .collect();
+        self.lit = LitExcitation::new(&xa, light);
+    }
+
+    /// True when the fluorophore absorbs in the rendered range and emits there: one that
+    /// does not never fires, and surfaces drop it from their sampling.
+    pub(super) fn fires(&self) -> bool {
+        self.cdf.is_some() && self.albedo.max() > 0.0
     }
 
     /// The yield form's excitation factor x(λ): 1 (energy form) or λ/λ̄e (photon form).
@@ -432,7 +451,7 @@ impl SurfaceTables {
         }
         // Fluorophores that absorb nothing in the rendered range or emit nothing there
         // never fire; dropping them keeps the fast path for such surfaces.
-        fluorophores.retain(|f| f.cdf.is_some() && f.albedo.max() > 0.0);
+        fluorophores.retain(FluorophoreTables::fires);
         let mut fluorescent_albedo = Table::constant(0.0);
         for f in &fluorophores {
             for (total, v) in fluorescent_albedo.values.iter_mut().zip(&f.albedo.values) {
@@ -464,14 +483,7 @@ impl SurfaceTables {
     pub fn light_with(&mut self, light: &Table) {
         let mut lit_albedo = Table::constant(0.0);
         for f in &mut self.fluorophores {
-            let xa: Vec<f32> = f
-                .absorption
-                .values
-                .iter()
-                .enumerate()
-                .map(|(i, a)| a * f.excitation_factor(table_nm(i) as f32))
-                .collect();
-            f.lit = LitExcitation::new(&xa, light);
+            f.light_with(light);
             if let Some(lit) = &f.lit {
                 for (total, e) in lit_albedo.values.iter_mut().zip(&f.emission.values) {
                     *total += f.k * lit.absorbed * e;

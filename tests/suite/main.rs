@@ -40,6 +40,7 @@ mod plot;
 mod plot_masked;
 mod render;
 mod render_compare;
+mod render_map;
 mod reproducible_outputs;
 mod stability;
 mod synth_components;

@@ -4,6 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
+pub mod map;
+
 /// `../shared/data/<sub>` (a folder or a file), or None when it is absent: the calling
 /// test then skips, and says so — `SKIPPED <test>: <reason>` on the terminal, past the test
 /// harness's capture. Under CI (`CI` set and not `false`), which always has `../shared`,
