@@ -8,6 +8,10 @@
 //! started again with the same command resumes after its last finished stage and ends
 //! with the same files.
 
+// The kernels index several parallel arrays (cells, components, lights) by one index;
+// iterator chains over four zipped slices would hide the algebra they follow.
+#![allow(clippy::needless_range_loop)]
+
 pub mod colour;
 pub mod gauge;
 pub mod nnls;
@@ -537,7 +541,9 @@ fn judge(
     let lights = options.lights.len();
     const CHUNK: usize = 4096;
     let chunks: Vec<usize> = (0..scratch.pixels.div_ceil(CHUNK)).collect();
-    let per_chunk: Vec<Result<(Vec<Vec<f32>>, Vec<bool>)>> = chunks
+    // Per chunk: ΔE per light and pixel, and whether each pixel is within its bounds.
+    type Judged = (Vec<Vec<f32>>, Vec<bool>);
+    let per_chunk: Vec<Result<Judged>> = chunks
         .par_iter()
         .map(|&chunk| {
             let first = chunk * CHUNK;

@@ -61,7 +61,9 @@ pub struct PixelFit {
 }
 
 impl PixelModel {
-    /// The model of `shared` under `gauge` on `layout`.
+    /// The model of `shared` under `gauge` on `layout`, for records of `record`'s layout,
+    /// judged with `colours` at cell noise `sigma`.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         shared: &Shared,
         gauge: &Gauge,
