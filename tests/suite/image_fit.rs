@@ -291,13 +291,9 @@ fn shared_fluorophores_recover_the_truth() {
     let (x, y) = (f.truth.width - 3, 5);
     let r_truth = f.truth.reflectance(x, y);
     let p = y * f.truth.width + x;
-    for d in 0..nd {
+    for (d, truth) in r_truth.iter().enumerate() {
         let r = f64::from(textures.reflectance[p * nd + d]);
-        assert!(
-            (r - r_truth[d]).abs() < 0.005,
-            "r[{d}] {r} vs {}",
-            r_truth[d]
-        );
+        assert!((r - truth).abs() < 0.005, "r[{d}] {r} vs {truth}");
     }
     // Every fluorophore and a sample of pixel materials conserve energy and photons.
     for (p, _) in truth_c.iter().enumerate().step_by(97) {
