@@ -149,7 +149,12 @@ pub fn run(args: FitImageArgs) -> anyhow::Result<ExitCode> {
         bar: Mutex::new(None),
     };
     let started = std::time::Instant::now();
-    let fitted = fit_image(&image, &args.out, &options, &|s| bars.step(s));
+    let fitted = fit_image(
+        fluorite::image::PixelSource::Exr(&image),
+        &args.out,
+        &options,
+        &|s| bars.step(s),
+    );
     bars.finish();
     let fitted = fitted?;
     if !args.quiet {

@@ -5,12 +5,14 @@
 //! tile, [`layout`] names the cells of a pixel, [`map`] is the material map every
 //! downstream step reads, [`synth`] writes synthetic images with their truth.
 
+pub mod array;
 pub mod layout;
 pub mod map;
 pub mod sink;
 pub mod source;
 pub mod synth;
 
+pub use array::{ArrayImage, PixelSource};
 pub use layout::{Cell, Layout};
 pub use map::MaterialMap;
 pub use source::{ExrImage, PixelBlock};

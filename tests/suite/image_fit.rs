@@ -238,7 +238,13 @@ fn fitted(tag: &str) -> Fitted {
     truth.write(&truth_path, 0.0, 0);
     let image = ExrImage::open(&measured).unwrap();
     let out = dir.join("fit");
-    fit_image(&image, &out, &ImageFitOptions::default(), &|_| {}).unwrap();
+    fit_image(
+        fluorite::image::PixelSource::Exr(&image),
+        &out,
+        &ImageFitOptions::default(),
+        &|_| {},
+    )
+    .unwrap();
     Fitted {
         dir: out,
         truth,

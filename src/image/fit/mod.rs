@@ -28,8 +28,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::colour::Light;
 use crate::error::{Error, Result};
+use crate::image::array::PixelSource;
 use crate::image::layout::{Cell, Layout};
-use crate::image::source::ExrImage;
 
 pub use gauge::YieldPreference;
 
@@ -244,7 +244,7 @@ pub fn work_folder(out: &Path) -> PathBuf {
 
 /// Fits `image` into a material map in `out` (created if missing).
 pub fn fit_image(
-    image: &ExrImage,
+    image: PixelSource<'_>,
     out: &Path,
     options: &ImageFitOptions,
     report: &(dyn Fn(Step) + Sync),
@@ -273,7 +273,7 @@ pub fn fit_image(
 }
 
 fn run(
-    image: &ExrImage,
+    image: PixelSource<'_>,
     out: &Path,
     work: &Path,
     options: &ImageFitOptions,
@@ -281,7 +281,7 @@ fn run(
 ) -> Result<ImageFit> {
     let mut state = State::open(work, image, &options.key())?;
     let mut resumed = Vec::new();
-    let layout = &image.layout;
+    let layout = &image.layout();
     let m = layout.len() - layout.diagonal_count;
     let rank = options.rank.min(m);
     let cells = cells_of(layout);
@@ -349,7 +349,7 @@ fn run(
     };
     if census.masked_pixels == image.pixels() {
         return Err(Error::invalid(
-            image.path.display().to_string(),
+            image.describe(),
             "every pixel holds a non-finite cell: nothing to fit",
         ));
     }
@@ -379,8 +379,8 @@ fn run(
                     &scratch,
                     &cells,
                     &basis,
-                    image.width,
-                    image.height,
+                    image.width(),
+                    image.height(),
                     k,
                     options.start_pixels,
                 )?;

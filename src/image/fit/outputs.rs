@@ -11,9 +11,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use crate::colour::{D65_WHITE, adapt_bradford, xyz_to_srgb8};
 use crate::error::{Error, Result};
 use crate::files::write_atomic;
+use crate::image::array::PixelSource;
 use crate::image::map::{MaterialMap, SCHEMA, Textures, concentration_channel};
 use crate::image::sink::{ImageSpec, Rect, write_image};
-use crate::image::source::ExrImage;
 
 use super::gauge::Gauge;
 use super::passes::Census;
@@ -65,7 +65,7 @@ fn file_part(name: &str) -> String {
 #[allow(clippy::too_many_arguments)]
 pub fn write_all(
     out: &Path,
-    image: &ExrImage,
+    image: PixelSource<'_>,
     scratch: &Scratch,
     model: &PixelModel,
     gauge: &Gauge,
@@ -77,23 +77,17 @@ pub fn write_all(
     report: &(dyn Fn(Step) + Sync),
     notes: &[String],
 ) -> Result<Written> {
-    let (width, height) = (image.width, image.height);
-    let layout = &image.layout;
+    let (width, height) = (image.width(), image.height());
+    let layout = &image.layout();
     let k = model.components();
     let nd = layout.diagonal_count;
     let mut files = Vec::new();
     let tiles =
         width.div_ceil(crate::image::sink::TILE) * height.div_ceil(crate::image::sink::TILE);
-    let stem = image
-        .path
-        .file_stem()
-        .map_or_else(|| "image".to_string(), |s| s.to_string_lossy().into_owned());
+    let stem = image.stem();
     let attributes = vec![
         ("spectralLayoutVersion".to_string(), "1.0".to_string()),
-        (
-            "fluoriteSource".to_string(),
-            image.path.display().to_string(),
-        ),
+        ("fluoriteSource".to_string(), image.describe()),
     ];
     let clamped = AtomicUsize::new(0);
     let step = |what: &str, total: usize| {
@@ -167,7 +161,7 @@ pub fn write_all(
             width,
             height,
             channels: layout.channel_names(),
-            half: image.half,
+            half: image.half(),
             zip: options.zip,
             attributes: attributes.clone(),
         },
@@ -230,7 +224,7 @@ pub fn write_all(
     // The material map, last: its presence means the textures are complete.
     let map_path = out.join("material-map.json");
     let fit = serde_json::json!({
-        "image": image.path.display().to_string(),
+        "image": image.describe(),
         "width": width,
         "height": height,
         "cells_per_pixel": layout.len(),

@@ -15,7 +15,8 @@ use crate::numeric::SplitMix64;
 
 use super::colour::CellColours;
 use super::scratch::Scratch;
-use crate::image::source::{ExrImage, PixelBlock};
+use crate::image::array::PixelSource;
+use crate::image::source::PixelBlock;
 
 /// What the sketch pass found besides the sketch.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -45,14 +46,14 @@ fn finite(pixel: &[f32]) -> bool {
 
 /// Pass 1: the sketch (m × rank, row-major) and the census of non-finite cells.
 pub fn sketch(
-    image: &ExrImage,
+    image: PixelSource<'_>,
     rank: usize,
     seed: u64,
     progress: impl FnMut(usize),
 ) -> Result<(Vec<f64>, Census)> {
-    let first = image.layout.diagonal_count;
-    let m = image.layout.len() - first;
-    let width = image.width;
+    let first = image.layout().diagonal_count;
+    let m = image.layout().len() - first;
+    let width = image.width();
     let mut z = vec![0.0; m * rank];
     let mut census = Census::default();
     image.pass(
@@ -95,13 +96,13 @@ pub fn sketch(
 
 /// Pass 2: Σ_p x_p·(x_pᵀ·basis) for an orthonormal `basis` (m × rank, row-major).
 pub fn power(
-    image: &ExrImage,
+    image: PixelSource<'_>,
     basis: &[f64],
     rank: usize,
     progress: impl FnMut(usize),
 ) -> Result<Vec<f64>> {
-    let first = image.layout.diagonal_count;
-    let m = image.layout.len() - first;
+    let first = image.layout().diagonal_count;
+    let m = image.layout().len() - first;
     let mut z = vec![0.0; m * rank];
     image.pass(
         |block: &PixelBlock| {
@@ -151,16 +152,16 @@ pub fn project(x: &[f32], basis: &[f64], rank: usize, y: &mut [f64]) {
 
 /// Pass 3: every pixel's record into `scratch`.
 pub fn projection(
-    image: &ExrImage,
+    image: PixelSource<'_>,
     basis: &[f64],
     colours: &CellColours,
     scratch: &Scratch,
     progress: impl FnMut(usize),
 ) -> Result<()> {
-    let first = image.layout.diagonal_count;
+    let first = image.layout().diagonal_count;
     let rank = scratch.layout.rank;
     let record = scratch.layout;
-    let width = image.width;
+    let width = image.width();
     image.pass(
         |block: &PixelBlock| {
             let mut y = vec![0.0; rank];

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::files::write_atomic;
-use crate::image::source::ExrImage;
+use crate::image::array::PixelSource;
 
 use super::Trial;
 use super::passes::Census;
@@ -31,23 +31,11 @@ pub struct State {
     record: Record,
 }
 
-/// The identity of the input: path, size and modification time.
-fn identity(image: &ExrImage) -> Result<String> {
-    let meta = std::fs::metadata(&image.path).map_err(|e| Error::io(&image.path, e))?;
-    let modified = meta
-        .modified()
-        .ok()
-        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
-        .map_or(0, |d| d.as_nanos());
-    let path = std::fs::canonicalize(&image.path).unwrap_or_else(|_| image.path.clone());
-    Ok(format!("{} {} {}", path.display(), meta.len(), modified))
-}
-
 impl State {
     /// The state of a run of `key` on `image` in `folder`: resumed when an earlier run of
     /// the same command left one, fresh otherwise.
-    pub fn open(folder: &Path, image: &ExrImage, key: &str) -> Result<State> {
-        let input = identity(image)?;
+    pub fn open(folder: &Path, image: PixelSource<'_>, key: &str) -> Result<State> {
+        let input = image.identity()?;
         let path = folder.join("state.json");
         if let Ok(text) = std::fs::read_to_string(&path)
             && let Ok(record) = serde_json::from_str::<Record>(&text)
