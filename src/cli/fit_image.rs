@@ -72,6 +72,8 @@ pub struct FitImageArgs {
 struct Bars {
     quiet: bool,
     bar: Mutex<Option<ProgressBar>>,
+    /// Each stage and when it started, for the timing lines of the report.
+    stages: Mutex<Vec<(String, std::time::Instant)>>,
 }
 
 impl Bars {
@@ -79,6 +81,10 @@ impl Bars {
         let mut bar = self.bar.lock().unwrap_or_else(|p| p.into_inner());
         match step {
             Step::Stage { what, total } => {
+                self.stages
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .push((what.clone(), std::time::Instant::now()));
                 if let Some(b) = bar.take() {
                     b.finish_and_clear();
                 }
@@ -147,6 +153,7 @@ pub fn run(args: FitImageArgs) -> anyhow::Result<ExitCode> {
     let bars = Bars {
         quiet: args.quiet,
         bar: Mutex::new(None),
+        stages: Mutex::new(Vec::new()),
     };
     let started = std::time::Instant::now();
     let fitted = fit_image(
@@ -184,6 +191,20 @@ pub fn run(args: FitImageArgs) -> anyhow::Result<ExitCode> {
                 t.iterations,
                 if t.converged { "" } else { " (not converged)" }
             );
+        }
+        let stages = bars.stages.lock().unwrap_or_else(|p| p.into_inner());
+        let ends = stages
+            .iter()
+            .skip(1)
+            .map(|(_, t)| *t)
+            .chain([std::time::Instant::now()]);
+        let timing: Vec<String> = stages
+            .iter()
+            .zip(ends)
+            .map(|((what, start), end)| format!("{what} {:.1} s", (end - *start).as_secs_f64()))
+            .collect();
+        if !timing.is_empty() {
+            println!("  time: {}", timing.join(" · "));
         }
         if !fitted.resumed.is_empty() {
             println!("  resumed after: {}", fitted.resumed.join(", "));

@@ -4,7 +4,7 @@
 use crate::error::{Error, Result};
 
 use super::layout::Layout;
-use super::source::{ExrImage, PixelBlock};
+use super::source::{ExrImage, PixelBlock, PlanarBlock};
 
 /// Rows per block of a pass over an in-memory image.
 const ROWS_PER_BLOCK: usize = 16;
@@ -162,6 +162,39 @@ impl PixelSource<'_> {
                 let hex: String = digest.iter().map(|b| format!("{b:02x}")).collect();
                 Ok(format!("array {} {}×{} {hex}", i.name, i.width, i.height))
             }
+        }
+    }
+
+    /// One pass over blocks stored plane by plane (see [`ExrImage::pass_planar`]).
+    pub fn pass_planar<T: Send>(
+        &self,
+        map: impl Fn(PlanarBlock) -> Result<T> + Sync,
+        fold: impl FnMut(T) -> Result<()>,
+        progress: impl FnMut(usize),
+    ) -> Result<()> {
+        match self {
+            PixelSource::Exr(i) => i.pass_planar(map, fold, progress),
+            PixelSource::Array(_) => self.pass(
+                |b| {
+                    let n = b.pixel_count();
+                    let mut planes = vec![0f32; n * b.cells];
+                    for q in 0..n {
+                        for (c, &v) in b.pixel(q).iter().enumerate() {
+                            planes[c * n + q] = v;
+                        }
+                    }
+                    map(PlanarBlock {
+                        x: b.x,
+                        y: b.y,
+                        width: b.width,
+                        height: b.height,
+                        cells: b.cells,
+                        planes,
+                    })
+                },
+                fold,
+                progress,
+            ),
         }
     }
 

@@ -62,6 +62,43 @@ impl PixelBlock {
     }
 }
 
+/// A block of pixels stored plane by plane: `planes[c·n + q]` is cell c of block pixel
+/// q (row-major within the block, n pixels). The passes' matrix products read it as a
+/// pixels × cells column-major matrix without a copy.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanarBlock {
+    /// Column of the block's first pixel.
+    pub x: usize,
+    /// Row of the block's first pixel.
+    pub y: usize,
+    /// Pixels per row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Cells per pixel.
+    pub cells: usize,
+    /// The planes, one per cell in canonical order.
+    pub planes: Vec<f32>,
+}
+
+impl PlanarBlock {
+    /// Number of pixels.
+    pub fn pixel_count(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// Cell `c` of every pixel.
+    pub fn plane(&self, c: usize) -> &[f32] {
+        let n = self.pixel_count();
+        &self.planes[c * n..(c + 1) * n]
+    }
+
+    /// Image pixel index (row-major over an image of `image_width`) of block pixel `q`.
+    pub fn image_index(&self, q: usize, image_width: usize) -> usize {
+        (self.y + q / self.width) * image_width + self.x + q % self.width
+    }
+}
+
 /// A bispectral EXR image opened for streaming.
 #[derive(Debug, Clone)]
 pub struct ExrImage {
@@ -254,6 +291,32 @@ impl ExrImage {
     pub fn pass<T: Send>(
         &self,
         map: impl Fn(&PixelBlock) -> Result<T> + Sync,
+        fold: impl FnMut(T) -> Result<()>,
+        progress: impl FnMut(usize),
+    ) -> Result<()> {
+        self.run_pass(
+            |block| {
+                let pixels = self.convert(block)?;
+                map(&pixels)
+            },
+            fold,
+            progress,
+        )
+    }
+
+    /// [`ExrImage::pass`] over blocks stored plane by plane (the passes' layout).
+    pub fn pass_planar<T: Send>(
+        &self,
+        map: impl Fn(PlanarBlock) -> Result<T> + Sync,
+        fold: impl FnMut(T) -> Result<()>,
+        progress: impl FnMut(usize),
+    ) -> Result<()> {
+        self.run_pass(|block| map(self.convert_planar(block)?), fold, progress)
+    }
+
+    fn run_pass<T: Send>(
+        &self,
+        map: impl Fn(&UncompressedBlock) -> Result<T> + Sync,
         mut fold: impl FnMut(T) -> Result<()>,
         mut progress: impl FnMut(usize),
     ) -> Result<()> {
@@ -298,8 +361,7 @@ impl ExrImage {
                                 self.chunks
                             ))
                         })?;
-                    let pixels = self.convert(&block)?;
-                    map(&pixels)
+                    map(&block)
                 })
                 .collect();
             for r in results {
@@ -317,12 +379,60 @@ impl ExrImage {
         Ok(())
     }
 
-    /// A decompressed block's samples, converted to f32 in canonical cell order.
-    fn convert(&self, block: &UncompressedBlock) -> Result<PixelBlock> {
+    /// A decompressed block's samples, converted to f32 planes in canonical cell order.
+    fn convert_planar(&self, block: &UncompressedBlock) -> Result<PlanarBlock> {
         let width = block.index.pixel_size.x();
         let height = block.index.pixel_size.y();
         let cells = self.layout.len();
-        let mut values = vec![0f32; width * height * cells];
+        let n = width * height;
+        let mut planes = vec![0f32; n * cells];
+        self.check_block_size(block, width, height)?;
+        let data = &block.data;
+        let mut offset = 0;
+        for row in 0..height {
+            for (c, &bytes) in self.channel_bytes.iter().enumerate() {
+                let line = &data[offset..offset + bytes * width];
+                offset += bytes * width;
+                let Some(cell) = self.channel_cells[c] else {
+                    continue;
+                };
+                let out = &mut planes[cell * n + row * width..cell * n + (row + 1) * width];
+                match self.channel_types[c] {
+                    SampleType::F32 => {
+                        for (o, b) in out.iter_mut().zip(line.chunks_exact(4)) {
+                            *o = f32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
+                        }
+                    }
+                    SampleType::F16 => {
+                        for (o, b) in out.iter_mut().zip(line.chunks_exact(2)) {
+                            *o = exr::prelude::f16::from_ne_bytes([b[0], b[1]]).to_f32();
+                        }
+                    }
+                    SampleType::U32 => {
+                        for (o, b) in out.iter_mut().zip(line.chunks_exact(4)) {
+                            *o = u32::from_ne_bytes([b[0], b[1], b[2], b[3]]) as f32;
+                        }
+                    }
+                }
+            }
+        }
+        Ok(PlanarBlock {
+            x: block.index.pixel_position.x(),
+            y: block.index.pixel_position.y(),
+            width,
+            height,
+            cells,
+            planes,
+        })
+    }
+
+    /// An error unless the block holds the bytes its pixels need.
+    fn check_block_size(
+        &self,
+        block: &UncompressedBlock,
+        width: usize,
+        height: usize,
+    ) -> Result<()> {
         let bytes_per_line: usize = self.channel_bytes.iter().map(|b| b * width).sum();
         if block.data.len() != bytes_per_line * height {
             return Err(Error::parse(
@@ -337,6 +447,16 @@ impl ExrImage {
                 ),
             ));
         }
+        Ok(())
+    }
+
+    /// A decompressed block's samples, converted to f32 in canonical cell order.
+    fn convert(&self, block: &UncompressedBlock) -> Result<PixelBlock> {
+        let width = block.index.pixel_size.x();
+        let height = block.index.pixel_size.y();
+        let cells = self.layout.len();
+        let mut values = vec![0f32; width * height * cells];
+        self.check_block_size(block, width, height)?;
         let data = &block.data;
         let mut offset = 0;
         for row in 0..height {

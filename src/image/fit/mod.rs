@@ -14,6 +14,7 @@
 
 pub mod colour;
 pub mod gauge;
+pub mod gemm;
 pub mod nnls;
 pub mod outputs;
 pub mod passes;
@@ -363,6 +364,7 @@ fn run(
     };
     let mut trials = Vec::new();
     let mut chosen = None;
+    let mut extremes: Option<Vec<usize>> = None;
     for &k in &ks {
         let trial = match state.trial(k)? {
             Some(t) => {
@@ -375,10 +377,14 @@ fn run(
                     what: format!("K = {k}: shared fluorophores"),
                     total: options.max_iterations,
                 });
+                if extremes.is_none() {
+                    extremes = Some(shared::extreme_pixels(&scratch, shared::START_EXTREMES)?);
+                }
                 let start = shared::start(
                     &scratch,
                     &cells,
                     &basis,
+                    extremes.as_deref().unwrap_or(&[]),
                     image.width(),
                     image.height(),
                     k,

@@ -16,7 +16,9 @@ use crate::numeric::SplitMix64;
 use super::colour::CellColours;
 use super::scratch::Scratch;
 use crate::image::array::PixelSource;
-use crate::image::source::PixelBlock;
+use crate::image::source::PlanarBlock;
+
+use super::gemm::{View, multiply};
 
 /// What the sketch pass found besides the sketch.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -28,7 +30,7 @@ pub struct Census {
 }
 
 /// Random signs for pixel `p` (±1), `rank` of them.
-fn signs(seed: u64, p: usize, rank: usize, out: &mut [f64]) {
+fn signs(seed: u64, p: usize, rank: usize, out: &mut [f32]) {
     let mut rng = SplitMix64::new(seed ^ (p as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
     let mut bits = 0u64;
     for (a, o) in out.iter_mut().take(rank).enumerate() {
@@ -39,9 +41,44 @@ fn signs(seed: u64, p: usize, rank: usize, out: &mut [f64]) {
     }
 }
 
-/// Whether every cell of a pixel is finite.
-fn finite(pixel: &[f32]) -> bool {
-    pixel.iter().all(|v| v.is_finite())
+/// Masks the block's pixels holding a non-finite cell: their cells become zero (so the
+/// products skip them); returns each pixel's count of non-finite cells (0: not masked).
+fn mask(block: &mut PlanarBlock) -> Vec<usize> {
+    let n = block.pixel_count();
+    let mut bad = vec![0usize; n];
+    for plane in block.planes.chunks_exact(n) {
+        for (m, v) in bad.iter_mut().zip(plane) {
+            *m += usize::from(!v.is_finite());
+        }
+    }
+    if bad.iter().any(|&m| m > 0) {
+        for plane in block.planes.chunks_exact_mut(n) {
+            for (v, &m) in plane.iter_mut().zip(&bad) {
+                if m > 0 {
+                    *v = 0.0;
+                }
+            }
+        }
+    }
+    bad
+}
+
+/// The block's reradiation cells as a pixels × cells matrix (column-major, no copy).
+fn reradiation(block: &PlanarBlock, first: usize) -> View<'_> {
+    let n = block.pixel_count();
+    View::column_major(&block.planes[first * n..], n, block.cells - first)
+}
+
+/// A row-major m × r f64 matrix in f32.
+fn as_f32(values: &[f64]) -> Vec<f32> {
+    values.iter().map(|&v| v as f32).collect()
+}
+
+/// Adds an f32 product into an f64 accumulator.
+fn accumulate(total: &mut [f64], part: &[f32]) {
+    for (t, p) in total.iter_mut().zip(part) {
+        *t += f64::from(*p);
+    }
 }
 
 /// Pass 1: the sketch (m × rank, row-major) and the census of non-finite cells.
@@ -56,35 +93,33 @@ pub fn sketch(
     let width = image.width();
     let mut z = vec![0.0; m * rank];
     let mut census = Census::default();
-    image.pass(
-        |block: &PixelBlock| {
-            let mut local = vec![0.0; m * rank];
-            let mut omega = vec![0.0; rank];
+    image.pass_planar(
+        |mut block: PlanarBlock| {
+            let n = block.pixel_count();
             let mut census = Census::default();
-            for q in 0..block.pixel_count() {
-                let pixel = block.pixel(q);
-                if !finite(pixel) {
+            let bad = mask(&mut block);
+            let mut omega = vec![0f32; n * rank];
+            for q in 0..n {
+                if bad[q] > 0 {
                     census.masked_pixels += 1;
-                    census.non_finite_cells += pixel.iter().filter(|v| !v.is_finite()).count();
+                    census.non_finite_cells += bad[q];
                     continue;
                 }
-                signs(seed, block.image_index(q, width), rank, &mut omega);
-                for (j, &x) in pixel[first..].iter().enumerate() {
-                    let x = f64::from(x);
-                    if x != 0.0 {
-                        let row = &mut local[j * rank..(j + 1) * rank];
-                        for (r, w) in row.iter_mut().zip(&omega) {
-                            *r += x * w;
-                        }
-                    }
-                }
+                signs(
+                    seed,
+                    block.image_index(q, width),
+                    rank,
+                    &mut omega[q * rank..(q + 1) * rank],
+                );
             }
+            let local = multiply(
+                reradiation(&block, first).t(),
+                View::row_major(&omega, n, rank),
+            );
             Ok((local, census))
         },
         |(local, c)| {
-            for (a, b) in z.iter_mut().zip(&local) {
-                *a += b;
-            }
+            accumulate(&mut z, &local);
             census.masked_pixels += c.masked_pixels;
             census.non_finite_cells += c.non_finite_cells;
             Ok(())
@@ -103,51 +138,23 @@ pub fn power(
 ) -> Result<Vec<f64>> {
     let first = image.layout().diagonal_count;
     let m = image.layout().len() - first;
+    let q = as_f32(basis);
     let mut z = vec![0.0; m * rank];
-    image.pass(
-        |block: &PixelBlock| {
-            let mut local = vec![0.0; m * rank];
-            let mut t = vec![0.0; rank];
-            for q in 0..block.pixel_count() {
-                let pixel = block.pixel(q);
-                if !finite(pixel) {
-                    continue;
-                }
-                project(&pixel[first..], basis, rank, &mut t);
-                for (j, &x) in pixel[first..].iter().enumerate() {
-                    let x = f64::from(x);
-                    if x != 0.0 {
-                        let row = &mut local[j * rank..(j + 1) * rank];
-                        for (r, w) in row.iter_mut().zip(&t) {
-                            *r += x * w;
-                        }
-                    }
-                }
-            }
-            Ok(local)
+    image.pass_planar(
+        |mut block: PlanarBlock| {
+            mask(&mut block);
+            let n = block.pixel_count();
+            let x = reradiation(&block, first);
+            let t = multiply(x, View::row_major(&q, m, rank));
+            Ok(multiply(x.t(), View::row_major(&t, n, rank)))
         },
         |local| {
-            for (a, b) in z.iter_mut().zip(&local) {
-                *a += b;
-            }
+            accumulate(&mut z, &local);
             Ok(())
         },
         progress,
     )?;
     Ok(z)
-}
-
-/// y = basisᵀ·x.
-pub fn project(x: &[f32], basis: &[f64], rank: usize, y: &mut [f64]) {
-    y.iter_mut().for_each(|v| *v = 0.0);
-    for (j, &v) in x.iter().enumerate() {
-        let v = f64::from(v);
-        if v != 0.0 {
-            for (o, b) in y.iter_mut().zip(&basis[j * rank..(j + 1) * rank]) {
-                *o += v * b;
-            }
-        }
-    }
 }
 
 /// Pass 3: every pixel's record into `scratch`.
@@ -159,38 +166,58 @@ pub fn projection(
     progress: impl FnMut(usize),
 ) -> Result<()> {
     let first = image.layout().diagonal_count;
+    let m = image.layout().len() - first;
     let rank = scratch.layout.rank;
     let record = scratch.layout;
     let width = image.width();
-    image.pass(
-        |block: &PixelBlock| {
-            let mut y = vec![0.0; rank];
+    let lights = record.lights;
+    // [basis | the reradiation cells' XYZ weights per light], row-major: one product
+    // gives both.
+    let columns = rank + 3 * lights;
+    let mut both = vec![0f32; m * columns];
+    for j in 0..m {
+        for a in 0..rank {
+            both[j * columns + a] = basis[j * rank + a] as f32;
+        }
+        for l in 0..lights {
+            for t in 0..3 {
+                both[j * columns + rank + 3 * l + t] = colours.weights[l][first + j][t] as f32;
+            }
+        }
+    }
+    image.pass_planar(
+        |mut block: PlanarBlock| {
+            let masked = mask(&mut block);
+            let n = block.pixel_count();
+            let product = multiply(
+                reradiation(&block, first),
+                View::row_major(&both, m, columns),
+            );
+            let mut energy = vec![0f64; n];
+            for plane in block.planes[first * n..].chunks_exact(n) {
+                for (e, &v) in energy.iter_mut().zip(plane) {
+                    *e += f64::from(v) * f64::from(v);
+                }
+            }
             let mut row = Vec::with_capacity(block.width * record.len());
             for by in 0..block.height {
                 row.clear();
                 for bx in 0..block.width {
                     let q = by * block.width + bx;
-                    let pixel = block.pixel(q);
                     let start = row.len();
                     row.resize(start + record.len(), 0.0);
                     let out = &mut row[start..];
-                    if !finite(pixel) {
+                    if masked[q] > 0 {
                         out[0] = 1.0;
                         continue;
                     }
-                    let x = &pixel[first..];
-                    project(x, basis, rank, &mut y);
-                    out[1] = x.iter().map(|&v| f64::from(v) * f64::from(v)).sum::<f64>() as f32;
-                    for (o, v) in out[record.y()].iter_mut().zip(&y) {
-                        *o = *v as f32;
+                    out[1] = energy[q] as f32;
+                    out[record.y()].copy_from_slice(&product[q * columns..q * columns + rank]);
+                    for (d, o) in out[record.diagonal()].iter_mut().enumerate() {
+                        *o = block.planes[d * n + q];
                     }
-                    out[record.diagonal()].copy_from_slice(&pixel[..first]);
-                    for l in 0..record.lights {
-                        let xyz = colours.xyz(l, first, x);
-                        for (o, v) in out[record.xyz(l)].iter_mut().zip(xyz) {
-                            *o = v as f32;
-                        }
-                    }
+                    out[2 + rank + first..]
+                        .copy_from_slice(&product[q * columns + rank..(q + 1) * columns]);
                 }
                 scratch.write(block.image_index(by * block.width, width), &row)?;
             }

@@ -341,7 +341,7 @@ fn normalise(shared: &mut Shared, ni: usize, no: usize) {
 /// endmember search of hyperspectral unmixing): each the unmasked pixel farthest from the
 /// span of those picked before, in the compressed coordinates. With non-negative mixtures
 /// these are the purest pixels of each fluorophore, wherever they lie in the image.
-fn extreme_pixels(scratch: &Scratch, count: usize) -> Result<Vec<usize>> {
+pub fn extreme_pixels(scratch: &Scratch, count: usize) -> Result<Vec<usize>> {
     let rank = scratch.layout.rank;
     let len = scratch.layout.len();
     let mut picked: Vec<usize> = Vec::new();
@@ -405,16 +405,18 @@ fn extreme_pixels(scratch: &Scratch, count: usize) -> Result<Vec<usize>> {
     Ok(picked)
 }
 
-/// Pixels the start is fitted on: the extreme pixels, then a regular grid.
-const START_EXTREMES: usize = 16;
+/// Extreme pixels the start of every K is fitted on (with a regular grid).
+pub const START_EXTREMES: usize = 16;
 
-/// The start: the joint fit's non-negative PARAFAC on a few pixels (the extreme ones and
-/// a regular grid, `pixels` in all), rebuilt from their coordinates (x ≈ Q·y, which also
+/// The start: the joint fit's non-negative PARAFAC on a few pixels (the `extremes` of
+/// [`extreme_pixels`] and a regular grid, `pixels` in all), rebuilt from their coordinates (x ≈ Q·y, which also
 /// removes most of their noise).
+#[allow(clippy::too_many_arguments)]
 pub fn start(
     scratch: &Scratch,
     cells: &Cells,
     basis: &[f64],
+    extremes: &[usize],
     width: usize,
     height: usize,
     k: usize,
@@ -422,7 +424,7 @@ pub fn start(
 ) -> Result<Shared> {
     let rank = scratch.layout.rank;
     let (ni, no) = (cells.excitation_nm.len(), cells.emission_nm.len());
-    let mut chosen = extreme_pixels(scratch, START_EXTREMES)?;
+    let mut chosen = extremes.to_vec();
     let grid = pixels.saturating_sub(chosen.len()).max(1);
     let stride = ((width * height) as f64 / grid as f64)
         .sqrt()
