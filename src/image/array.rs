@@ -138,19 +138,45 @@ impl PixelSource<'_> {
         }
     }
 
-    /// The input's identity for resuming: path, size and modification time of a file;
-    /// a hash of the values of an array.
+    /// The input's identity for resuming: a file's path, size, modification and status
+    /// change times (a copy that keeps the modification time still changes the latter)
+    /// and a hash of the bytes at its two ends (header, chunk offsets and the last
+    /// chunk); a hash of the values of an array.
     pub fn identity(&self) -> Result<String> {
         match self {
             PixelSource::Exr(i) => {
-                let meta = std::fs::metadata(&i.path).map_err(|e| Error::io(&i.path, e))?;
+                use sha2::{Digest, Sha256};
+                use std::io::{Read, Seek, SeekFrom};
+                use std::os::unix::fs::MetadataExt;
+                const END: u64 = 1 << 16;
+                let io = |e| Error::io(&i.path, e);
+                let mut file = std::fs::File::open(&i.path).map_err(io)?;
+                let meta = file.metadata().map_err(io)?;
                 let modified = meta
                     .modified()
                     .ok()
                     .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
                     .map_or(0, |d| d.as_nanos());
+                let mut hasher = Sha256::new();
+                let mut bytes = Vec::new();
+                (&mut file).take(END).read_to_end(&mut bytes).map_err(io)?;
+                file.seek(SeekFrom::Start(meta.len().saturating_sub(END).max(END)))
+                    .map_err(io)?;
+                file.take(END).read_to_end(&mut bytes).map_err(io)?;
+                hasher.update(&bytes);
+                let hex: String = hasher
+                    .finalize()
+                    .iter()
+                    .map(|b| format!("{b:02x}"))
+                    .collect();
                 let path = std::fs::canonicalize(&i.path).unwrap_or_else(|_| i.path.clone());
-                Ok(format!("{} {} {}", path.display(), meta.len(), modified))
+                Ok(format!(
+                    "{} {} bytes, modified {modified}, changed {}.{:09}, ends {hex}",
+                    path.display(),
+                    meta.len(),
+                    meta.ctime(),
+                    meta.ctime_nsec()
+                ))
             }
             PixelSource::Array(i) => {
                 use sha2::{Digest, Sha256};

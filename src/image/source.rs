@@ -131,6 +131,12 @@ impl ExrImage {
     /// Opens `path` and reads its header: the channels must follow the bispectral layout.
     pub fn open(path: &Path) -> Result<ExrImage> {
         let fail = |message: String| Error::parse(path, 0, 0, message);
+        if path.is_dir() {
+            return Err(Error::invalid(
+                path.display().to_string(),
+                "is a folder; give a bispectral OpenEXR file",
+            ));
+        }
         let file = File::open(path).map_err(|e| Error::io(path, e))?;
         let meta = MetaData::read_from_buffered(BufReader::new(file), false)
             .map_err(|e| fail(format!("not a readable OpenEXR file: {e}")))?;
@@ -232,6 +238,11 @@ impl ExrImage {
                 grid[i], grid[o]
             )));
         }
+        if !listed.iter().any(|c| matches!(c, Cell::Diagonal(_))) {
+            return Err(fail(
+                "reradiation channels (T.<λi>nm.<λo>nm) only, no diagonal (T.<λ>nm): a material map needs each pixel's reflectance, which only the diagonal measures; include the diagonal channels".into(),
+            ));
+        }
         let layout = Layout::new(grid, listed).map_err(|e| fail(e.to_string()))?;
         let channel_cells = cells
             .iter()
@@ -329,7 +340,11 @@ impl ExrImage {
             .filter_chunks(false, |_, tile, block| {
                 block.layer == layer && tile.level_index == exr::math::Vec2(0, 0)
             })
-            .map_err(|e| fail(format!("cannot read the chunk offsets: {e}")))?;
+            .map_err(|e| {
+                fail(format!(
+                    "cannot read the chunk offsets ({e}): the file is truncated or damaged"
+                ))
+            })?;
         let meta = chunks.meta_data().clone();
         let group = CHUNKS_PER_THREAD * rayon::current_num_threads().max(1);
         let mut done = 0;

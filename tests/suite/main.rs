@@ -31,6 +31,7 @@ mod formats;
 mod formats_lab;
 mod fuzz;
 mod image_fit;
+mod image_robust;
 mod image_synth;
 mod import;
 mod limits;

@@ -134,7 +134,8 @@ impl ImageFitOptions {
     /// The options that change results, as text (the resume key).
     fn key(&self) -> String {
         format!(
-            "components={:?} max={} bound={} share={} lights={} yield={:?} rank={} power={} iterations={} tolerance={} start={} seed={} zip={}",
+            "fluorite {} components={:?} max={} bound={} share={} lights={} yield={:?} rank={} power={} iterations={} tolerance={} start={} seed={} zip={}",
+            env!("CARGO_PKG_VERSION"),
             self.components,
             self.max_components,
             self.max_delta_e,
@@ -251,6 +252,12 @@ pub fn fit_image(
     report: &(dyn Fn(Step) + Sync),
 ) -> Result<ImageFit> {
     options.validate()?;
+    if image.layout().diagonal_count == 0 {
+        return Err(Error::invalid(
+            image.describe(),
+            "the image holds reradiation cells only, no diagonal (T.<λ>nm): a material map needs each pixel's reflectance, which only the diagonal measures; include the diagonal channels",
+        ));
+    }
     if out.is_file() {
         return Err(Error::invalid(
             "-o",
@@ -260,14 +267,18 @@ pub fn fit_image(
     let created_out = !out.exists();
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let work = work_folder(out);
+    let work_existed = work.exists();
     let result = run(image, out, &work, options, report);
     if let Err(e) = &result {
-        // Bad input writes nothing: a failed first pass leaves no folder behind.
-        if matches!(e, Error::Parse { .. }) {
+        // Bad input writes nothing: the work folder is made only once the first pass has
+        // read the whole input; one a later pass made for input it then refused goes (an
+        // earlier run's folder this run never replaced stays), and so does the output
+        // folder this run created, if that leaves it empty.
+        if matches!(e, Error::Parse { .. } | Error::Invalid { .. }) && !work_existed {
             let _ = std::fs::remove_dir_all(&work);
-            if created_out {
-                let _ = std::fs::remove_dir(out);
-            }
+        }
+        if created_out {
+            let _ = std::fs::remove_dir(out);
         }
     }
     result
@@ -280,8 +291,6 @@ fn run(
     options: &ImageFitOptions,
     report: &(dyn Fn(Step) + Sync),
 ) -> Result<ImageFit> {
-    let mut state = State::open(work, image, &options.key())?;
-    let mut resumed = Vec::new();
     let layout = &image.layout();
     let m = layout.len() - layout.diagonal_count;
     let rank = options.rank.min(m);
@@ -292,6 +301,12 @@ fn run(
         diagonal: layout.diagonal_count,
         lights: options.lights.len(),
     };
+    let expected = state::Expected {
+        basis_bytes: (m * rank * 8) as u64,
+        scratch_bytes: (image.pixels() * record.len() * 4) as u64,
+    };
+    let mut state = State::open(work, image, &options.key(), expected)?;
+    let mut resumed = Vec::new();
     let blocks = image.blocks();
 
     // Pass 1: the sketch.
@@ -307,6 +322,7 @@ fn run(
                 total: blocks,
             });
             let (z, census) = passes::sketch(image, rank, options.seed, |d| report(Step::Done(d)))?;
+            refuse_all_masked(image, &census)?;
             let basis = passes::orthonormal(&z, m, rank);
             state.save_basis(0, &basis, &census)?;
             (basis, census)
@@ -331,8 +347,9 @@ fn run(
             }
         };
     }
+    refuse_all_masked(image, &census)?;
     // Pass 3: the projection into the scratch file.
-    let scratch_path = work.join("scratch.f32");
+    let scratch_path = state.folder()?.join("scratch.f32");
     let scratch = if state.done("projection") {
         resumed.push("projection".into());
         report(Step::Resumed("projection".into()));
@@ -348,13 +365,6 @@ fn run(
         state.mark("projection")?;
         scratch
     };
-    if census.masked_pixels == image.pixels() {
-        return Err(Error::invalid(
-            image.describe(),
-            "every pixel holds a non-finite cell: nothing to fit",
-        ));
-    }
-
     let sigma = scratch.noise_sigma(m)?;
 
     // The shared fluorophores, K = 1, 2, … (or the K asked for).
@@ -484,6 +494,20 @@ fn run(
         notes,
         resumed,
     })
+}
+
+/// An image whose every pixel holds a non-finite cell has nothing to fit.
+fn refuse_all_masked(image: PixelSource<'_>, census: &passes::Census) -> Result<()> {
+    if census.masked_pixels == image.pixels() {
+        return Err(Error::invalid(
+            image.describe(),
+            format!(
+                "every one of its {} pixels holds a non-finite (NaN or infinite) cell: nothing to fit; write finite values",
+                image.pixels()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Drops components the fit left without absorption, emission or any pixel.

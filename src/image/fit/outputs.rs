@@ -61,6 +61,36 @@ fn file_part(name: &str) -> String {
         .collect()
 }
 
+/// Removes what an earlier run killed while writing this folder's outputs left of them:
+/// its half-written files beside their targets (`.fluorite-<process>-<output>`, and
+/// `.fluorite-XXXXXX` of the material map), which only a Ctrl-C, not a kill, removes.
+fn remove_leftovers(out: &Path) {
+    let own = format!(".fluorite-{}-", std::process::id());
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(rest) = name.strip_prefix(".fluorite-") else {
+            continue;
+        };
+        let staged_output = rest.split_once('-').is_some_and(|(process, output)| {
+            !process.is_empty()
+                && process.bytes().all(|b| b.is_ascii_digit())
+                && !name.starts_with(&own)
+                && (matches!(
+                    output,
+                    "concentration.exr" | "reflectance.exr" | "fitted.exr" | "delta-e.exr"
+                ) || ((output.starts_with("delta-e-") || output.starts_with("under-"))
+                    && output.ends_with(".png")))
+        });
+        let temporary = rest.len() == 6 && rest.bytes().all(|b| b.is_ascii_alphanumeric());
+        if (staged_output || temporary) && entry.file_type().is_ok_and(|t| t.is_file()) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
 /// Writes every output of the fit into `out`.
 #[allow(clippy::too_many_arguments)]
 pub fn write_all(
@@ -77,6 +107,7 @@ pub fn write_all(
     report: &(dyn Fn(Step) + Sync),
     notes: &[String],
 ) -> Result<Written> {
+    remove_leftovers(out);
     let (width, height) = (image.width(), image.height());
     let layout = &image.layout();
     let k = model.components();
@@ -221,7 +252,10 @@ pub fn write_all(
         report,
     )?);
 
-    // The material map, last: its presence means the textures are complete.
+    // The material map, last: its presence means the textures are complete. Nothing in
+    // it or in the images' headers depends on the run (no times, no output or work
+    // folder; the image as the command named it): a resumed run writes the bytes an
+    // uninterrupted one does.
     let map_path = out.join("material-map.json");
     let fit = serde_json::json!({
         "image": image.describe(),
