@@ -15,9 +15,11 @@ Quick start::
     m = fluorite.read("HERPICER.BFC")                 # m.excitation, m.emission, m.values
     fluorite.fit_many(["a.BFC", "b.BFC"], threads=2)  # in parallel, GIL released
     linear, srgb = fluorite.render(fit.material, light="d65", spp=16, size=(320, 200))
+    image = fluorite.fit_image("scan.exr", output="out/scan")   # or a numpy array (H, W, ex, em)
+    image.components, image.map.concentration().shape  # K, (height, width, K)
 
 Errors are ``fluorite.FluoriteError`` (a ``ValueError``) with the command line's
-message. The GIL is released during every read, fit, joint fit and render.
+message. The GIL is released during every read, fit, joint fit, image fit and render.
 """
 
 from ._fluorite import (
@@ -28,17 +30,21 @@ from ._fluorite import (
     Fit,
     Fluorophore,
     FluoriteError,
+    ImageFit,
     JointResult,
     Light,
     Material,
+    MaterialMap,
     Measurement,
     ParafacFit,
     __version__,
     fit,
+    fit_image,
     fit_many,
     joint,
     read,
     render,
+    write_image,
 )
 
 __all__ = [
@@ -49,15 +55,19 @@ __all__ = [
     "Fit",
     "Fluorophore",
     "FluoriteError",
+    "ImageFit",
     "JointResult",
     "Light",
     "Material",
+    "MaterialMap",
     "Measurement",
     "ParafacFit",
     "__version__",
     "fit",
+    "fit_image",
     "fit_many",
     "joint",
     "read",
     "render",
+    "write_image",
 ]

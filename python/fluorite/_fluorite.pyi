@@ -1,7 +1,8 @@
 """Typed stubs of the extension module ``fluorite._fluorite`` (re-exported by ``fluorite``).
 
 Array orientation everywhere: a measurement's ``values`` is float64 of shape
-``(n_excitation, n_emission)``; NaN marks a missing cell.
+``(n_excitation, n_emission)``; NaN marks a missing cell. A bispectral image is
+``(height, width, n_excitation, n_emission)``.
 """
 
 import os
@@ -275,6 +276,62 @@ class JointResult:
     def split_half(self) -> Optional[Dict[str, Any]]: ...
     def write(self, dir: PathLike) -> List[str]: ...
 
+class ImageFit:
+    """An image fit's outcome: K, the trials, the material map and the files written."""
+
+    @property
+    def components(self) -> int:
+        """K, the number of fluorophores every pixel shares."""
+    @property
+    def trials(self) -> List[Dict[str, Any]]:
+        """Each K tried: components, share_within, median/p99/max_delta_e ({light: ΔE2000}),
+        residual_share, iterations, converged."""
+    @property
+    def masked_pixels(self) -> int: ...
+    @property
+    def non_finite_cells(self) -> int: ...
+    @property
+    def clamped_pixels(self) -> int: ...
+    @property
+    def notes(self) -> List[str]: ...
+    @property
+    def files(self) -> List[str]: ...
+    @property
+    def map_path(self) -> str: ...
+    @property
+    def map(self) -> "MaterialMap": ...
+    @property
+    def lights(self) -> List[str]: ...
+    @property
+    def resumed(self) -> List[str]: ...
+
+class MaterialMap:
+    """A material map (fluorite-material-map/1): shared fluorophores, per-pixel textures."""
+
+    @staticmethod
+    def load(path: PathLike) -> "MaterialMap": ...
+    @property
+    def path(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def fluorophores(self) -> List[Fluorophore]: ...
+    @property
+    def gauge(self) -> str: ...
+    @property
+    def report(self) -> Optional[Dict[str, Any]]: ...
+    def concentration(self) -> npt.NDArray[np.float32]:
+        """(height, width, K) float32; NaN at masked pixels."""
+    def reflectance(self) -> Tuple[FloatArray, npt.NDArray[np.float32]]:
+        """(wavelengths (n,), values (height, width, n) float32)."""
+    def material_at(self, x: int, y: int) -> Material:
+        """The material of pixel (column x, row y)."""
+    def to_json(self) -> str: ...
+
 Units = Literal["auto", "radiance-factor", "percent", "arbitrary"]
 Format = Literal["wide", "long", "bfc", "webfluor", "exr"]
 Paths = Union[PathLike, Sequence[PathLike]]
@@ -396,3 +453,33 @@ def render(
     sampling: Literal["light", "paper"] = "light",
 ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8]]:
     """Renders the material: (linear float32 HxWx3, sRGB uint8 HxWx3)."""
+
+ImageSource = Union[PathLike, npt.ArrayLike]
+"""A bispectral OpenEXR path, or an array (height, width, n_excitation, n_emission)."""
+
+def fit_image(
+    source: ImageSource,
+    *,
+    output: PathLike,
+    components: Optional[int] = None,
+    max_components: int = 4,
+    max_delta_e: float = 1.0,
+    share: float = 0.99,
+    lights: Optional[Lights] = None,
+    yield_form: Literal["auto", "energy", "photon"] = "auto",
+    zip: bool = False,
+    excitation_nm: Optional[ArrayLike] = None,
+    emission_nm: Optional[ArrayLike] = None,
+) -> ImageFit:
+    """Fits a bispectral image (EXR path or array) into a material map (GIL released)."""
+
+def write_image(
+    path: PathLike,
+    source: npt.ArrayLike,
+    *,
+    excitation_nm: ArrayLike,
+    emission_nm: ArrayLike,
+    half: bool = False,
+    zip: bool = False,
+) -> str:
+    """Writes an array (height, width, n_excitation, n_emission) as a bispectral OpenEXR."""

@@ -2,7 +2,7 @@
 //!
 //! Nothing here models, reads or measures colour: every call goes to the `fluorite`
 //! library. This crate converts types (numpy arrays ⇄ `Vec<f64>`, dictionaries, lights),
-//! releases the GIL around every read, fit, joint fit and render, and turns the library's
+//! releases the GIL around every read, fit, joint fit, image fit and render, and turns the library's
 //! errors, and any panic, into `fluorite.FluoriteError`. The Python package
 //! (`python/fluorite/`) re-exports it with typed stubs.
 
@@ -14,6 +14,7 @@ use pyo3::prelude::*;
 
 mod convert;
 mod fit;
+mod image;
 mod joint;
 mod lights;
 mod material;
@@ -128,11 +129,15 @@ fn _fluorite(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<fit::PyFit>()?;
     m.add_class::<joint::PyJointResult>()?;
     m.add_class::<joint::PyParafacFit>()?;
+    m.add_class::<image::PyImageFit>()?;
+    m.add_class::<image::PyMaterialMap>()?;
     m.add_function(wrap_pyfunction!(measurement::read, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit_many, m)?)?;
     m.add_function(wrap_pyfunction!(joint::joint, m)?)?;
     m.add_function(wrap_pyfunction!(render::render, m)?)?;
+    m.add_function(wrap_pyfunction!(image::fit_image, m)?)?;
+    m.add_function(wrap_pyfunction!(image::write_image, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
     m.add_function(wrap_pyfunction!(fit::_fit_seconds, m)?)?;
     Ok(())
