@@ -127,9 +127,10 @@ fn help_and_version_succeed() {
 }
 
 /// The guide's pages (docs-pages.md); each help names one of them.
-const GUIDE: [&str; 12] = [
+const GUIDE: [&str; 13] = [
     "docs/README.md",
     "docs/fitting.md",
+    "docs/images.md",
     "docs/eem.md",
     "docs/series.md",
     "docs/export.md",
@@ -184,6 +185,7 @@ fn every_help_ends_with_its_guide_page() {
         .collect();
     let expected = [
         ("fit", "docs/fitting.md"),
+        ("fit-image", "docs/images.md"),
         ("synth", "docs/formats.md"),
         ("render", "docs/render.md"),
         ("plot", "docs/plots.md"),
