@@ -7,8 +7,10 @@ use std::time::Duration;
 
 use anyhow::Context;
 use fluorite::colour::Light;
+use fluorite::fit::FitOptions;
 use fluorite::image::ExrImage;
 use fluorite::image::fit::{ImageFitOptions, Step, YieldPreference, fit_image};
+use fluorite::image::per_pixel::{PerPixelOptions, fit_per_pixel};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 /// The yield form of the image's fluorophores.
@@ -63,6 +65,12 @@ pub struct FitImageArgs {
     /// ZIP-compress the EXR outputs (smaller, slower).
     #[arg(long)]
     pub zip: bool,
+    /// The per-pixel baseline instead: fit every pixel on its own with the default
+    /// single-matrix fit (as `fluorite fit` fits one matrix) and write fitted.exr and
+    /// delta-e.exr only; no material map (each pixel has fluorophores of its own). Uses
+    /// --lights and --zip.
+    #[arg(long, conflicts_with_all = ["components", "max_components", "max_delta_e", "share", "yield_form", "rank", "power_steps", "max_iterations"])]
+    pub per_pixel: bool,
     /// Print nothing but errors.
     #[arg(short, long)]
     pub quiet: bool,
@@ -155,6 +163,9 @@ pub fn run(args: FitImageArgs) -> anyhow::Result<ExitCode> {
         bar: Mutex::new(None),
         stages: Mutex::new(Vec::new()),
     };
+    if args.per_pixel {
+        return run_per_pixel(&args, &image, options.lights, &bars);
+    }
     let started = std::time::Instant::now();
     let fitted = fit_image(
         fluorite::image::PixelSource::Exr(&image),
@@ -210,6 +221,56 @@ pub fn run(args: FitImageArgs) -> anyhow::Result<ExitCode> {
             println!("  resumed after: {}", fitted.resumed.join(", "));
         }
         println!("  wrote {}", fitted.map_path.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `--per-pixel`: every pixel fitted on its own.
+fn run_per_pixel(
+    args: &FitImageArgs,
+    image: &ExrImage,
+    lights: Vec<Light>,
+    bars: &Bars,
+) -> anyhow::Result<ExitCode> {
+    let options = PerPixelOptions {
+        fit: FitOptions {
+            lights: lights.clone(),
+            ..FitOptions::default()
+        },
+        lights,
+        zip: args.zip,
+    };
+    let started = std::time::Instant::now();
+    let fitted = fit_per_pixel(
+        fluorite::image::PixelSource::Exr(image),
+        &args.out,
+        &options,
+        &|s| bars.step(s),
+    );
+    bars.finish();
+    let fitted = fitted?;
+    if !args.quiet {
+        println!(
+            "{}: {}×{} pixels, {} cells each; {} fitted one by one in {:.1} s",
+            args.image.display(),
+            image.width,
+            image.height,
+            image.layout.len(),
+            fitted.fitted,
+            started.elapsed().as_secs_f64()
+        );
+        for note in image.notes.iter().chain(&fitted.notes) {
+            println!("  {note}");
+        }
+        println!(
+            "  ΔE2000 fitted against measured: median {} · 99th {} · max {}",
+            per_light(&fitted.lights, &fitted.median_delta_e),
+            per_light(&fitted.lights, &fitted.p99_delta_e),
+            per_light(&fitted.lights, &fitted.max_delta_e)
+        );
+        for f in &fitted.files {
+            println!("  wrote {}", f.display());
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

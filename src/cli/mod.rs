@@ -10,6 +10,7 @@ mod eem;
 mod export;
 mod fit;
 mod fit_image;
+mod image_diff;
 mod import_spectra;
 mod joint;
 mod plot;
@@ -39,6 +40,9 @@ enum Command {
     /// Fit a bispectral image into a material map: shared fluorophores, per-pixel
     /// concentrations and reflectance.
     FitImage(fit_image::FitImageArgs),
+    /// Compare two bispectral images pixel by pixel: ΔE2000 percentiles per light (and,
+    /// given their material maps, how their concentration maps correlate).
+    ImageDiff(image_diff::ImageDiffArgs),
     /// Write synthetic matrices (or, with --image, bispectral images) with known ground
     /// truth.
     Synth(synth::SynthArgs),
@@ -66,10 +70,11 @@ enum Command {
 
 /// The guide page each subcommand's help names (`More: docs/<page>`), and the top-level
 /// help's.
-const GUIDE_PAGES: [(&str, &str); 13] = [
+const GUIDE_PAGES: [(&str, &str); 14] = [
     ("fluorite", "docs/README.md"),
     ("fit", "docs/fitting.md"),
     ("fit-image", "docs/images.md"),
+    ("image-diff", "docs/images.md"),
     ("synth", "docs/formats.md"),
     ("render", "docs/render.md"),
     ("plot", "docs/plots.md"),
@@ -131,6 +136,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Fit(args) => fit::run(args),
         Command::FitImage(args) => fit_image::run(args),
+        Command::ImageDiff(args) => image_diff::run(args),
         Command::Synth(args) => synth::run(args),
         Command::Render(args) => render::run(args),
         Command::Plot(args) => plot::run(args),

@@ -3,11 +3,15 @@
 //!
 //! [`source`] streams an image's pixels block by block, [`sink`] writes images tile by
 //! tile, [`layout`] names the cells of a pixel, [`map`] is the material map every
-//! downstream step reads, [`synth`] writes synthetic images with their truth.
+//! downstream step reads, [`synth`] writes synthetic images with their truth. [`diff`]
+//! compares two images (a fit against its truth); [`per_pixel`] is the baseline that
+//! fits every pixel on its own.
 
 pub mod array;
+pub mod diff;
 pub mod layout;
 pub mod map;
+pub mod per_pixel;
 pub mod sink;
 pub mod source;
 pub mod synth;

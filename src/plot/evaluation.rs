@@ -20,7 +20,7 @@ pub const SPEED_ACCURACY_SIZE: (u32, u32) = (1400, 640);
 /// Size of the stability chart in pixels.
 pub const STABILITY_SIZE: (u32, u32) = (1400, 900);
 
-fn colour(k: usize) -> RGBColor {
+pub(super) fn colour(k: usize) -> RGBColor {
     TAB10[k % TAB10.len()]
 }
 
@@ -106,7 +106,7 @@ pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
 }
 
 /// Unlabelled grid lines of a log axis: every integer multiple of each decade in range.
-fn log_grid(lo: f64, hi: f64) -> Vec<f64> {
+pub(super) fn log_grid(lo: f64, hi: f64) -> Vec<f64> {
     if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
         return Vec::new();
     }
@@ -134,7 +134,7 @@ pub fn speed_accuracy(rows: &[BenchRow], format: ImageFormat) -> Result<Vec<u8>>
     .0)
 }
 
-fn unique(items: impl Iterator<Item = String>) -> Vec<String> {
+pub(super) fn unique(items: impl Iterator<Item = String>) -> Vec<String> {
     let mut out: Vec<String> = Vec::new();
     for i in items {
         if !out.contains(&i) {
@@ -145,7 +145,7 @@ fn unique(items: impl Iterator<Item = String>) -> Vec<String> {
 }
 
 /// Log-axis limits padded around the positive finite values.
-fn log_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+pub(super) fn log_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values
         .filter(|v| v.is_finite() && *v > 0.0)
         .fold((f64::INFINITY, 0.0f64), |(l, h), v| (l.min(v), h.max(v)));

@@ -10,7 +10,8 @@
 //! 4. convergence — solver cost per iteration ([`convergence`]).
 //!
 //! Beside them: the joint fit's components and scores ([`joint`]) and the charts of the
-//! bench and stability commands ([`evaluation`]).
+//! bench and stability commands ([`evaluation`]), and the image fits' time against
+//! accuracy ([`image_chart`]).
 //!
 //! Every figure is rendered into memory first ([`plot`]); only when all of them succeeded
 //! are they written ([`write_plots`]), each through a temporary file renamed into place,
@@ -23,6 +24,7 @@ pub mod convergence;
 pub mod evaluation;
 pub mod font;
 pub mod heatmap;
+pub mod image_chart;
 pub mod joint;
 mod parameters;
 pub mod spectra;

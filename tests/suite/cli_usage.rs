@@ -186,6 +186,7 @@ fn every_help_ends_with_its_guide_page() {
     let expected = [
         ("fit", "docs/fitting.md"),
         ("fit-image", "docs/images.md"),
+        ("image-diff", "docs/images.md"),
         ("synth", "docs/formats.md"),
         ("render", "docs/render.md"),
         ("plot", "docs/plots.md"),

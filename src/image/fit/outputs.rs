@@ -48,8 +48,8 @@ fn fits(scratch: &Scratch, model: &PixelModel, width: usize, rect: Rect) -> Resu
     Ok(out)
 }
 
-/// A light's name as a file-name part.
-fn file_part(name: &str) -> String {
+/// A light's name as a file-name part (the channels of `delta-e.exr`, the PNGs' names).
+pub fn file_part(name: &str) -> String {
     name.chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || c == '-' {
