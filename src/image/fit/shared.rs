@@ -227,98 +227,119 @@ fn score_pass(scratch: &Scratch, p: &Projected) -> Result<Sums> {
 fn update_factors(shared: &mut Shared, cells: &Cells, sts: &[f64], stx: &[f64]) {
     let k = shared.k;
     let (ni, no) = (cells.excitation_nm.len(), cells.emission_nm.len());
-    let m = cells.len();
     // Cells by excitation row and by emission column.
     let mut rows: Vec<Vec<usize>> = vec![Vec::new(); ni];
     let mut columns: Vec<Vec<usize>> = vec![Vec::new(); no];
-    for j in 0..m {
+    for j in 0..cells.len() {
         rows[cells.excitation[j]].push(j);
         columns[cells.emission[j]].push(j);
     }
-    // The largest Gram diagonal of each component over the rows (columns) sets the ridge.
-    let ridge_rows: Vec<f64> = (0..k)
-        .map(|a| {
-            rows.iter()
-                .map(|row| {
-                    row.iter()
-                        .map(|&j| shared.emission[a * no + cells.emission[j]].powi(2))
-                        .sum::<f64>()
-                })
-                .fold(0.0, f64::max)
-                * RIDGE
-                * sts[a * k + a]
-        })
-        .collect();
-    let ridge_columns: Vec<f64> = (0..k)
-        .map(|a| {
-            columns
-                .iter()
-                .map(|column| {
-                    column
-                        .iter()
-                        .map(|&j| shared.excitation[a * ni + cells.excitation[j]].powi(2))
-                        .sum::<f64>()
-                })
-                .fold(0.0, f64::max)
-                * RIDGE
-                * sts[a * k + a]
-        })
-        .collect();
+    let excitation = Mode {
+        groups: &rows,
+        own: &cells.excitation,
+        other: &cells.emission,
+    };
+    let emission = Mode {
+        groups: &columns,
+        own: &cells.emission,
+        other: &cells.excitation,
+    };
+    // The ridges are set once per update, from the factors it starts with.
+    let ridge_rows = excitation.ridge(&shared.emission, no, sts, k);
+    let ridge_columns = emission.ridge(&shared.excitation, ni, sts, k);
     for _ in 0..INNER_SWEEPS {
-        // Excitation rows.
-        for (i, row) in rows.iter().enumerate() {
+        excitation.sweep(
+            &mut shared.excitation,
+            ni,
+            &shared.emission,
+            no,
+            sts,
+            stx,
+            &ridge_rows,
+            k,
+        );
+        emission.sweep(
+            &mut shared.emission,
+            no,
+            &shared.excitation,
+            ni,
+            sts,
+            stx,
+            &ridge_columns,
+            k,
+        );
+    }
+    normalise(shared, ni, no);
+}
+
+/// One factor's view of the cells: the cells of each of its entries (an excitation row
+/// or an emission column), and each cell's index in this factor and in the other.
+struct Mode<'a> {
+    groups: &'a [Vec<usize>],
+    own: &'a [usize],
+    other: &'a [usize],
+}
+
+impl Mode<'_> {
+    /// Per component: [`RIDGE`] × the largest Gram diagonal over the entries × Sᵀ·S.
+    fn ridge(&self, other: &[f64], n_other: usize, sts: &[f64], k: usize) -> Vec<f64> {
+        (0..k)
+            .map(|a| {
+                self.groups
+                    .iter()
+                    .map(|g| {
+                        g.iter()
+                            .map(|&j| other[a * n_other + self.other[j]].powi(2))
+                            .sum::<f64>()
+                    })
+                    .fold(0.0, f64::max)
+                    * RIDGE
+                    * sts[a * k + a]
+            })
+            .collect()
+    }
+
+    /// One coordinate-descent sweep over the entries of `factor` (K × n), the other
+    /// factor held.
+    #[allow(clippy::too_many_arguments)]
+    fn sweep(
+        &self,
+        factor: &mut [f64],
+        n: usize,
+        other: &[f64],
+        n_other: usize,
+        sts: &[f64],
+        stx: &[f64],
+        ridge: &[f64],
+        k: usize,
+    ) {
+        let m = self.own.len();
+        for (e, group) in self.groups.iter().enumerate() {
             let mut gram = vec![0.0; k * k];
             let mut rhs = vec![0.0; k];
-            for &j in row {
-                let o = cells.emission[j];
+            for &j in group {
+                let o = self.other[j];
                 for a in 0..k {
-                    let ea = shared.emission[a * no + o];
-                    rhs[a] += stx[a * m + j] * ea;
+                    let va = other[a * n_other + o];
+                    rhs[a] += stx[a * m + j] * va;
                     for b in 0..k {
-                        gram[a * k + b] += ea * shared.emission[b * no + o];
+                        gram[a * k + b] += va * other[b * n_other + o];
                     }
                 }
             }
             for a in 0..k {
-                let diagonal = sts[a * k + a] * gram[a * k + a] + ridge_rows[a];
+                let diagonal = sts[a * k + a] * gram[a * k + a] + ridge[a];
                 if diagonal <= 0.0 {
                     continue;
                 }
                 let others: f64 = (0..k)
                     .filter(|&b| b != a)
-                    .map(|b| sts[a * k + b] * gram[a * k + b] * shared.excitation[b * ni + i])
+                    .map(|b| sts[a * k + b] * gram[a * k + b] * factor[b * n + e])
                     .sum();
-                shared.excitation[a * ni + i] = ((rhs[a] - others) / diagonal).max(0.0);
-            }
-        }
-        // Emission columns.
-        for (o, column) in columns.iter().enumerate() {
-            let mut gram = vec![0.0; k * k];
-            let mut rhs = vec![0.0; k];
-            for &j in column {
-                let i = cells.excitation[j];
-                for a in 0..k {
-                    let ba = shared.excitation[a * ni + i];
-                    rhs[a] += stx[a * m + j] * ba;
-                    for b in 0..k {
-                        gram[a * k + b] += ba * shared.excitation[b * ni + i];
-                    }
-                }
-            }
-            for a in 0..k {
-                let diagonal = sts[a * k + a] * gram[a * k + a] + ridge_columns[a];
-                if diagonal <= 0.0 {
-                    continue;
-                }
-                let others: f64 = (0..k)
-                    .filter(|&b| b != a)
-                    .map(|b| sts[a * k + b] * gram[a * k + b] * shared.emission[b * no + o])
-                    .sum();
-                shared.emission[a * no + o] = ((rhs[a] - others) / diagonal).max(0.0);
+                factor[a * n + e] = ((rhs[a] - others) / diagonal).max(0.0);
             }
         }
     }
-    normalise(shared, ni, no);
 }
 
 /// β max 1, Σ ε = 1 (the scale goes to the scores, which the next pass recomputes).
