@@ -8,6 +8,8 @@ cd "$(dirname "$0")/.."
 venv="${FLUORITE_CI_VENV:-target/python-ci-venv}"
 rm -rf "$venv"
 python3 -m venv "$venv"
-MATURIN_PEP517_ARGS="--profile dev" "$venv/bin/pip" install --quiet ./python
-"$venv/bin/pip" install --quiet pytest colour-science matplotlib
+# The dask extra (dask, distributed, zarr) too: python/tests/test_dask.py runs on a
+# LocalCluster of 2 worker processes; pandas for fluorite.dask.fit_files' table.
+MATURIN_PEP517_ARGS="--profile dev" "$venv/bin/pip" install --quiet './python[dask]'
+"$venv/bin/pip" install --quiet pytest colour-science matplotlib pandas
 FLUORITE_BIN="${FLUORITE_BIN:-$PWD/target/debug/fluorite}" "$venv/bin/python" -m pytest python/tests -q -rs

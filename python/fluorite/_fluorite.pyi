@@ -6,7 +6,7 @@ Array orientation everywhere: a measurement's ``values`` is float64 of shape
 """
 
 import os
-from typing import Any, Dict, List, Literal, Optional, Protocol, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Literal, Optional, Protocol, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -483,3 +483,80 @@ def write_image(
     zip: bool = False,
 ) -> str:
     """Writes an array (height, width, n_excitation, n_emission) as a bispectral OpenEXR."""
+
+class _ImageStages:
+    """The stages of one image fit, for ``fluorite.dask`` (private: its API may change).
+
+    ``source`` is a bispectral OpenEXR path, or None with ``excitation_nm``,
+    ``emission_nm`` and ``shape`` (height, width) for an image whose rows come with each
+    pass as arrays (rows, width, excitation, emission). Each pass returns its blocks'
+    contributions (summed in block order by the caller) or records; GIL released."""
+
+    def __init__(
+        self,
+        source: Optional[PathLike],
+        *,
+        components: Optional[int] = None,
+        max_components: int = 4,
+        max_delta_e: float = 1.0,
+        share: float = 0.99,
+        lights: Optional[Lights] = None,
+        yield_form: Literal["auto", "energy", "photon"] = "auto",
+        zip: bool = False,
+        excitation_nm: Optional[ArrayLike] = None,
+        emission_nm: Optional[ArrayLike] = None,
+        shape: Optional[Tuple[int, int]] = None,
+    ) -> None: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def cells(self) -> int: ...
+    @property
+    def m(self) -> int: ...
+    @property
+    def rank(self) -> int: ...
+    @property
+    def power_steps(self) -> int: ...
+    @property
+    def record_len(self) -> int: ...
+    @property
+    def block_rows(self) -> Optional[int]: ...
+    def block_rects(self) -> List[Tuple[int, int, int, int]]:
+        """Each block of a pass, in order: (x, y, width, height)."""
+    def sketch(
+        self, first: int = 0, count: int = 0, pixels: Optional[npt.ArrayLike] = None, y: int = 0
+    ) -> Tuple[npt.NDArray[np.float32], int, int]:
+        """Pass 1: (contributions (blocks, m, rank), masked pixels, non-finite cells)."""
+    def power(
+        self,
+        basis: FloatArray,
+        first: int = 0,
+        count: int = 0,
+        pixels: Optional[npt.ArrayLike] = None,
+        y: int = 0,
+    ) -> npt.NDArray[np.float32]:
+        """A power step: contributions (blocks, m, rank)."""
+    def project(
+        self,
+        basis: FloatArray,
+        first: int = 0,
+        count: int = 0,
+        pixels: Optional[npt.ArrayLike] = None,
+        y: int = 0,
+    ) -> List[Tuple[int, int, npt.NDArray[np.float32]]]:
+        """Pass 3: (x, y, records (height, width, record_len)) per block."""
+    def read_blocks(self, first: int, count: int) -> List[Tuple[int, int, npt.NDArray[np.float32]]]:
+        """An EXR's cells: (x, y, cells (height, width, cells)) per block."""
+    def orthonormal(self, z: FloatArray) -> FloatArray:
+        """An orthonormal basis (m, rank) of the range of z (m, rank)."""
+    def fit_records(
+        self,
+        output: PathLike,
+        basis: FloatArray,
+        masked_pixels: int,
+        non_finite_cells: int,
+        read_rows: Callable[[int, int], npt.ArrayLike],
+    ) -> ImageFit:
+        """The fit after the passes, from the records read_rows(y, rows) returns."""

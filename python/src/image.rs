@@ -29,11 +29,11 @@ use crate::material::{PyFluorophore, PyMaterial};
 use crate::{attached, detached, invalid};
 
 /// Name of an image given as an array (the material map's `name`).
-const ARRAY_NAME: &str = "image";
+pub(crate) const ARRAY_NAME: &str = "image";
 
 /// A wavelength grid of an array image: finite, strictly increasing, in fluorite's range,
 /// as long as the array's axis.
-fn grid(
+pub(crate) fn grid(
     value: Option<&Bound<'_, PyAny>>,
     what: &str,
     axis: usize,
@@ -78,7 +78,11 @@ fn grid(
 
 /// For each cell of `layout` in canonical order, its (excitation, emission) indices into
 /// the grids the layout was made from.
-fn cell_indices(layout: &Layout, ex: &[f64], em: &[f64]) -> PyResult<Vec<(usize, usize)>> {
+pub(crate) fn cell_indices(
+    layout: &Layout,
+    ex: &[f64],
+    em: &[f64],
+) -> PyResult<Vec<(usize, usize)>> {
     let find = |grid: &[f64], nm: f64, what: &str| {
         fluorite::spectrum::find_wavelength(grid, nm).ok_or_else(|| {
             invalid(
@@ -104,7 +108,10 @@ fn cell_indices(layout: &Layout, ex: &[f64], em: &[f64]) -> PyResult<Vec<(usize,
 }
 
 /// The pixels of a 4-D array in the layout's canonical order, pixel-major (row by row).
-fn gather<T: Copy + Into<f64>>(view: ArrayViewD<'_, T>, cells: &[(usize, usize)]) -> Vec<f32> {
+pub(crate) fn gather<T: Copy + Into<f64>>(
+    view: ArrayViewD<'_, T>,
+    cells: &[(usize, usize)],
+) -> Vec<f32> {
     let shape = view.shape().to_vec();
     let (h, w, ni, no) = (shape[0], shape[1], shape[2], shape[3]);
     let standard = view.as_standard_layout();
@@ -131,7 +138,7 @@ fn shape_text(shape: &[usize]) -> String {
 }
 
 /// The shape of a numpy image, checked: (height, width, excitation, emission).
-fn shape4(shape: &[usize]) -> PyResult<[usize; 4]> {
+pub(crate) fn shape4(shape: &[usize]) -> PyResult<[usize; 4]> {
     let text = shape_text(shape);
     let &[h, w, ni, no] = shape else {
         return Err(invalid(
@@ -290,6 +297,24 @@ pub struct PyImageFit {
     lights: Vec<String>,
     notes: Vec<String>,
     map: Py<PyMaterialMap>,
+}
+
+impl PyImageFit {
+    /// The result of `fit` with its options and notes (the input's first).
+    pub(crate) fn new(
+        py: Python<'_>,
+        fit: ImageFit,
+        options: &ImageFitOptions,
+        notes: Vec<String>,
+    ) -> PyResult<Self> {
+        let map = PyMaterialMap::open(py, fit.map_path.clone())?;
+        Ok(PyImageFit {
+            lights: options.lights.iter().map(|l| l.name.clone()).collect(),
+            notes,
+            map: Py::new(py, map)?,
+            fit,
+        })
+    }
 }
 
 #[pymethods]
@@ -654,31 +679,15 @@ pub fn fit_image<'py>(
     emission_nm: Option<Bound<'py, PyAny>>,
 ) -> PyResult<PyImageFit> {
     let out = crate::convert::path(output, "output")?;
-    let yield_preference = match yield_form.to_ascii_lowercase().as_str() {
-        "auto" => YieldPreference::Auto,
-        "energy" => YieldPreference::Energy,
-        "photon" => YieldPreference::Photon,
-        other => {
-            return Err(invalid(
-                "yield_form",
-                format!("\"{other}\" is not one of auto, energy, photon"),
-            ));
-        }
-    };
-    let options = ImageFitOptions {
-        components: components.map(|k| count(k, "--components")).transpose()?,
-        max_components: count(max_components, "--max-components")?,
+    let options = image_options(
+        components,
+        max_components,
         max_delta_e,
         share,
-        lights: match crate::lights::lights(lights.as_ref())? {
-            Some(lights) => lights,
-            None => crate::lights::standard(),
-        },
-        yield_preference,
+        lights.as_ref(),
+        yield_form,
         zip,
-        ..ImageFitOptions::default()
-    };
-    attached("fit_image", || options.validate())?;
+    )?;
     let input = source_of(source, excitation_nm.as_ref(), emission_nm.as_ref())?;
     let (fit, notes) = detached(py, "fit_image", || match &input {
         Source::Exr(path) => {
@@ -699,13 +708,45 @@ pub fn fit_image<'py>(
             Ok((fit, notes))
         }
     })?;
-    let map = PyMaterialMap::open(py, fit.map_path.clone())?;
-    Ok(PyImageFit {
-        lights: options.lights.iter().map(|l| l.name.clone()).collect(),
-        notes,
-        map: Py::new(py, map)?,
-        fit,
-    })
+    PyImageFit::new(py, fit, &options, notes)
+}
+
+/// `fit_image`'s options as the library's, checked.
+pub(crate) fn image_options(
+    components: Option<i64>,
+    max_components: i64,
+    max_delta_e: f64,
+    share: f64,
+    lights: Option<&Bound<'_, PyAny>>,
+    yield_form: &str,
+    zip: bool,
+) -> PyResult<ImageFitOptions> {
+    let yield_preference = match yield_form.to_ascii_lowercase().as_str() {
+        "auto" => YieldPreference::Auto,
+        "energy" => YieldPreference::Energy,
+        "photon" => YieldPreference::Photon,
+        other => {
+            return Err(invalid(
+                "yield_form",
+                format!("\"{other}\" is not one of auto, energy, photon"),
+            ));
+        }
+    };
+    let options = ImageFitOptions {
+        components: components.map(|k| count(k, "--components")).transpose()?,
+        max_components: count(max_components, "--max-components")?,
+        max_delta_e,
+        share,
+        lights: match crate::lights::lights(lights)? {
+            Some(lights) => lights,
+            None => crate::lights::standard(),
+        },
+        yield_preference,
+        zip,
+        ..ImageFitOptions::default()
+    };
+    attached("fit_image", || options.validate())?;
+    Ok(options)
 }
 
 /// Writes a numpy image as a bispectral OpenEXR (the spectral layout of Fichet, Mercier

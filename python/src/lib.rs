@@ -20,6 +20,7 @@ mod lights;
 mod material;
 mod measurement;
 mod render;
+mod stages;
 
 create_exception!(
     fluorite,
@@ -131,6 +132,7 @@ fn _fluorite(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<joint::PyParafacFit>()?;
     m.add_class::<image::PyImageFit>()?;
     m.add_class::<image::PyMaterialMap>()?;
+    m.add_class::<stages::PyImageStages>()?;
     m.add_function(wrap_pyfunction!(measurement::read, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit_many, m)?)?;

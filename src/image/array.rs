@@ -7,7 +7,7 @@ use super::layout::Layout;
 use super::source::{ExrImage, PixelBlock, PlanarBlock};
 
 /// Rows per block of a pass over an in-memory image.
-const ROWS_PER_BLOCK: usize = 16;
+pub const ROWS_PER_BLOCK: usize = 16;
 
 /// An image in memory: `values[(y·width + x)·cells + c]` in the layout's canonical order.
 #[derive(Debug, Clone, PartialEq)]

@@ -99,6 +99,31 @@ impl PlanarBlock {
     }
 }
 
+/// Where a pass finds one of an image's blocks: the chunk's file offset and the pixels
+/// it holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ChunkPlace {
+    /// Byte offset of the chunk in the file.
+    pub offset: u64,
+    /// Column of the block's first pixel.
+    pub x: usize,
+    /// Row of the block's first pixel.
+    pub y: usize,
+    /// Pixels per row of the block.
+    pub width: usize,
+    /// Rows of the block.
+    pub height: usize,
+}
+
+/// The blocks of an image's passes, in pass order, with the file's metadata to decode
+/// them ([`ExrImage::chunk_index`]).
+#[derive(Debug, Clone)]
+pub struct ChunkIndex {
+    meta: MetaData,
+    /// Each block's place, in pass order.
+    pub places: Vec<ChunkPlace>,
+}
+
 /// A bispectral EXR image opened for streaming.
 #[derive(Debug, Clone)]
 pub struct ExrImage {
@@ -323,6 +348,109 @@ impl ExrImage {
         progress: impl FnMut(usize),
     ) -> Result<()> {
         self.run_pass(|block| map(self.convert_planar(block)?), fold, progress)
+    }
+
+    /// Where the part's full-resolution chunks lie, in the order a pass reads them
+    /// (increasing file offset): the chunk at position `i` is block `i` of every pass.
+    pub fn chunk_index(&self) -> Result<ChunkIndex> {
+        use std::io::Read;
+        let fail = |message: String| Error::parse(&self.path, 0, 0, message);
+        let file = File::open(&self.path).map_err(|e| Error::io(&self.path, e))?;
+        // The metadata reader consumes the headers exactly (it peeks no byte past them):
+        // the offset tables follow, one per header, a u64 per chunk.
+        let mut reader = BufReader::new(file);
+        let meta = MetaData::read_from_buffered(&mut reader, false)
+            .map_err(|e| fail(format!("not a readable OpenEXR file: {e}")))?;
+        let mut offsets = Vec::with_capacity(self.chunks);
+        for (index, header) in meta.headers.iter().enumerate() {
+            let mut table = vec![0u8; 8 * header.chunk_count];
+            reader.read_exact(&mut table).map_err(|e| {
+                fail(format!(
+                    "cannot read the chunk offsets ({e}): the file is truncated or damaged"
+                ))
+            })?;
+            if index != self.layer {
+                continue;
+            }
+            for (tile, bytes) in header
+                .blocks_increasing_y_order()
+                .zip(table.chunks_exact(8))
+            {
+                if tile.location.level_index != exr::math::Vec2(0, 0) {
+                    continue;
+                }
+                let bounds = header
+                    .get_absolute_block_pixel_coordinates(tile.location)
+                    .map_err(|e| fail(format!("a chunk lies outside the image ({e})")))?;
+                let (x, y) = (bounds.position.x(), bounds.position.y());
+                offsets.push(ChunkPlace {
+                    offset: u64::from_le_bytes(bytes.try_into().expect("8 bytes")),
+                    x: usize::try_from(x).unwrap_or(0),
+                    y: usize::try_from(y).unwrap_or(0),
+                    width: bounds.size.x(),
+                    height: bounds.size.y(),
+                });
+            }
+        }
+        offsets.sort_unstable_by_key(|p| p.offset);
+        if offsets.len() != self.chunks {
+            return Err(fail(format!(
+                "{} chunk offsets for {} chunks: the file is damaged",
+                offsets.len(),
+                self.chunks
+            )));
+        }
+        Ok(ChunkIndex {
+            meta,
+            places: offsets,
+        })
+    }
+
+    /// Blocks `range` of a pass (positions in [`ExrImage::chunk_index`]'s order), one
+    /// after the other on this thread: `map` runs on each, `fold` receives the results
+    /// in order. The blocks are the ones a whole pass hands its `map` at those
+    /// positions, so a pass split into ranges (processes of a cluster) and summed in
+    /// block order gives the whole pass's result.
+    pub fn pass_planar_range<T>(
+        &self,
+        range: std::ops::Range<usize>,
+        index: &ChunkIndex,
+        mut map: impl FnMut(PlanarBlock) -> Result<T>,
+        mut fold: impl FnMut(T) -> Result<()>,
+    ) -> Result<()> {
+        use std::io::{Seek, SeekFrom};
+        let (meta, offsets) = (&index.meta, &index.places);
+        if range.start > range.end || range.end > offsets.len() {
+            return Err(Error::invalid(
+                "blocks",
+                format!(
+                    "{}..{} is outside the image's {} blocks",
+                    range.start,
+                    range.end,
+                    offsets.len()
+                ),
+            ));
+        }
+        let fail = |message: String| Error::parse(&self.path, 0, 0, message);
+        let file = File::open(&self.path).map_err(|e| Error::io(&self.path, e))?;
+        let mut reader = BufReader::with_capacity(1 << 20, file);
+        for position in range {
+            crate::files::check_interrupted(&self.path)?;
+            let damaged = |e: exr::error::Error| {
+                fail(format!(
+                    "chunk {} of {} cannot be read ({e}): the file is truncated or damaged",
+                    position + 1,
+                    self.chunks
+                ))
+            };
+            reader
+                .seek(SeekFrom::Start(offsets[position].offset))
+                .map_err(|e| Error::io(&self.path, e))?;
+            let chunk = Chunk::read(&mut reader, meta).map_err(damaged)?;
+            let block = UncompressedBlock::decompress_chunk(chunk, meta, false).map_err(damaged)?;
+            fold(map(self.convert_planar(&block)?)?)?;
+        }
+        Ok(())
     }
 
     fn run_pass<T: Send>(

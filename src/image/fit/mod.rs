@@ -21,6 +21,7 @@ pub mod passes;
 pub mod pixel;
 pub mod scratch;
 pub mod shared;
+pub mod stages;
 pub mod state;
 
 use std::path::{Path, PathBuf};
@@ -294,7 +295,6 @@ fn run(
     let layout = &image.layout();
     let m = layout.len() - layout.diagonal_count;
     let rank = options.rank.min(m);
-    let cells = cells_of(layout);
     let colours = CellColours::new(layout, &options.lights);
     let record = RecordLayout {
         rank,
@@ -365,6 +365,104 @@ fn run(
         state.mark("projection")?;
         scratch
     };
+    let fit = conclude(
+        image, out, options, report, &mut state, &basis, &census, &scratch, resumed,
+    )?;
+    state.finish()?;
+    Ok(fit)
+}
+
+/// Fits an image whose passes another process ran (a Dask cluster, `fluorite.dask`):
+/// `basis` is the basis after the power steps, `census` the sketch's count of masked
+/// pixels, and `fill` writes every pixel's record (pass 3's, [`stages::projection_block`])
+/// into the scratch file it is given. The rest is `fit_image`'s: the shared fluorophores
+/// for K = 1, 2, …, the gauge and the outputs, written into `out` from the scratch file
+/// (kept in `out`'s work folder while it runs). Only `image`'s size, layout and names are
+/// used, never its pixels. An earlier run's work folder in `out` is replaced: this run
+/// resumes nothing.
+pub fn fit_image_from_records(
+    image: PixelSource<'_>,
+    out: &Path,
+    options: &ImageFitOptions,
+    basis: &[f64],
+    census: &passes::Census,
+    fill: impl FnOnce(&Scratch) -> Result<()>,
+    report: &(dyn Fn(Step) + Sync),
+) -> Result<ImageFit> {
+    options.validate()?;
+    let layout = image.layout();
+    let m = layout.len() - layout.diagonal_count;
+    let rank = options.rank.min(m);
+    if basis.len() != m * rank {
+        return Err(Error::invalid(
+            "basis",
+            format!(
+                "{} values for {m} cells × rank {rank} ({} expected)",
+                basis.len(),
+                m * rank
+            ),
+        ));
+    }
+    refuse_all_masked(image, census)?;
+    if out.is_file() {
+        return Err(Error::invalid(
+            "-o",
+            format!("{} is a file; give a folder", out.display()),
+        ));
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let work = work_folder(out);
+    if work.exists() {
+        std::fs::remove_dir_all(&work).map_err(|e| Error::io(&work, e))?;
+    }
+    let record = RecordLayout {
+        rank,
+        diagonal: layout.diagonal_count,
+        lights: options.lights.len(),
+    };
+    let expected = state::Expected {
+        basis_bytes: (m * rank * 8) as u64,
+        scratch_bytes: (image.pixels() * record.len() * 4) as u64,
+    };
+    let mut state = State::open(&work, image, &options.key(), expected)?;
+    let scratch_path = state.folder()?.join("scratch.f32");
+    let scratch = Scratch::create(&scratch_path, record, image.pixels())?;
+    fill(&scratch)?;
+    let fit = conclude(
+        image,
+        out,
+        options,
+        report,
+        &mut state,
+        basis,
+        census,
+        &scratch,
+        Vec::new(),
+    )?;
+    state.finish()?;
+    Ok(fit)
+}
+
+/// Everything after the projection: the shared fluorophores for K = 1, 2, … (or the K
+/// asked for), the gauge and the outputs, from the scratch file.
+#[allow(clippy::too_many_arguments)]
+fn conclude(
+    image: PixelSource<'_>,
+    out: &Path,
+    options: &ImageFitOptions,
+    report: &(dyn Fn(Step) + Sync),
+    state: &mut State,
+    basis: &[f64],
+    census: &passes::Census,
+    scratch: &Scratch,
+    mut resumed: Vec<String>,
+) -> Result<ImageFit> {
+    let layout = &image.layout();
+    let m = layout.len() - layout.diagonal_count;
+    let rank = scratch.layout.rank;
+    let record = scratch.layout;
+    let cells = cells_of(layout);
+    let colours = CellColours::new(layout, &options.lights);
     let sigma = scratch.noise_sigma(m)?;
 
     // The shared fluorophores, K = 1, 2, … (or the K asked for).
@@ -388,12 +486,12 @@ fn run(
                     total: options.max_iterations,
                 });
                 if extremes.is_none() {
-                    extremes = Some(shared::extreme_pixels(&scratch, shared::START_EXTREMES)?);
+                    extremes = Some(shared::extreme_pixels(scratch, shared::START_EXTREMES)?);
                 }
                 let start = shared::start(
-                    &scratch,
+                    scratch,
                     &cells,
-                    &basis,
+                    basis,
                     extremes.as_deref().unwrap_or(&[]),
                     image.width(),
                     image.height(),
@@ -401,9 +499,9 @@ fn run(
                     options.start_pixels,
                 )?;
                 let fitted = shared::refine(
-                    &scratch,
+                    scratch,
                     &cells,
-                    &basis,
+                    basis,
                     start,
                     options.max_iterations,
                     options.tolerance,
@@ -411,7 +509,7 @@ fn run(
                 )?;
                 let fitted = prune(fitted);
                 let t = judge(
-                    &scratch, &fitted, &cells, layout, &basis, &colours, sigma, options,
+                    scratch, &fitted, &cells, layout, basis, &colours, sigma, options,
                 )?;
                 state.save_trial(&t)?;
                 t
@@ -460,14 +558,14 @@ fn run(
         &gauge,
         &cells,
         layout,
-        &basis,
+        basis,
         record,
         colours.clone(),
         sigma,
     );
     let written = outputs::write_all(
-        out, image, &scratch, &model, &gauge, &trial, &trials, &census, options, &mut state,
-        report, &notes,
+        out, image, scratch, &model, &gauge, &trial, &trials, census, options, state, report,
+        &notes,
     )?;
     if census.masked_pixels > 0 {
         notes.push(format!(
@@ -482,7 +580,6 @@ fn run(
             0.01
         ));
     }
-    state.finish()?;
     Ok(ImageFit {
         map_path: written.map_path,
         files: written.files,

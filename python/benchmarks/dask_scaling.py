@@ -1,0 +1,129 @@
+"""fluorite.dask.fit_image on 1 and 2 local worker processes: wall time, each pass's
+task times (from Dask's task stream), the bytes each pass moves, and every worker's peak
+resident memory, for the figures of docs/dask.md.
+
+    python python/benchmarks/dask_scaling.py --size 512 --workers 1,2 --chunks 1,4
+
+needs the release package with the dask extra in the active Python (pip install
+'./python[dask]') and the release binary (target/release/fluorite, for `synth`). Each
+configuration gets a fresh LocalCluster (so a worker's peak RSS is that run's); the
+machine's load average is printed with each run: time it on an idle machine.
+"""
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def peak_rss_mb():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def rss_mb():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def main():
+    import distributed
+
+    import fluorite
+    import fluorite.dask as fdask
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", default="512")
+    parser.add_argument("--workers", default="1,2")
+    parser.add_argument("--chunks", default="4", help="blocks (64 × 64 tiles) per task, comma-separated")
+    parser.add_argument("--components", type=int, default=3)
+    parser.add_argument("--image", help="an existing bispectral EXR (default: synth --image --size SIZE)")
+    parser.add_argument("--bin", default=str(ROOT / "target" / "release" / "fluorite"))
+    args = parser.parse_args()
+
+    work = Path(tempfile.mkdtemp(prefix="fluorite-dask-bench-"))
+    image = Path(args.image) if args.image else work / "image.exr"
+    if not args.image:
+        subprocess.run(
+            [args.bin, "synth", "--image", "-q", "--size", args.size, "--out", str(work), "--name", "image"],
+            cwd=ROOT,
+            check=True,
+        )
+    stages = fluorite._fluorite._ImageStages(str(image))
+    blocks = len(stages.block_rects())
+    block_pixels = 64 * 64
+    facts = {
+        "image": str(image),
+        "pixels": stages.width * stages.height,
+        "cells": stages.cells,
+        "m": stages.m,
+        "rank": stages.rank,
+        "record_floats": stages.record_len,
+        "blocks": blocks,
+        "input_bytes_per_block": block_pixels * stages.cells * 4,
+        "contribution_bytes_per_block": stages.m * stages.rank * 4,
+        "record_bytes_per_block": block_pixels * stages.record_len * 4,
+    }
+    print(json.dumps(facts), flush=True)
+    for workers in [int(w) for w in args.workers.split(",")]:
+        for chunks in [int(c) for c in args.chunks.split(",")]:
+            cluster = distributed.LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+            )
+            client = distributed.Client(cluster)
+            client.wait_for_workers(workers, timeout=120)
+            client.run(lambda: __import__("fluorite.dask"))
+            before = client.run(rss_mb)
+            stamps = {}
+
+            def progress(stage, done, total):
+                stamps.setdefault(stage, [time.perf_counter(), None])[1] = time.perf_counter()
+
+            load = os.getloadavg()[0]
+            started = time.perf_counter()
+            cpu = time.process_time()
+            with distributed.get_task_stream(client) as stream:
+                fit = fdask.fit_image(
+                    image,
+                    output=work / f"out-{workers}-{chunks}",
+                    components=args.components,
+                    client=client,
+                    chunks=chunks,
+                    progress=progress,
+                )
+            wall = time.perf_counter() - started
+            client_cpu = time.process_time() - cpu
+            tasks = {}
+            for record in stream.data:
+                name = record["key"] if isinstance(record["key"], str) else record["key"][0]
+                stage = name.split("-")[0].lstrip("_")
+                for ss in record["startstops"]:
+                    if ss["action"] == "compute":
+                        tasks.setdefault(stage, []).append(ss["stop"] - ss["start"])
+            passes_end = max(v[1] for v in stamps.values())
+            result = {
+                "workers": workers,
+                "chunks": chunks,
+                "load_before": round(load, 2),
+                "wall_s": round(wall, 2),
+                "passes_wall_s": round(passes_end - started, 2),
+                "fit_and_outputs_wall_s": round(wall - (passes_end - started), 2),
+                "client_cpu_s": round(client_cpu, 2),
+                "task_seconds": {k: {"n": len(v), "sum": round(sum(v), 2), "mean": round(sum(v) / len(v), 3)} for k, v in tasks.items()},
+                "worker_rss_before_mb": sorted(round(v) for v in before.values()),
+                "worker_peak_rss_mb": sorted(round(v) for v in client.run(peak_rss_mb).values()),
+                "components": fit.components,
+            }
+            print(json.dumps(result), flush=True)
+            client.close()
+            cluster.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,691 @@
+//! `fluorite._fluorite._ImageStages`: the stages of an image fit one at a time, for
+//! `fluorite.dask` to run the passes over the image on a Dask cluster.
+//!
+//! Every kernel is the library's ([`fluorite::image::fit::stages`], the functions
+//! `fit-image`'s own passes call on each block), run with the GIL released on one thread:
+//! a pass over blocks `first..first + count` of a bispectral EXR (read by chunks, the
+//! image's blocks) or over rows of an image in memory (bands of 16 rows, the blocks of
+//! `fluorite.fit_image` on a numpy array) returns each block's contribution; the caller
+//! sums them in block order, as the library's passes do. The fit on the compressed image
+//! (the pixels' records) and the outputs run through
+//! [`fluorite::image::fit::fit_image_from_records`], the code `fit_image` runs after its
+//! passes.
+
+use std::sync::Mutex;
+
+use fluorite::image::fit::colour::CellColours;
+use fluorite::image::fit::passes::{Census, orthonormal};
+use fluorite::image::fit::scratch::RecordLayout;
+use fluorite::image::fit::{ImageFitOptions, fit_image_from_records, stages};
+use fluorite::image::source::{ChunkIndex, PlanarBlock};
+use fluorite::image::{ArrayImage, ExrImage, Layout, PixelSource};
+use numpy::ndarray::{Array2, Array3, ArrayViewD};
+use numpy::{
+    AllowTypeChange, IntoPyArray, PyArray2, PyArray3, PyArrayDyn, PyArrayLikeDyn, PyArrayMethods,
+    PyReadonlyArray2, PyUntypedArray, PyUntypedArrayMethods,
+};
+use pyo3::prelude::*;
+
+use crate::convert::is_path;
+use crate::image::{PyImageFit, cell_indices, gather, grid, image_options};
+use crate::{detached, error, invalid};
+
+/// What the passes read.
+enum Input {
+    /// A bispectral OpenEXR, with its blocks.
+    Exr(ExrImage, ChunkIndex),
+    /// An image whose pixels come as arrays (height, width, excitation, emission): its
+    /// size and layout (no values), and each layout cell's (excitation, emission) index.
+    Array(ArrayImage, Vec<(usize, usize)>, [usize; 2]),
+}
+
+/// The stages of one image fit (``fluorite.dask.fit_image`` makes one per process).
+///
+/// ``source`` is a bispectral OpenEXR path, or None for an image given as arrays: then
+/// ``excitation_nm``, ``emission_nm`` and ``shape`` (height, width) describe it, and
+/// each pass takes its rows as an array (rows, width, excitation, emission) starting at
+/// a row that is a multiple of ``block_rows``. The other options are ``fit_image``'s.
+#[pyclass(module = "fluorite._fluorite", name = "_ImageStages", frozen)]
+pub struct PyImageStages {
+    input: Input,
+    options: ImageFitOptions,
+    /// Diagonal cells (the reradiation cells follow them).
+    first: usize,
+    /// Reradiation cells.
+    m: usize,
+    record: RecordLayout,
+    colours: CellColours,
+}
+
+impl PyImageStages {
+    fn image(&self) -> PixelSource<'_> {
+        match &self.input {
+            Input::Exr(image, _) => PixelSource::Exr(image),
+            Input::Array(image, _, _) => PixelSource::Array(image),
+        }
+    }
+
+    /// The blocks of a pass: `first..first + count` of an EXR, or the bands of rows
+    /// `pixels` holds from row `y` of an array image.
+    fn blocks(
+        &self,
+        first: usize,
+        count: usize,
+        pixels: Option<&Bound<'_, PyAny>>,
+        y: usize,
+    ) -> PyResult<Blocks<'_>> {
+        match (&self.input, pixels) {
+            (Input::Exr(image, index), None) => {
+                let end = first
+                    .checked_add(count)
+                    .filter(|&e| e <= index.places.len());
+                let Some(end) = end else {
+                    return Err(invalid(
+                        "count",
+                        format!(
+                            "blocks {first}..{first}+{count} are outside the image's {} blocks",
+                            index.places.len()
+                        ),
+                    ));
+                };
+                Ok(Blocks::Exr(image, index, first..end))
+            }
+            (Input::Array(image, cells, [ni, no]), Some(pixels)) => {
+                if y % stages::ROWS_PER_BLOCK != 0 {
+                    return Err(invalid(
+                        "y",
+                        format!(
+                            "{y}: a chunk starts at a multiple of {} rows",
+                            stages::ROWS_PER_BLOCK
+                        ),
+                    ));
+                }
+                let values = chunk_values(pixels, cells, image.width, *ni, *no)?;
+                let rows = values.len() / (image.width * cells.len()).max(1);
+                if y + rows > image.height {
+                    return Err(invalid(
+                        "pixels",
+                        format!(
+                            "rows {y}..{} are outside the image's {} rows",
+                            y + rows,
+                            image.height
+                        ),
+                    ));
+                }
+                let width = image.width;
+                let cells = cells.len();
+                Ok(Blocks::Array(values, y, width, cells))
+            }
+            (Input::Exr(..), Some(_)) => Err(invalid(
+                "pixels",
+                "the stages read a bispectral OpenEXR: give first and count, not pixels",
+            )),
+            (Input::Array(..), None) => Err(invalid(
+                "pixels",
+                "is required for an image given as arrays: its rows (rows, width, excitation, emission)",
+            )),
+        }
+    }
+}
+
+/// The blocks of one call, read (EXR) or built (array) as the kernel runs.
+enum Blocks<'a> {
+    Exr(&'a ExrImage, &'a ChunkIndex, std::ops::Range<usize>),
+    Array(Vec<f32>, usize, usize, usize),
+}
+
+impl Blocks<'_> {
+    /// Runs `map` on every block in order (on this thread).
+    fn each<T>(
+        self,
+        mut map: impl FnMut(PlanarBlock) -> fluorite::Result<T>,
+    ) -> fluorite::Result<Vec<T>> {
+        let mut out = Vec::new();
+        match self {
+            Blocks::Exr(image, index, range) => {
+                image.pass_planar_range(range, index, &mut map, |t| {
+                    out.push(t);
+                    Ok(())
+                })?;
+            }
+            Blocks::Array(values, y, width, cells) => {
+                for block in stages::row_blocks(&values, y, width, cells) {
+                    out.push(map(block)?);
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// The rows of an array chunk (rows, width, excitation, emission) as the layout's cells,
+/// pixel-major (float32, as `fit_image` reads a numpy image).
+fn chunk_values(
+    pixels: &Bound<'_, PyAny>,
+    cells: &[(usize, usize)],
+    width: usize,
+    ni: usize,
+    no: usize,
+) -> PyResult<Vec<f32>> {
+    let check = |shape: &[usize]| -> PyResult<()> {
+        if shape.len() != 4 || shape[1] != width || shape[2] != ni || shape[3] != no {
+            return Err(invalid(
+                "pixels",
+                format!(
+                    "shape {shape:?}: expected (rows, {width}, {ni}, {no}) (rows, width, excitation, emission)"
+                ),
+            ));
+        }
+        Ok(())
+    };
+    fn gathered<T: Copy + Into<f64>>(
+        view: ArrayViewD<'_, T>,
+        cells: &[(usize, usize)],
+    ) -> Vec<f32> {
+        gather(view, cells)
+    }
+    if pixels
+        .cast::<PyUntypedArray>()
+        .is_ok_and(|a| !a.is_aligned())
+    {
+        return Err(unaligned("pixels"));
+    }
+    if let Ok(a) = pixels.cast::<PyArrayDyn<f32>>() {
+        let a = a.readonly();
+        check(a.shape())?;
+        return Ok(gathered(a.as_array(), cells));
+    }
+    if let Ok(a) = pixels.cast::<PyArrayDyn<f64>>() {
+        let a = a.readonly();
+        check(a.shape())?;
+        return Ok(gathered(a.as_array(), cells));
+    }
+    let a = pixels
+        .extract::<PyArrayLikeDyn<'_, f32, AllowTypeChange>>()
+        .map_err(|_| invalid("pixels", "expected a numpy array of real numbers"))?;
+    check(a.shape())?;
+    Ok(gathered(a.as_array(), cells))
+}
+
+/// The error for an array whose data are not aligned (one deserialised from a buffer):
+/// numpy.require(a, requirements=["C", "A"]) copies it aligned.
+fn unaligned(what: &str) -> PyErr {
+    invalid(
+        what,
+        "the array's data are not aligned to its type: pass numpy.require(a, requirements=[\"C\", \"A\"])",
+    )
+}
+
+/// Stacks blocks' m × rank contributions into an array (blocks, m, rank).
+fn stack<'py>(
+    py: Python<'py>,
+    parts: Vec<Vec<f32>>,
+    m: usize,
+    rank: usize,
+) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let n = parts.len();
+    let flat: Vec<f32> = parts.into_iter().flatten().collect();
+    Array3::from_shape_vec((n, m, rank), flat)
+        .map(|a| a.into_pyarray(py))
+        .map_err(|e| invalid("parts", e))
+}
+
+/// A basis (m × rank) from Python, checked.
+fn basis_of(basis: PyReadonlyArray2<'_, f64>, m: usize, rank: usize) -> PyResult<Vec<f64>> {
+    if !basis.is_aligned() {
+        return Err(unaligned("basis"));
+    }
+    if basis.shape() != [m, rank] {
+        return Err(invalid(
+            "basis",
+            format!("shape {:?}: expected ({m}, {rank})", basis.shape()),
+        ));
+    }
+    Ok(basis.as_array().iter().copied().collect())
+}
+
+#[pymethods]
+impl PyImageStages {
+    #[new]
+    #[pyo3(signature = (source, *, components = None, max_components = 4, max_delta_e = 1.0, share = 0.99, lights = None, yield_form = "auto", zip = false, excitation_nm = None, emission_nm = None, shape = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        source: Option<&Bound<'_, PyAny>>,
+        components: Option<i64>,
+        max_components: i64,
+        max_delta_e: f64,
+        share: f64,
+        lights: Option<Bound<'_, PyAny>>,
+        yield_form: &str,
+        zip: bool,
+        excitation_nm: Option<Bound<'_, PyAny>>,
+        emission_nm: Option<Bound<'_, PyAny>>,
+        shape: Option<(usize, usize)>,
+    ) -> PyResult<Self> {
+        let options = image_options(
+            components,
+            max_components,
+            max_delta_e,
+            share,
+            lights.as_ref(),
+            yield_form,
+            zip,
+        )?;
+        let input = match source.filter(|s| !s.is_none()) {
+            Some(path) if is_path(path) => {
+                let path = crate::convert::path(path, "source")?;
+                let (image, index) = detached(py, "fluorite.dask", || {
+                    let image = ExrImage::open(&path)?;
+                    let index = image.chunk_index()?;
+                    Ok((image, index))
+                })?;
+                Input::Exr(image, index)
+            }
+            Some(_) => {
+                return Err(invalid(
+                    "source",
+                    "expected a bispectral OpenEXR path, or None with excitation_nm, emission_nm and shape",
+                ));
+            }
+            None => {
+                let Some((height, width)) = shape else {
+                    return Err(invalid(
+                        "shape",
+                        "is required for an image given as arrays: (height, width)",
+                    ));
+                };
+                let ex = floats_len(excitation_nm.as_ref(), "excitation_nm")?;
+                let em = floats_len(emission_nm.as_ref(), "emission_nm")?;
+                let ex = grid(excitation_nm.as_ref(), "excitation_nm", 2, ex)?;
+                let em = grid(emission_nm.as_ref(), "emission_nm", 3, em)?;
+                if !ex.iter().any(|&i| em.iter().any(|&o| o > i)) {
+                    return Err(invalid(
+                        "emission_nm",
+                        "no emission wavelength is above an excitation wavelength: the image holds no fluorescence (λi → λo > λi) to fit",
+                    ));
+                }
+                let layout = Layout::from_grids(&ex, &em).map_err(error)?;
+                let cells = cell_indices(&layout, &ex, &em)?;
+                if width * height < 2 {
+                    return Err(invalid(
+                        "shape",
+                        format!(
+                            "{} pixel(s): an image fit shares its fluorophores across pixels",
+                            width * height
+                        ),
+                    ));
+                }
+                // The image's size, layout and name: its values come with each pass.
+                let image = ArrayImage {
+                    name: crate::image::ARRAY_NAME.to_string(),
+                    width,
+                    height,
+                    layout,
+                    values: Vec::new(),
+                };
+                Input::Array(image, cells, [ex.len(), em.len()])
+            }
+        };
+        let layout = match &input {
+            Input::Exr(image, _) => &image.layout,
+            Input::Array(image, _, _) => &image.layout,
+        };
+        if layout.diagonal_count == 0 {
+            return Err(invalid(
+                "source",
+                "the image holds reradiation cells only, no diagonal (T.<λ>nm): a material map needs each pixel's reflectance",
+            ));
+        }
+        let first = layout.diagonal_count;
+        let m = layout.len() - first;
+        let record = RecordLayout {
+            rank: options.rank.min(m),
+            diagonal: first,
+            lights: options.lights.len(),
+        };
+        let colours = CellColours::new(layout, &options.lights);
+        Ok(PyImageStages {
+            input,
+            options,
+            first,
+            m,
+            record,
+            colours,
+        })
+    }
+
+    /// Pixels per row.
+    #[getter]
+    fn width(&self) -> usize {
+        self.image().width()
+    }
+
+    /// Rows.
+    #[getter]
+    fn height(&self) -> usize {
+        self.image().height()
+    }
+
+    /// Cells per pixel (the layout's, canonical order).
+    #[getter]
+    fn cells(&self) -> usize {
+        self.image().layout().len()
+    }
+
+    /// Reradiation cells per pixel (m: the rows of the sketch and the basis).
+    #[getter]
+    fn m(&self) -> usize {
+        self.m
+    }
+
+    /// Columns of the sketch and the basis.
+    #[getter]
+    fn rank(&self) -> usize {
+        self.record.rank
+    }
+
+    /// Power steps (each one more pass between the sketch and the projection).
+    #[getter]
+    fn power_steps(&self) -> usize {
+        self.options.power_steps
+    }
+
+    /// Floats per pixel record (the projection's output).
+    #[getter]
+    fn record_len(&self) -> usize {
+        self.record.len()
+    }
+
+    /// Rows per block of an image given as arrays (None for an EXR: its blocks are the
+    /// file's chunks).
+    #[getter]
+    fn block_rows(&self) -> Option<usize> {
+        match self.input {
+            Input::Exr(..) => None,
+            Input::Array(..) => Some(stages::ROWS_PER_BLOCK),
+        }
+    }
+
+    /// The blocks of a pass, in order, as (x, y, width, height) pixel rectangles.
+    fn block_rects(&self) -> Vec<(usize, usize, usize, usize)> {
+        match &self.input {
+            Input::Exr(_, index) => index
+                .places
+                .iter()
+                .map(|p| (p.x, p.y, p.width, p.height))
+                .collect(),
+            Input::Array(image, _, _) => (0..image.height)
+                .step_by(stages::ROWS_PER_BLOCK)
+                .map(|y| {
+                    (
+                        0,
+                        y,
+                        image.width,
+                        stages::ROWS_PER_BLOCK.min(image.height - y),
+                    )
+                })
+                .collect(),
+        }
+    }
+
+    /// Pass 1 over some blocks: (contributions (blocks, m, rank) float32, masked pixels,
+    /// non-finite cells). GIL released.
+    #[pyo3(signature = (first = 0, count = 0, pixels = None, y = 0))]
+    fn sketch<'py>(
+        &self,
+        py: Python<'py>,
+        first: usize,
+        count: usize,
+        pixels: Option<&Bound<'py, PyAny>>,
+        y: usize,
+    ) -> PyResult<(Bound<'py, PyArray3<f32>>, usize, usize)> {
+        let blocks = self.blocks(first, count, pixels, y)?;
+        let (first_cell, rank, seed, width) = (
+            self.first,
+            self.record.rank,
+            self.options.seed,
+            self.image().width(),
+        );
+        let parts = detached(py, "fluorite.dask sketch", || {
+            blocks.each(|b| Ok(stages::sketch_block(b, first_cell, rank, seed, width)))
+        })?;
+        let mut census = Census::default();
+        let mut local = Vec::with_capacity(parts.len());
+        for (part, c) in parts {
+            census.masked_pixels += c.masked_pixels;
+            census.non_finite_cells += c.non_finite_cells;
+            local.push(part);
+        }
+        Ok((
+            stack(py, local, self.m, rank)?,
+            census.masked_pixels,
+            census.non_finite_cells,
+        ))
+    }
+
+    /// A power step over some blocks, for the current `basis` (m, rank): contributions
+    /// (blocks, m, rank) float32. GIL released.
+    #[pyo3(signature = (basis, first = 0, count = 0, pixels = None, y = 0))]
+    fn power<'py>(
+        &self,
+        py: Python<'py>,
+        basis: PyReadonlyArray2<'py, f64>,
+        first: usize,
+        count: usize,
+        pixels: Option<&Bound<'py, PyAny>>,
+        y: usize,
+    ) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let rank = self.record.rank;
+        let q = stages::as_f32(&basis_of(basis, self.m, rank)?);
+        let blocks = self.blocks(first, count, pixels, y)?;
+        let first_cell = self.first;
+        let parts = detached(py, "fluorite.dask power", || {
+            blocks.each(|b| Ok(stages::power_block(b, first_cell, &q, rank)))
+        })?;
+        stack(py, parts, self.m, rank)
+    }
+
+    /// The projection of some blocks on the final `basis` (m, rank): a list of (x, y,
+    /// records) per block, records float32 (height, width, record_len) of the block's
+    /// pixels. GIL released.
+    #[pyo3(signature = (basis, first = 0, count = 0, pixels = None, y = 0))]
+    #[allow(clippy::type_complexity)]
+    fn project<'py>(
+        &self,
+        py: Python<'py>,
+        basis: PyReadonlyArray2<'py, f64>,
+        first: usize,
+        count: usize,
+        pixels: Option<&Bound<'py, PyAny>>,
+        y: usize,
+    ) -> PyResult<Vec<(usize, usize, Bound<'py, PyArray3<f32>>)>> {
+        let basis = basis_of(basis, self.m, self.record.rank)?;
+        let both =
+            stages::projection_matrix(&basis, &self.colours, self.first, self.m, self.record.rank);
+        let blocks = self.blocks(first, count, pixels, y)?;
+        let (first_cell, record) = (self.first, self.record);
+        let parts = detached(py, "fluorite.dask projection", || {
+            blocks.each(|b| {
+                let (x, y, w, h) = (b.x, b.y, b.width, b.height);
+                Ok((
+                    x,
+                    y,
+                    w,
+                    h,
+                    stages::projection_block(b, first_cell, &both, record),
+                ))
+            })
+        })?;
+        parts
+            .into_iter()
+            .map(|(x, y, w, h, records)| {
+                let a = Array3::from_shape_vec((h, w, record.len()), records)
+                    .map_err(|e| invalid("records", e))?;
+                Ok((x, y, a.into_pyarray(py)))
+            })
+            .collect()
+    }
+
+    /// The cells of some blocks of an EXR as a list of (x, y, cells), cells float32
+    /// (height, width, cells) in the layout's canonical order (the diagonal cells by
+    /// wavelength, then the reradiation cells excitation-major). GIL released.
+    #[allow(clippy::type_complexity)]
+    fn read_blocks<'py>(
+        &self,
+        py: Python<'py>,
+        first: usize,
+        count: usize,
+    ) -> PyResult<Vec<(usize, usize, Bound<'py, PyArray3<f32>>)>> {
+        let blocks = self.blocks(first, count, None, 0)?;
+        let parts = detached(py, "fluorite.dask read_blocks", || {
+            blocks.each(|b| {
+                let n = b.pixel_count();
+                let mut pixels = vec![0f32; n * b.cells];
+                for (c, plane) in b.planes.chunks_exact(n).enumerate() {
+                    for (q, &v) in plane.iter().enumerate() {
+                        pixels[q * b.cells + c] = v;
+                    }
+                }
+                Ok((b.x, b.y, b.width, b.height, b.cells, pixels))
+            })
+        })?;
+        parts
+            .into_iter()
+            .map(|(x, y, w, h, cells, pixels)| {
+                let a = Array3::from_shape_vec((h, w, cells), pixels)
+                    .map_err(|e| invalid("pixels", e))?;
+                Ok((x, y, a.into_pyarray(py)))
+            })
+            .collect()
+    }
+
+    /// An orthonormal basis (m, rank) of the range of a summed sketch or power step `z`
+    /// (m, rank), as the library's passes make it.
+    fn orthonormal<'py>(
+        &self,
+        py: Python<'py>,
+        z: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let (m, rank) = (self.m, self.record.rank);
+        let z = basis_of(z, m, rank)?;
+        let q = detached(py, "fluorite.dask orthonormal", || {
+            Ok(orthonormal(&z, m, rank))
+        })?;
+        Array2::from_shape_vec((m, rank), q)
+            .map(|a| a.into_pyarray(py))
+            .map_err(|e| invalid("basis", e))
+    }
+
+    /// The fit after the passes, into the folder `output`: `basis` (m, rank) after the
+    /// power steps, the sketch's census, and `read_rows(y, rows)` returning the records
+    /// of rows y..y + rows as float32 (rows, width, record_len). The records are copied
+    /// into the run's scratch file band by band; the shared fluorophores, the gauge and
+    /// every output are then `fit_image`'s. Returns an ``ImageFit``.
+    fn fit_records(
+        &self,
+        py: Python<'_>,
+        output: &Bound<'_, PyAny>,
+        basis: PyReadonlyArray2<'_, f64>,
+        masked_pixels: usize,
+        non_finite_cells: usize,
+        read_rows: Py<PyAny>,
+    ) -> PyResult<PyImageFit> {
+        let out = crate::convert::path(output, "output")?;
+        let basis = basis_of(basis, self.m, self.record.rank)?;
+        let census = Census {
+            masked_pixels,
+            non_finite_cells,
+        };
+        let (width, height, len) = (
+            self.image().width(),
+            self.image().height(),
+            self.record.len(),
+        );
+        // A Python error of `read_rows`, raised again as it was.
+        let raised: Mutex<Option<PyErr>> = Mutex::new(None);
+        const BAND: usize = 64;
+        let image = self.image();
+        let options = &self.options;
+        let result = detached(py, "fluorite.dask fit", || {
+            fit_image_from_records(
+                image,
+                &out,
+                options,
+                &basis,
+                &census,
+                |scratch| {
+                    for y in (0..height).step_by(BAND) {
+                        let rows = BAND.min(height - y);
+                        let band = Python::attach(|py| -> PyResult<Vec<f32>> {
+                            let a = read_rows.call1(py, (y, rows))?;
+                            let a = a
+                                .bind(py)
+                                .extract::<PyArrayLikeDyn<'_, f32, AllowTypeChange>>()
+                                .map_err(|_| {
+                                    invalid(
+                                        "read_rows",
+                                        "returned something other than an array of real numbers",
+                                    )
+                                })?;
+                            if a.shape() != [rows, width, len] {
+                                return Err(invalid(
+                                    "read_rows",
+                                    format!(
+                                        "returned shape {:?} for rows {y}..{}: expected ({rows}, {width}, {len})",
+                                        a.shape(),
+                                        y + rows
+                                    ),
+                                ));
+                            }
+                            Ok(a.as_array().iter().copied().collect())
+                        });
+                        match band {
+                            Ok(band) => scratch.write(y * width, &band)?,
+                            Err(e) => {
+                                *raised.lock().expect("not poisoned") = Some(e);
+                                return Err(fluorite::Error::invalid(
+                                    "read_rows",
+                                    "raised an exception",
+                                ));
+                            }
+                        }
+                    }
+                    Ok(())
+                },
+                &|_| {},
+            )
+        });
+        if let Some(e) = raised.lock().expect("not poisoned").take() {
+            return Err(e);
+        }
+        let fit = result?;
+        let notes = match &self.input {
+            Input::Exr(image, _) => image.notes.iter().chain(&fit.notes).cloned().collect(),
+            Input::Array(..) => fit.notes.clone(),
+        };
+        PyImageFit::new(py, fit, &self.options, notes)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "_ImageStages({:?}, {}×{} pixels, {} cells, rank {})",
+            self.image().describe(),
+            self.image().width(),
+            self.image().height(),
+            self.image().layout().len(),
+            self.record.rank
+        )
+    }
+}
+
+/// The length of a 1-D grid argument (checked fully by `grid`).
+fn floats_len(value: Option<&Bound<'_, PyAny>>, what: &str) -> PyResult<usize> {
+    match value.filter(|v| !v.is_none()) {
+        Some(v) => Ok(crate::convert::floats(v, what)?.len()),
+        None => Err(invalid(
+            what,
+            "is required for an image given as arrays (nm, 1-D)",
+        )),
+    }
+}
