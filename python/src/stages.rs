@@ -33,7 +33,7 @@ use crate::{detached, error, invalid};
 /// What the passes read.
 enum Input {
     /// A bispectral OpenEXR, with its blocks.
-    Exr(ExrImage, ChunkIndex),
+    Exr(Box<ExrImage>, Box<ChunkIndex>),
     /// An image whose pixels come as arrays (height, width, excitation, emission): its
     /// size and layout (no values), and each layout cell's (excitation, emission) index.
     Array(ArrayImage, Vec<(usize, usize)>, [usize; 2]),
@@ -91,7 +91,7 @@ impl PyImageStages {
                 Ok(Blocks::Exr(image, index, first..end))
             }
             (Input::Array(image, cells, [ni, no]), Some(pixels)) => {
-                if y % stages::ROWS_PER_BLOCK != 0 {
+                if !y.is_multiple_of(stages::ROWS_PER_BLOCK) {
                     return Err(invalid(
                         "y",
                         format!(
@@ -280,7 +280,7 @@ impl PyImageStages {
                     let index = image.chunk_index()?;
                     Ok((image, index))
                 })?;
-                Input::Exr(image, index)
+                Input::Exr(Box::new(image), Box::new(index))
             }
             Some(_) => {
                 return Err(invalid(
