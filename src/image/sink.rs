@@ -25,7 +25,7 @@ use crate::error::{Error, Result};
 pub const TILE: usize = 64;
 
 /// Tiles produced and compressed together per thread.
-const TILES_PER_THREAD: usize = 2;
+const TILES_PER_THREAD: usize = 1;
 
 /// A pixel rectangle of an image being written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -146,6 +146,57 @@ pub fn write_image(
     }
 }
 
+/// A tile's values (pixel by pixel, channels in the producer's order) as the bytes of an
+/// uncompressed OpenEXR tile: row by row, each row channel by channel in the file's order.
+fn tile_bytes(values: &[f32], rect: Rect, spec: &ImageSpec, order: &[usize]) -> Result<Vec<u8>> {
+    let channel_count = spec.channels.len();
+    if values.len() != rect.width * rect.height * channel_count {
+        return Err(Error::invalid(
+            "image writer",
+            format!(
+                "a tile of {}×{} pixels got {} values for {channel_count} channels",
+                rect.width,
+                rect.height,
+                values.len()
+            ),
+        ));
+    }
+    let bytes = if spec.half { 2 } else { 4 };
+    let width = rect.width;
+    let mut data = Vec::with_capacity(values.len() * bytes);
+    // Each row is transposed to channel-major in cache-sized blocks first: gathering a
+    // channel straight from the pixel-major values reads one value per cache line.
+    const BLOCK: usize = 16;
+    let mut planar = vec![0f32; width * channel_count];
+    for row in values.chunks_exact(width * channel_count) {
+        for x0 in (0..width).step_by(BLOCK) {
+            for c0 in (0..channel_count).step_by(BLOCK) {
+                let c1 = (c0 + BLOCK).min(channel_count);
+                for x in x0..(x0 + BLOCK).min(width) {
+                    for (c, &v) in
+                        (c0..c1).zip(&row[x * channel_count + c0..x * channel_count + c1])
+                    {
+                        planar[c * width + x] = v;
+                    }
+                }
+            }
+        }
+        for &c in order {
+            let samples = &planar[c * width..(c + 1) * width];
+            if spec.half {
+                data.extend(
+                    samples
+                        .iter()
+                        .flat_map(|&v| exr::prelude::f16::from_f32(v).to_ne_bytes()),
+                );
+            } else {
+                data.extend(samples.iter().flat_map(|&v| v.to_ne_bytes()));
+            }
+        }
+    }
+    Ok(data)
+}
+
 fn write_tiles(
     tmp: &Path,
     header: Header,
@@ -159,8 +210,6 @@ fn write_tiles(
     let blocks: Vec<(usize, exr::block::BlockIndex)> =
         exr::block::enumerate_ordered_header_block_indices(std::slice::from_ref(&header)).collect();
     let total = blocks.len();
-    let channel_count = spec.channels.len();
-    let bytes = if spec.half { 2 } else { 4 };
     let mut failure: Option<Error> = None;
     let group = TILES_PER_THREAD * rayon::current_num_threads().max(1);
     let headers: exr::meta::Headers = exr::prelude::SmallVec::from_vec(vec![header]);
@@ -175,65 +224,58 @@ fn write_tiles(
         headers,
         true,
         |meta, writer| {
-            for (g, group_blocks) in blocks.chunks(group).enumerate() {
-                if let Err(e) = crate::files::check_interrupted(tmp) {
-                    failure = Some(e);
-                    return Err(exr::error::Error::Aborted);
-                }
-                let chunks: Vec<Result<(usize, exr::block::chunk::Chunk)>> = group_blocks
-                .par_iter()
-                .map(|&(index, block)| {
-                    let rect = Rect {
-                        x: block.pixel_position.x(),
-                        y: block.pixel_position.y(),
-                        width: block.pixel_size.x(),
-                        height: block.pixel_size.y(),
-                    };
-                    let values = produce(rect)?;
-                    if values.len() != rect.width * rect.height * channel_count {
-                        return Err(Error::invalid(
-                            "image writer",
-                            format!(
-                                "a tile of {}×{} pixels got {} values for {channel_count} channels",
-                                rect.width,
-                                rect.height,
-                                values.len()
-                            ),
-                        ));
-                    }
-                    let mut data = Vec::with_capacity(values.len() * bytes);
-                    for row in 0..rect.height {
-                        for &c in order {
-                            for x in 0..rect.width {
-                                let v = values[(row * rect.width + x) * channel_count + c];
-                                if bytes == 2 {
-                                    data.extend_from_slice(
-                                        &exr::prelude::f16::from_f32(v).to_ne_bytes(),
-                                    );
-                                } else {
-                                    data.extend_from_slice(&v.to_ne_bytes());
-                                }
-                            }
+            // Tiles are produced (in parallel) a group ahead of the writing: copying a
+            // group into the file is one thread's work that would otherwise leave the
+            // others idle.
+            type Group = Result<Vec<(usize, exr::block::chunk::Chunk)>>;
+            let (sender, receiver) = std::sync::mpsc::sync_channel::<Group>(1);
+            std::thread::scope(|scope| {
+                // The producer owns the sender: the receiver's loop ends when it does.
+                scope.spawn(move || {
+                    for group_blocks in blocks.chunks(group) {
+                        let chunks: Group = crate::files::check_interrupted(tmp).and_then(|()| {
+                            group_blocks
+                                .par_iter()
+                                .map(|&(index, block)| {
+                                    let rect = Rect {
+                                        x: block.pixel_position.x(),
+                                        y: block.pixel_position.y(),
+                                        width: block.pixel_size.x(),
+                                        height: block.pixel_size.y(),
+                                    };
+                                    let data = tile_bytes(&produce(rect)?, rect, spec, order)?;
+                                    let chunk = UncompressedBlock { index: block, data }
+                                        .compress_to_chunk(&meta.headers)
+                                        .map_err(encode_failure)?;
+                                    Ok((index, chunk))
+                                })
+                                .collect()
+                        });
+                        let failed = chunks.is_err();
+                        // The receiver is gone when writing failed.
+                        if sender.send(chunks).is_err() || failed {
+                            return;
                         }
                     }
-                    let chunk = UncompressedBlock { index: block, data }
-                        .compress_to_chunk(&meta.headers)
-                        .map_err(encode_failure)?;
-                    Ok((index, chunk))
-                })
-                .collect();
-                for chunk in chunks {
-                    match chunk {
-                        Ok((index, chunk)) => writer.write_chunk(index, chunk)?,
+                });
+                let mut written = 0;
+                for chunks in receiver.iter() {
+                    match chunks {
+                        Ok(chunks) => {
+                            written += chunks.len();
+                            for (index, chunk) in chunks {
+                                writer.write_chunk(index, chunk)?;
+                            }
+                        }
                         Err(e) => {
                             failure = Some(e);
                             return Err(exr::error::Error::Aborted);
                         }
                     }
+                    progress(written, total);
                 }
-                progress(((g + 1) * group).min(total), total);
-            }
-            Ok(())
+                Ok(())
+            })
         },
     )
     .map_err(|e| failure.take().unwrap_or_else(|| encode_failure(e)))?;

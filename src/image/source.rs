@@ -24,7 +24,7 @@ use super::layout::{Cell, Layout};
 
 /// Chunks decoded together per thread in a pass: enough to keep every thread busy,
 /// few enough that a pass holds only a handful of chunks.
-const CHUNKS_PER_THREAD: usize = 2;
+const CHUNKS_PER_THREAD: usize = 1;
 
 /// A block of pixels: a scanline block or a tile of the image.
 #[derive(Debug, Clone, PartialEq)]
@@ -475,44 +475,72 @@ impl ExrImage {
             })?;
         let meta = chunks.meta_data().clone();
         let group = CHUNKS_PER_THREAD * rayon::current_num_threads().max(1);
+        let total = self.chunks;
         let mut done = 0;
-        loop {
-            crate::files::check_interrupted(&self.path)?;
-            let mut batch: Vec<Chunk> = Vec::with_capacity(group);
-            for chunk in chunks.by_ref().take(group) {
-                batch.push(chunk.map_err(|e| {
-                    fail(format!(
-                        "chunk {} of {} cannot be read ({e}): the file is truncated or damaged",
-                        done + batch.len() + 1,
-                        self.chunks
-                    ))
-                })?);
+        // A reader thread reads the next group of chunks from the file while the current
+        // one is decompressed and mapped: reading is copying from the page cache (or
+        // waiting for the disk), one thread's work that would otherwise leave the others
+        // idle.
+        let (sender, receiver) = std::sync::mpsc::sync_channel::<Result<Vec<Chunk>>>(1);
+        std::thread::scope(|scope| -> Result<()> {
+            scope.spawn(move || {
+                let mut read = 0;
+                loop {
+                    let mut batch: Vec<Chunk> = Vec::with_capacity(group);
+                    let mut failure = None;
+                    for chunk in chunks.by_ref().take(group) {
+                        match chunk {
+                            Ok(chunk) => batch.push(chunk),
+                            Err(e) => {
+                                failure = Some(fail(format!(
+                                    "chunk {} of {total} cannot be read ({e}): the file is truncated or damaged",
+                                    read + batch.len() + 1,
+                                )));
+                                break;
+                            }
+                        }
+                    }
+                    read += batch.len();
+                    let last = batch.is_empty() || failure.is_some();
+                    let message = match failure {
+                        Some(e) => Err(e),
+                        None => Ok(batch),
+                    };
+                    // The receiver is gone when the pass failed or was interrupted.
+                    if sender.send(message).is_err() || last {
+                        return;
+                    }
+                }
+            });
+            for batch in receiver.iter() {
+                crate::files::check_interrupted(&self.path)?;
+                let batch = batch?;
+                if batch.is_empty() {
+                    break;
+                }
+                let count = batch.len();
+                let results: Vec<Result<T>> = batch
+                    .into_par_iter()
+                    .enumerate()
+                    .map(|(k, chunk)| {
+                        let block = UncompressedBlock::decompress_chunk(chunk, &meta, false)
+                            .map_err(|e| {
+                                fail(format!(
+                                    "chunk {} of {total} cannot be decompressed ({e}): the file is truncated or damaged",
+                                    done + k + 1,
+                                ))
+                            })?;
+                        map(&block)
+                    })
+                    .collect();
+                for r in results {
+                    fold(r?)?;
+                }
+                done += count;
+                progress(done);
             }
-            if batch.is_empty() {
-                break;
-            }
-            let count = batch.len();
-            let results: Vec<Result<T>> = batch
-                .into_par_iter()
-                .enumerate()
-                .map(|(k, chunk)| {
-                    let block = UncompressedBlock::decompress_chunk(chunk, &meta, false)
-                        .map_err(|e| {
-                            fail(format!(
-                                "chunk {} of {} cannot be decompressed ({e}): the file is truncated or damaged",
-                                done + k + 1,
-                                self.chunks
-                            ))
-                        })?;
-                    map(&block)
-                })
-                .collect();
-            for r in results {
-                fold(r?)?;
-            }
-            done += count;
-            progress(done);
-        }
+            Ok(())
+        })?;
         if done != self.chunks {
             return Err(fail(format!(
                 "{done} of {} chunks were read: the file is truncated",

@@ -575,9 +575,8 @@ fn conclude(
     }
     if written.clamped_pixels > 0 {
         notes.push(format!(
-            "{} pixel(s) needed clamping (a concentration above 1, Σ c·a above 1, or a reflectance outside [0, 1] by more than {}): their materials conserve energy, their colour error says what it cost",
+            "{} pixel(s) needed clamping (a concentration above 1, Σ c·a above 1, or a reflectance outside [0, 1] by more than 0.01 and more than 3 × the noise of its estimate, σ / (1 − Σ c·a)): their materials conserve energy, their colour error says what it cost",
             written.clamped_pixels,
-            0.01
         ));
     }
     Ok(ImageFit {
@@ -670,31 +669,35 @@ fn judge(
     let chunks: Vec<usize> = (0..scratch.pixels.div_ceil(CHUNK)).collect();
     // Per chunk: ΔE per light and pixel, and whether each pixel is within its bounds.
     type Judged = (Vec<Vec<f32>>, Vec<bool>);
-    let per_chunk: Vec<Result<Judged>> = chunks
-        .par_iter()
-        .map(|&chunk| {
-            let first = chunk * CHUNK;
-            let count = CHUNK.min(scratch.pixels - first);
-            let records = scratch.read(first, count)?;
-            let mut out = vec![Vec::new(); lights];
-            let mut within = Vec::new();
-            for r in records.chunks_exact(scratch.layout.len()) {
-                let fit = model.evaluate(r);
-                if fit.masked {
-                    continue;
+    let per_chunk: Vec<Result<Judged>> =
+        chunks
+            .par_iter()
+            .map(|&chunk| {
+                let first = chunk * CHUNK;
+                let count = CHUNK.min(scratch.pixels - first);
+                let records = scratch.read(first, count)?;
+                let mut out = vec![Vec::new(); lights];
+                let mut within = Vec::new();
+                for r in records.chunks_exact(scratch.layout.len()) {
+                    let fit = model.fit(r);
+                    if fit.masked {
+                        continue;
+                    }
+                    let colours = model.colours(r, &fit);
+                    for (l, d) in colours.delta_e.iter().enumerate() {
+                        out[l].push(*d as f32);
+                    }
+                    within.push(colours.delta_e.iter().zip(&colours.noise_delta_e).all(
+                        |(d, n)| {
+                            *d <= options
+                                .max_delta_e
+                                .max(crate::fit::assess::NOISE_COVERAGE * n)
+                        },
+                    ));
                 }
-                for (l, d) in fit.delta_e.iter().enumerate() {
-                    out[l].push(*d as f32);
-                }
-                within.push(fit.delta_e.iter().zip(&fit.noise_delta_e).all(|(d, n)| {
-                    *d <= options
-                        .max_delta_e
-                        .max(crate::fit::assess::NOISE_COVERAGE * n)
-                }));
-            }
-            Ok((out, within))
-        })
-        .collect();
+                Ok((out, within))
+            })
+            .collect();
     let mut per_light: Vec<Vec<f64>> = vec![Vec::new(); lights];
     let mut within = Vec::new();
     for chunk in per_chunk {

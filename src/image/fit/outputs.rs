@@ -8,6 +8,8 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use rayon::prelude::*;
+
 use crate::colour::{D65_WHITE, adapt_bradford, xyz_to_srgb8};
 use crate::error::{Error, Result};
 use crate::files::write_atomic;
@@ -17,7 +19,7 @@ use crate::image::sink::{ImageSpec, Rect, write_image};
 
 use super::gauge::Gauge;
 use super::passes::Census;
-use super::pixel::{PixelFit, PixelModel};
+use super::pixel::{PixelColours, PixelFit, PixelModel};
 use super::scratch::Scratch;
 use super::state::State;
 use super::{ImageFitOptions, Step, Trial};
@@ -26,6 +28,8 @@ use super::{ImageFitOptions, Step, Trial};
 const DELTA_E_SCALE: f64 = 2.0;
 /// Columns between the measured and the fitted image in the light PNGs.
 const GAP: usize = 8;
+/// PNG rows computed together per thread.
+const ROWS_PER_THREAD: usize = 16;
 
 /// What [`write_all`] wrote.
 pub struct Written {
@@ -37,13 +41,33 @@ pub struct Written {
     pub clamped_pixels: usize,
 }
 
-/// The fits of the pixels of `rect`.
+/// The materials of the pixels of `rect`.
 fn fits(scratch: &Scratch, model: &PixelModel, width: usize, rect: Rect) -> Result<Vec<PixelFit>> {
     let len = scratch.layout.len();
     let mut out = Vec::with_capacity(rect.width * rect.height);
     for y in rect.y..rect.y + rect.height {
         let records = scratch.read(y * width + rect.x, rect.width)?;
-        out.extend(records.chunks_exact(len).map(|r| model.evaluate(r)));
+        out.extend(records.chunks_exact(len).map(|r| model.fit(r)));
+    }
+    Ok(out)
+}
+
+/// The materials and colours of the pixels of `rect`.
+fn fits_with_colours(
+    scratch: &Scratch,
+    model: &PixelModel,
+    width: usize,
+    rect: Rect,
+) -> Result<Vec<(PixelFit, PixelColours)>> {
+    let len = scratch.layout.len();
+    let mut out = Vec::with_capacity(rect.width * rect.height);
+    for y in rect.y..rect.y + rect.height {
+        let records = scratch.read(y * width + rect.x, rect.width)?;
+        out.extend(records.chunks_exact(len).map(|r| {
+            let fit = model.fit(r);
+            let colours = model.colours(r, &fit);
+            (fit, colours)
+        }));
     }
     Ok(out)
 }
@@ -180,77 +204,105 @@ pub fn write_all(
     )?;
     files.push(reflectance_path);
 
-    // fitted.exr: the model's matrix per pixel in the input's layout.
+    // fitted.exr, delta-e.exr and the PNGs are written at the same time: fitted.exr is
+    // as large as the input, and copying it into the file is one thread's work (about
+    // 1 GB/s here) that would otherwise leave the other threads idle. One progress bar
+    // counts the tiles and rows of all three.
     let fitted_path = out.join("fitted.exr");
+    let delta_path = out.join("delta-e.exr");
+    let lights = model.lights().to_vec();
     let vectors: Vec<Vec<f64>> = (0..k)
         .map(|c| trial.shared.cell_vector(&super::cells_of(layout), c))
         .collect();
-    step("writing fitted.exr", tiles);
-    write_image(
-        &fitted_path,
-        &ImageSpec {
-            width,
-            height,
-            channels: layout.channel_names(),
-            half: image.half(),
-            zip: options.zip,
-            attributes: attributes.clone(),
-        },
-        |rect| {
-            let mut v = Vec::with_capacity(rect.width * rect.height * layout.len());
-            for f in fits(scratch, model, width, rect)? {
-                v.extend(f.fitted_diagonal.iter().map(|&d| d as f32));
-                for j in 0..layout.len() - nd {
-                    let value: f64 = if f.masked {
-                        f64::NAN
-                    } else {
-                        (0..k).map(|c| f.scores[c] * vectors[c][j]).sum()
-                    };
-                    v.push(value as f32);
+    step(
+        "writing fitted.exr, delta-e.exr and the PNG images",
+        2 * tiles + height,
+    );
+    let done = AtomicUsize::new(0);
+    let advance =
+        |units: usize| report(Step::Done(done.fetch_add(units, Ordering::Relaxed) + units));
+    let write_fitted = || {
+        let mut last = 0;
+        write_image(
+            &fitted_path,
+            &ImageSpec {
+                width,
+                height,
+                channels: layout.channel_names(),
+                half: image.half(),
+                zip: options.zip,
+                attributes: attributes.clone(),
+            },
+            |rect| {
+                let mut v = Vec::with_capacity(rect.width * rect.height * layout.len());
+                for f in fits(scratch, model, width, rect)? {
+                    v.extend(f.fitted_diagonal.iter().map(|&d| d as f32));
+                    for j in 0..layout.len() - nd {
+                        let value: f64 = if f.masked {
+                            f64::NAN
+                        } else {
+                            (0..k).map(|c| f.scores[c] * vectors[c][j]).sum()
+                        };
+                        v.push(value as f32);
+                    }
                 }
-            }
-            Ok(v)
-        },
-        |d, _| report(Step::Done(d)),
-    )?;
-    files.push(fitted_path);
-
-    // delta-e.exr: one channel per light.
-    let lights = model.lights().to_vec();
-    let delta_path = out.join("delta-e.exr");
-    step("writing delta-e.exr", tiles);
-    write_image(
-        &delta_path,
-        &ImageSpec {
+                Ok(v)
+            },
+            |d, _| {
+                advance(d - last);
+                last = d;
+            },
+        )
+    };
+    let write_rest = || -> Result<Vec<PathBuf>> {
+        let mut last = 0;
+        write_image(
+            &delta_path,
+            &ImageSpec {
+                width,
+                height,
+                channels: lights.iter().map(|l| file_part(l)).collect(),
+                half: false,
+                zip: options.zip,
+                attributes: attributes.clone(),
+            },
+            |rect| {
+                let mut v = Vec::with_capacity(rect.width * rect.height * lights.len());
+                for (_, colours) in fits_with_colours(scratch, model, width, rect)? {
+                    v.extend(colours.delta_e.iter().map(|&d| d as f32));
+                }
+                Ok(v)
+            },
+            |d, _| {
+                advance(d - last);
+                last = d;
+            },
+        )?;
+        // ΔE false colour and measured | fitted under each light, row by row.
+        write_pngs(
+            out,
+            scratch,
+            model,
             width,
             height,
-            channels: lights.iter().map(|l| file_part(l)).collect(),
-            half: false,
-            zip: options.zip,
-            attributes: attributes.clone(),
-        },
-        |rect| {
-            let mut v = Vec::with_capacity(rect.width * rect.height * lights.len());
-            for f in fits(scratch, model, width, rect)? {
-                v.extend(f.delta_e.iter().map(|&d| d as f32));
-            }
-            Ok(v)
-        },
-        |d, _| report(Step::Done(d)),
-    )?;
-    files.push(delta_path);
-
-    // PNGs, row by row: ΔE false colour and measured | fitted under each light.
-    step("writing PNG images", height);
-    files.extend(write_pngs(
-        out,
-        scratch,
-        model,
-        width,
-        height,
-        options.max_delta_e,
-        report,
-    )?);
+            options.max_delta_e,
+            &advance,
+        )
+    };
+    let (fitted, rest) = std::thread::scope(|scope| {
+        let fitted = scope.spawn(write_fitted);
+        let rest = write_rest();
+        (fitted.join(), rest)
+    });
+    let fitted = fitted.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+    match (fitted, rest) {
+        (Ok(()), Ok(pngs)) => {
+            files.push(fitted_path);
+            files.push(delta_path);
+            files.extend(pngs);
+        }
+        (Err(e), _) | (_, Err(e)) => return Err(e),
+    }
 
     // The material map, last: its presence means the textures are complete. Nothing in
     // it or in the images' headers depends on the run (no times, no output or work
@@ -311,7 +363,8 @@ pub fn write_all(
     })
 }
 
-/// The ΔE2000 maps and the images under each light, row by row.
+/// The ΔE2000 maps and the images under each light, row by row; `advance` gets the rows
+/// written since its last call.
 fn write_pngs(
     out: &Path,
     scratch: &Scratch,
@@ -319,7 +372,7 @@ fn write_pngs(
     width: usize,
     height: usize,
     bound: f64,
-    report: &(dyn Fn(Step) + Sync),
+    advance: &(dyn Fn(usize) + Sync),
 ) -> Result<Vec<PathBuf>> {
     let lights = model.lights().to_vec();
     let mut targets = Vec::new();
@@ -346,9 +399,9 @@ fn write_pngs(
     let png_error =
         |path: &Path, e: png::EncodingError| Error::io(path, std::io::Error::other(e.to_string()));
     let whites: Vec<[f64; 3]> = (0..lights.len()).map(|l| model.white(l)).collect();
-    for y in 0..height {
-        crate::files::check_interrupted(out)?;
-        let row = fits(
+    // One row's pixels of every PNG: per light, the ΔE map's row and the light image's.
+    let row_pixels = |y: usize| -> Result<Vec<(Vec<u8>, Vec<u8>)>> {
+        let row = fits_with_colours(
             scratch,
             model,
             width,
@@ -359,35 +412,55 @@ fn write_pngs(
                 height: 1,
             },
         )?;
-        for l in 0..lights.len() {
-            let mut delta = Vec::with_capacity(width * 3);
-            let mut under = vec![255u8; (2 * width + GAP) * 3];
-            for (x, f) in row.iter().enumerate() {
-                if f.masked {
-                    delta.extend([128, 128, 128]);
-                    under[x * 3..x * 3 + 3].copy_from_slice(&[128, 128, 128]);
+        Ok((0..lights.len())
+            .map(|l| {
+                let mut delta = Vec::with_capacity(width * 3);
+                let mut under = vec![255u8; (2 * width + GAP) * 3];
+                for (x, (f, colours)) in row.iter().enumerate() {
                     let o = (width + GAP + x) * 3;
-                    under[o..o + 3].copy_from_slice(&[128, 128, 128]);
-                    continue;
+                    if f.masked {
+                        delta.extend([128, 128, 128]);
+                        under[x * 3..x * 3 + 3].copy_from_slice(&[128, 128, 128]);
+                        under[o..o + 3].copy_from_slice(&[128, 128, 128]);
+                        continue;
+                    }
+                    let c = crate::plot::colormap::viridis(
+                        colours.delta_e[l] / (DELTA_E_SCALE * bound),
+                    );
+                    delta.extend([c.0, c.1, c.2]);
+                    let show = |xyz: [f64; 3]| {
+                        let adapted = adapt_bradford(xyz, whites[l], D65_WHITE.map(|v| v * 100.0));
+                        xyz_to_srgb8(adapted.map(|v| v / 100.0))
+                    };
+                    under[x * 3..x * 3 + 3].copy_from_slice(&show(colours.measured_xyz[l]));
+                    under[o..o + 3].copy_from_slice(&show(colours.fitted_xyz[l]));
                 }
-                let c = crate::plot::colormap::viridis(f.delta_e[l] / (DELTA_E_SCALE * bound));
-                delta.extend([c.0, c.1, c.2]);
-                let show = |xyz: [f64; 3]| {
-                    let adapted = adapt_bradford(xyz, whites[l], D65_WHITE.map(|v| v * 100.0));
-                    xyz_to_srgb8(adapted.map(|v| v / 100.0))
-                };
-                under[x * 3..x * 3 + 3].copy_from_slice(&show(f.measured_xyz[l]));
-                let o = (width + GAP + x) * 3;
-                under[o..o + 3].copy_from_slice(&show(f.fitted_xyz[l]));
-            }
-            writers[2 * l]
-                .write_all(&delta)
-                .map_err(|e| Error::io(&targets[2 * l].1, e))?;
-            writers[2 * l + 1]
-                .write_all(&under)
-                .map_err(|e| Error::io(&targets[2 * l + 1].1, e))?;
-        }
-        report(Step::Done(y + 1));
+                (delta, under)
+            })
+            .collect())
+    };
+    // Rows are computed in parallel a band at a time and written in order.
+    let band = ROWS_PER_THREAD * rayon::current_num_threads().max(1);
+    for first in (0..height).step_by(band) {
+        crate::files::check_interrupted(out)?;
+        let rows = (first..(first + band).min(height))
+            .into_par_iter()
+            .map(row_pixels)
+            .collect::<Result<Vec<_>>>()?;
+        // Each PNG is encoded by its own thread (deflate is most of the writing).
+        writers
+            .par_iter_mut()
+            .enumerate()
+            .try_for_each(|(i, writer)| {
+                let (l, under) = (i / 2, i % 2 == 1);
+                rows.iter().try_for_each(|row| {
+                    let (delta_row, under_row) = &row[l];
+                    writer
+                        .write_all(if under { under_row } else { delta_row })
+                        .map_err(|e| Error::io(&targets[i].1, e))
+                })
+            })?;
+        advance((first + band).min(height) - first);
     }
     let mut files = Vec::new();
     for (writer, (path, tmp)) in writers.into_iter().zip(targets) {

@@ -11,8 +11,8 @@ use super::nnls::MAX_UNKNOWNS;
 use super::scratch::RecordLayout;
 use super::shared::{Cells, Projected, Shared};
 
-/// A reflectance this far outside [0, 1] before clamping marks the pixel as clamped
-/// (noise alone moves it by a few thousandths).
+/// A reflectance this far outside [0, 1] before clamping marks the pixel as clamped,
+/// unless the noise of its estimate is larger (see [`PixelModel::fit`]).
 const CLAMP_REPORT: f64 = 0.01;
 
 /// Everything a pixel's evaluation needs, computed once.
@@ -34,7 +34,7 @@ pub struct PixelModel {
     sigma: f64,
 }
 
-/// A pixel's fit.
+/// A pixel's material: what the textures and the fitted image need.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PixelFit {
     /// The measurement held a non-finite cell: nothing below is meaningful.
@@ -47,6 +47,16 @@ pub struct PixelFit {
     pub reflectance: Vec<f64>,
     /// The fitted diagonal cells.
     pub fitted_diagonal: Vec<f64>,
+    /// The pixel's material needed clamping (Σ c·a > 1, c > 1 or r outside [0, 1] by
+    /// more than 0.01 and more than three times the noise of its estimate).
+    pub clamped: bool,
+}
+
+/// A pixel's colours under every light, fitted beside measured: what the bound, the ΔE
+/// maps and the light images need. Kept apart from [`PixelFit`] because the colour
+/// difference is most of a pixel's evaluation and the textures do not need it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PixelColours {
     /// Measured and fitted XYZ per light.
     pub measured_xyz: Vec<Xyz>,
     /// See `measured_xyz`.
@@ -55,9 +65,6 @@ pub struct PixelFit {
     pub delta_e: Vec<f64>,
     /// Per light, the RMS ΔE76 the cell noise alone gives the measured colour.
     pub noise_delta_e: Vec<f64>,
-    /// The pixel's material needed clamping (Σ c·a > 1, c > 1 or r outside [0, 1] by
-    /// more than noise).
-    pub clamped: bool,
 }
 
 impl PixelModel {
@@ -138,10 +145,9 @@ impl PixelModel {
         self.k
     }
 
-    /// The fit of the pixel whose scratch record is `r`.
-    pub fn evaluate(&self, r: &[f32]) -> PixelFit {
+    /// The material of the pixel whose scratch record is `r`.
+    pub fn fit(&self, r: &[f32]) -> PixelFit {
         let (k, nd) = (self.k, self.diagonal);
-        let lights = self.colours.lights.len();
         if r[0] != 0.0 {
             return PixelFit {
                 masked: true,
@@ -149,10 +155,6 @@ impl PixelModel {
                 concentration: [f64::NAN; MAX_UNKNOWNS],
                 reflectance: vec![f64::NAN; nd],
                 fitted_diagonal: vec![f64::NAN; nd],
-                measured_xyz: vec![[f64::NAN; 3]; lights],
-                fitted_xyz: vec![[f64::NAN; 3]; lights],
-                delta_e: vec![f64::NAN; lights],
-                noise_delta_e: vec![f64::NAN; lights],
                 clamped: false,
             };
         }
@@ -195,32 +197,16 @@ impl PixelModel {
                 0.0
             };
             let value = raw.clamp(0.0, 1.0);
-            if (value - raw).abs() > CLAMP_REPORT {
+            // r = (D − fluorescence) / (1 − Σ c·a): the diagonal cell's noise σ is divided
+            // by what the fluorophores leave, so where they absorb nearly everything a
+            // reflectance outside [0, 1] by a few σ / (1 − Σ c·a) is noise, not a
+            // material the model cannot hold.
+            let noise = crate::fit::assess::NOISE_COVERAGE * self.sigma / remaining.max(1e-6);
+            if (value - raw).abs() > CLAMP_REPORT.max(noise) {
                 clamped = true;
             }
             reflectance.push(value);
             fitted_diagonal.push(remaining * value + fluorescence);
-        }
-        let mut measured_xyz = Vec::with_capacity(lights);
-        let mut fitted_xyz = Vec::with_capacity(lights);
-        let mut delta_e = Vec::with_capacity(lights);
-        let mut noise_delta_e = Vec::with_capacity(lights);
-        let fitted_f32: Vec<f32> = fitted_diagonal.iter().map(|&v| v as f32).collect();
-        for l in 0..lights {
-            let off = &r[self.record.xyz(l)];
-            let diag = self.colours.xyz(l, 0, measured_diagonal);
-            let measured = [0, 1, 2].map(|t| f64::from(off[t]) + diag[t]);
-            let fitted_diag = self.colours.xyz(l, 0, &fitted_f32);
-            let mut fitted = fitted_diag;
-            for c in 0..k {
-                for t in 0..3 {
-                    fitted[t] += scores[c] * self.component_xyz[l][c][t];
-                }
-            }
-            delta_e.push(self.colours.delta_e(l, measured, fitted));
-            noise_delta_e.push(self.colours.noise_delta_e(l, measured, self.sigma));
-            measured_xyz.push(measured);
-            fitted_xyz.push(fitted);
         }
         PixelFit {
             masked: false,
@@ -228,11 +214,47 @@ impl PixelModel {
             concentration,
             reflectance,
             fitted_diagonal,
+            clamped,
+        }
+    }
+
+    /// The colours of the pixel whose scratch record is `r` and whose material is `fit`.
+    pub fn colours(&self, r: &[f32], fit: &PixelFit) -> PixelColours {
+        let lights = self.colours.lights.len();
+        if fit.masked {
+            return PixelColours {
+                measured_xyz: vec![[f64::NAN; 3]; lights],
+                fitted_xyz: vec![[f64::NAN; 3]; lights],
+                delta_e: vec![f64::NAN; lights],
+                noise_delta_e: vec![f64::NAN; lights],
+            };
+        }
+        let measured_diagonal = &r[self.record.diagonal()];
+        let mut measured_xyz = Vec::with_capacity(lights);
+        let mut fitted_xyz = Vec::with_capacity(lights);
+        let mut delta_e = Vec::with_capacity(lights);
+        let mut noise_delta_e = Vec::with_capacity(lights);
+        let fitted_f32: Vec<f32> = fit.fitted_diagonal.iter().map(|&v| v as f32).collect();
+        for l in 0..lights {
+            let off = &r[self.record.xyz(l)];
+            let diag = self.colours.xyz(l, 0, measured_diagonal);
+            let measured = [0, 1, 2].map(|t| f64::from(off[t]) + diag[t]);
+            let mut fitted = self.colours.xyz(l, 0, &fitted_f32);
+            for c in 0..self.k {
+                for t in 0..3 {
+                    fitted[t] += fit.scores[c] * self.component_xyz[l][c][t];
+                }
+            }
+            delta_e.push(self.colours.delta_e(l, measured, fitted));
+            noise_delta_e.push(self.colours.noise_delta_e(l, measured, self.sigma));
+            measured_xyz.push(measured);
+            fitted_xyz.push(fitted);
+        }
+        PixelColours {
             measured_xyz,
             fitted_xyz,
             delta_e,
             noise_delta_e,
-            clamped,
         }
     }
 }
