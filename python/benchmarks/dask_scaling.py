@@ -80,6 +80,7 @@ def main():
             client.wait_for_workers(workers, timeout=120)
             client.run(lambda: __import__("fluorite.dask"))
             before = client.run(rss_mb)
+            cpu_before = client.run(time.process_time)
             stamps = {}
 
             def progress(stage, done, total):
@@ -99,6 +100,8 @@ def main():
                 )
             wall = time.perf_counter() - started
             client_cpu = time.process_time() - cpu
+            cpu_after = client.run(time.process_time)
+            worker_cpu = sum(cpu_after[w] - cpu_before[w] for w in cpu_after)
             tasks = {}
             for record in stream.data:
                 name = record["key"] if isinstance(record["key"], str) else record["key"][0]
@@ -115,6 +118,8 @@ def main():
                 "passes_wall_s": round(passes_end - started, 2),
                 "fit_and_outputs_wall_s": round(wall - (passes_end - started), 2),
                 "client_cpu_s": round(client_cpu, 2),
+                "workers_cpu_s": round(worker_cpu, 2),
+                "load_after": round(os.getloadavg()[0], 2),
                 "task_seconds": {k: {"n": len(v), "sum": round(sum(v), 2), "mean": round(sum(v) / len(v), 3)} for k, v in tasks.items()},
                 "worker_rss_before_mb": sorted(round(v) for v in before.values()),
                 "worker_peak_rss_mb": sorted(round(v) for v in client.run(peak_rss_mb).values()),

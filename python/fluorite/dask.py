@@ -118,6 +118,17 @@ def _project_task(plan: _Plan, basis: np.ndarray, records: str, pixels: Any, sta
     return written
 
 
+def _maps_task(plan: _Plan, model: str, basis: np.ndarray, records: str, maps: str, y: int, rows: int) -> int:
+    """The maps of rows y..y + rows from their records, into the Zarr group `maps`."""
+    band = _aligned(zarr.open_array(records, mode="r")[y : y + rows], np.float32)
+    concentration, reflectance, delta_e = _stages(plan).evaluate(model, _aligned(basis, np.float64), band)
+    group = zarr.open_group(maps, mode="r+")
+    group["concentration"][y : y + rows] = concentration
+    group["reflectance"][y : y + rows] = reflectance
+    group["delta_e"][y : y + rows] = delta_e
+    return rows
+
+
 class _Runner:
     """Runs lists of delayed tasks and yields their results in order, each wait bounded."""
 
@@ -168,6 +179,7 @@ def fit_image(
     client: Any = None,
     chunks: Optional[int] = None,
     records: Optional[PathLike] = None,
+    maps: Union[PathLike, bool] = True,
     timeout: float = DEFAULT_TIMEOUT,
     progress: Optional[Callable[[str, int, int], None]] = None,
 ) -> ImageFit:
@@ -185,7 +197,11 @@ def fit_image(
     (rounded up to a multiple of 16; default: about 64 MB of pixels). ``records`` is the Zarr array the workers write every
     pixel's record into (float32, (height, width, record_len)); by default
     ``output/records.zarr``: ``output`` (or ``records``) must be on storage the workers
-    and the client share. ``timeout`` bounds every wait on the cluster (seconds);
+    and the client share. ``maps`` is the Zarr group the workers write the maps into
+    from the records (default ``output/maps.zarr``; False: none): ``concentration``
+    (height, width, K), ``reflectance`` (height, width, n) with its ``wavelengths_nm``
+    attribute, ``delta_e`` (height, width, lights) with ``lights``, float32, NaN at masked
+    pixels: the values of the EXR outputs. ``timeout`` bounds every wait on the cluster (seconds);
     ``progress(stage, done, total)`` is called on the client as tasks finish.
 
     The result equals ``fluorite.fit_image``'s on the same image (the EXR: ``fluorite
@@ -299,9 +315,29 @@ def fit_image(
 
     # The shared fluorophores and the outputs, on the client, from the records.
     stored = zarr.open_array(records_path, mode="r")
-    return stages.fit_records(
+    fit = stages.fit_records(
         output, basis, masked, non_finite, lambda y, n: np.asarray(stored[y : y + n], dtype=np.float32)
     )
+    if maps is False:
+        return fit
+
+    # The maps, from the records, by the workers (bands of whole Zarr chunks).
+    maps_path = os.path.join(output, "maps.zarr") if maps is True else os.fspath(maps)
+    group = zarr.open_group(maps_path, mode="w")
+    height, width = stages.height, stages.width
+    for name, depth in (("concentration", fit.components), ("reflectance", len(stages.diagonal_nm)), ("delta_e", len(fit.lights))):
+        group.create_array(name, shape=(height, width, depth), chunks=(chunk_h, chunk_w, depth), dtype="float32", fill_value=np.nan)
+    group["reflectance"].attrs["wavelengths_nm"] = list(stages.diagonal_nm)
+    group["delta_e"].attrs["lights"] = list(fit.lights)
+    model = stages.model_of(fit)
+    band = chunk_h * max(1, (per_task * chunk_h * chunk_w) // max(1, width * chunk_h)) if array is None else per_task
+    tasks = [
+        dask.delayed(_maps_task, pure=True)(plan_d, model, basis_d, records_path, maps_path, y, min(band, height - y))
+        for y in range(0, height, band)
+    ]
+    if sum(runner.ordered("maps", tasks)) != height:
+        raise FluoriteError("internal error in fluorite.dask: the maps miss rows: please report")
+    return fit
 
 
 def _as_dask_array(source: Any) -> "da.Array":

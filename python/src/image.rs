@@ -300,6 +300,11 @@ pub struct PyImageFit {
 }
 
 impl PyImageFit {
+    /// The library's outcome.
+    pub(crate) fn outcome(&self) -> &ImageFit {
+        &self.fit
+    }
+
     /// The result of `fit` with its options and notes (the input's first).
     pub(crate) fn new(
         py: Python<'_>,

@@ -16,13 +16,14 @@ use std::sync::Mutex;
 use fluorite::image::fit::colour::CellColours;
 use fluorite::image::fit::passes::{Census, orthonormal};
 use fluorite::image::fit::scratch::RecordLayout;
+use fluorite::image::fit::shared::Shared;
 use fluorite::image::fit::{ImageFitOptions, fit_image_from_records, stages};
 use fluorite::image::source::{ChunkIndex, PlanarBlock};
 use fluorite::image::{ArrayImage, ExrImage, Layout, PixelSource};
 use numpy::ndarray::{Array2, Array3, ArrayViewD};
 use numpy::{
     AllowTypeChange, IntoPyArray, PyArray2, PyArray3, PyArrayDyn, PyArrayLikeDyn, PyArrayMethods,
-    PyReadonlyArray2, PyUntypedArray, PyUntypedArrayMethods,
+    PyReadonlyArray2, PyReadonlyArray3, PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
 
@@ -391,6 +392,20 @@ impl PyImageStages {
         self.options.power_steps
     }
 
+    /// The wavelengths (nm) of the diagonal cells: the reflectance's samples.
+    #[getter]
+    fn diagonal_nm(&self) -> Vec<f64> {
+        let image = self.image();
+        let layout = image.layout();
+        layout.cells[..self.first]
+            .iter()
+            .map(|c| match *c {
+                fluorite::image::Cell::Diagonal(w) => layout.wavelengths[w],
+                fluorite::image::Cell::Reradiation(i, _) => layout.wavelengths[i],
+            })
+            .collect()
+    }
+
     /// Floats per pixel record (the projection's output).
     #[getter]
     fn record_len(&self) -> usize {
@@ -665,6 +680,87 @@ impl PyImageStages {
             Input::Array(..) => fit.notes.clone(),
         };
         PyImageFit::new(py, fit, &self.options, notes)
+    }
+
+    /// The model of a finished fit's pixels, as text for `evaluate` (the chosen K's
+    /// shared spectra and the cell noise σ, JSON).
+    fn model_of(&self, fit: PyRef<'_, PyImageFit>) -> PyResult<String> {
+        let outcome = fit.outcome();
+        let trial = outcome
+            .trials
+            .iter()
+            .find(|t| t.components == outcome.components)
+            .ok_or_else(|| invalid("fit", "holds no trial of its K"))?;
+        let model = serde_json::json!({
+            "shared": trial.shared,
+            "sigma": outcome.noise_sigma,
+        });
+        Ok(model.to_string())
+    }
+
+    /// Every pixel's map values from its record, as the fit's EXR outputs hold them:
+    /// (concentration (h, w, K), reflectance (h, w, diagonal cells), ΔE2000 (h, w,
+    /// lights)), float32, NaN at masked pixels, for `records` (h, w, record_len) of the
+    /// projection on `basis` and `model` from `model_of`. GIL released.
+    #[allow(clippy::type_complexity)]
+    fn evaluate<'py>(
+        &self,
+        py: Python<'py>,
+        model: &str,
+        basis: PyReadonlyArray2<'py, f64>,
+        records: PyReadonlyArray3<'py, f32>,
+    ) -> PyResult<(
+        Bound<'py, PyArray3<f32>>,
+        Bound<'py, PyArray3<f32>>,
+        Bound<'py, PyArray3<f32>>,
+    )> {
+        let bad = |e: String| invalid("model", format!("not a model of model_of ({e})"));
+        let value: serde_json::Value =
+            serde_json::from_str(model).map_err(|e| bad(e.to_string()))?;
+        let shared: Shared =
+            serde_json::from_value(value["shared"].clone()).map_err(|e| bad(e.to_string()))?;
+        let sigma = value["sigma"]
+            .as_f64()
+            .ok_or_else(|| bad("no sigma".to_string()))?;
+        let basis = basis_of(basis, self.m, self.record.rank)?;
+        if !records.is_aligned() {
+            return Err(unaligned("records"));
+        }
+        let shape = records.shape().to_vec();
+        let len = self.record.len();
+        if shape.len() != 3 || shape[2] != len {
+            return Err(invalid(
+                "records",
+                format!("shape {shape:?}: expected (rows, columns, {len})"),
+            ));
+        }
+        let values: Vec<f32> = records.as_array().iter().copied().collect();
+        let (h, w) = (shape[0], shape[1]);
+        let k = shared.k;
+        let nd = self.first;
+        let lights = self.options.lights.len();
+        let layout = self.image().layout().clone();
+        let (options, record) = (&self.options, self.record);
+        let (c, r, d) = detached(py, "fluorite.dask evaluate", || {
+            let pixel = stages::pixel_model(&layout, options, &shared, &basis, record, sigma);
+            let mut c = Vec::with_capacity(h * w * k);
+            let mut r = Vec::with_capacity(h * w * nd);
+            let mut d = Vec::with_capacity(h * w * lights);
+            for rec in values.chunks_exact(len) {
+                let fit = pixel.fit(rec);
+                let colours = pixel.colours(rec, &fit);
+                c.extend(fit.concentration[..k].iter().map(|&v| v as f32));
+                r.extend(fit.reflectance.iter().map(|&v| v as f32));
+                d.extend(colours.delta_e.iter().map(|&v| v as f32));
+            }
+            Ok((c, r, d))
+        })?;
+        let array = |values: Vec<f32>, n: usize| {
+            Array3::from_shape_vec((h, w, n), values)
+                .map(|a| a.into_pyarray(py))
+                .map_err(|e| invalid("maps", e))
+        };
+        Ok((array(c, k)?, array(r, nd)?, array(d, lights)?))
     }
 
     fn __repr__(&self) -> String {

@@ -90,6 +90,19 @@ def assert_same_outputs(folder, reference):
     np.testing.assert_array_equal(a.reflectance()[1], b.reflectance()[1])
 
 
+def assert_maps_hold_the_outputs(folder):
+    """maps.zarr, written by the workers, holds the values of the EXR textures."""
+    fitted = fluorite.MaterialMap.load(folder / "material-map.json")
+    maps = zarr.open_group(str(folder / "maps.zarr"), mode="r")
+    np.testing.assert_array_equal(maps["concentration"][:], fitted.concentration())
+    wavelengths, reflectance = fitted.reflectance()
+    np.testing.assert_array_equal(maps["reflectance"][:], reflectance)
+    assert maps["reflectance"].attrs["wavelengths_nm"] == list(wavelengths)
+    delta_e = maps["delta_e"][:]
+    assert delta_e.shape == (fitted.height, fitted.width, len(maps["delta_e"].attrs["lights"]))
+    assert np.nanmax(delta_e) < 100
+
+
 def test_fit_image_writes_the_files_fit_image_writes_on_an_exr(client, scan, tmp_path):
     image, reference = scan
     seen = []
@@ -103,8 +116,9 @@ def test_fit_image_writes_the_files_fit_image_writes_on_an_exr(client, scan, tmp
         progress=lambda stage, done, total: seen.append((stage, done, total)),
     )
     assert fitted.components == K
-    assert ("sketch", 6, 6) in seen and ("projection", 6, 6) in seen
+    assert ("sketch", 6, 6) in seen and ("projection", 6, 6) in seen and ("maps", 2, 2) in seen
     assert_same_outputs(tmp_path / "dask", reference)
+    assert_maps_hold_the_outputs(tmp_path / "dask")
     records = zarr.open_array(str(tmp_path / "dask" / "records.zarr"), mode="r")
     assert records.shape[:2] == (96, 160) and not np.isnan(records[:]).any()
     # Every worker took part.
@@ -126,6 +140,7 @@ def test_fit_image_of_a_zarr_array_equals_fit_image_of_the_numpy_array(client, t
         )
         assert fitted.masked_pixels == 1
         assert_same_outputs(out, reference)
+        assert_maps_hold_the_outputs(out)
 
 
 def test_a_worker_killed_mid_run_changes_nothing(client, scan, tmp_path):

@@ -218,6 +218,8 @@ pub struct ImageFit {
     pub notes: Vec<String>,
     /// Stages an earlier run had finished.
     pub resumed: Vec<String>,
+    /// The cell noise σ measured from the image (the energy outside the basis).
+    pub noise_sigma: f64,
 }
 
 /// The reradiation cells of `layout` as excitation and emission indices.
@@ -589,6 +591,7 @@ fn conclude(
         clamped_pixels: written.clamped_pixels,
         notes,
         resumed,
+        noise_sigma: sigma,
     })
 }
 

@@ -12,9 +12,14 @@
 use crate::numeric::SplitMix64;
 
 use super::colour::CellColours;
+use super::gauge;
 use super::gemm::{View, multiply};
 use super::passes::Census;
+use super::pixel::PixelModel;
 use super::scratch::RecordLayout;
+use super::shared::Shared;
+use super::{ImageFitOptions, cells_of};
+use crate::image::layout::Layout;
 use crate::image::source::PlanarBlock;
 
 pub use crate::image::array::ROWS_PER_BLOCK;
@@ -210,4 +215,23 @@ pub fn row_blocks(values: &[f32], y: usize, width: usize, cells: usize) -> Vec<P
             }
         })
         .collect()
+}
+
+/// The model every pixel of a fit is evaluated with (its material, its colours), as
+/// `fit-image` makes it for its outputs: the shared spectra of the chosen K under the
+/// gauge `options` ask for, on `basis` (m × rank) at cell noise `sigma`.
+pub fn pixel_model(
+    layout: &Layout,
+    options: &ImageFitOptions,
+    shared: &Shared,
+    basis: &[f64],
+    record: RecordLayout,
+    sigma: f64,
+) -> PixelModel {
+    let cells = cells_of(layout);
+    let gauge = gauge::choose(shared, &cells, options.yield_preference);
+    let colours = CellColours::new(layout, &options.lights);
+    PixelModel::new(
+        shared, &gauge, &cells, layout, basis, record, colours, sigma,
+    )
 }
