@@ -32,6 +32,15 @@ def rss_mb():
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
+def hwm_mb():
+    """The process's peak resident memory (VmHWM)."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
 def main():
     import distributed
 
@@ -71,6 +80,20 @@ def main():
         "record_bytes_per_block": block_pixels * stages.record_len * 4,
     }
     print(json.dumps(facts), flush=True)
+    # CPU time of each kernel per block, in this process (one thread; insensitive to the
+    # machine's other load, unlike wall time): what a worker spends per block.
+    kernels = {}
+    cpu = time.process_time()
+    z = sum(part.astype("float64") for parts in [stages.sketch(0, blocks)[0]] for part in parts)
+    kernels["sketch"] = time.process_time() - cpu
+    basis = stages.orthonormal(z)
+    cpu = time.process_time()
+    stages.power(basis, 0, blocks)
+    kernels["power"] = time.process_time() - cpu
+    cpu = time.process_time()
+    stages.project(basis, 0, blocks)
+    kernels["projection"] = time.process_time() - cpu
+    print(json.dumps({"kernel_cpu_ms_per_block": {k: round(1000 * v / blocks, 1) for k, v in kernels.items()}}), flush=True)
     for workers in [int(w) for w in args.workers.split(",")]:
         for chunks in [int(c) for c in args.chunks.split(",")]:
             cluster = distributed.LocalCluster(
@@ -84,7 +107,8 @@ def main():
             stamps = {}
 
             def progress(stage, done, total):
-                stamps.setdefault(stage, [time.perf_counter(), None])[1] = time.perf_counter()
+                now = time.perf_counter()
+                stamps.setdefault(stage, [now, now])[1] = now
 
             load = os.getloadavg()[0]
             started = time.perf_counter()
@@ -109,20 +133,22 @@ def main():
                 for ss in record["startstops"]:
                     if ss["action"] == "compute":
                         tasks.setdefault(stage, []).append(ss["stop"] - ss["start"])
-            passes_end = max(v[1] for v in stamps.values())
+            passes_end = stamps["projection"][1]
+            maps_start = stamps["maps"][0]
             result = {
                 "workers": workers,
                 "chunks": chunks,
                 "load_before": round(load, 2),
                 "wall_s": round(wall, 2),
                 "passes_wall_s": round(passes_end - started, 2),
-                "fit_and_outputs_wall_s": round(wall - (passes_end - started), 2),
+                "client_fit_and_outputs_wall_s": round(maps_start - passes_end, 2),
+                "maps_wall_s": round(started + wall - maps_start, 2),
                 "client_cpu_s": round(client_cpu, 2),
                 "workers_cpu_s": round(worker_cpu, 2),
                 "load_after": round(os.getloadavg()[0], 2),
                 "task_seconds": {k: {"n": len(v), "sum": round(sum(v), 2), "mean": round(sum(v) / len(v), 3)} for k, v in tasks.items()},
                 "worker_rss_before_mb": sorted(round(v) for v in before.values()),
-                "worker_peak_rss_mb": sorted(round(v) for v in client.run(peak_rss_mb).values()),
+                "worker_peak_rss_mb": sorted(round(v) for v in client.run(hwm_mb).values()),
                 "components": fit.components,
             }
             print(json.dumps(result), flush=True)

@@ -522,6 +522,8 @@ class _ImageStages:
     @property
     def record_len(self) -> int: ...
     @property
+    def diagonal_nm(self) -> List[float]: ...
+    @property
     def block_rows(self) -> Optional[int]: ...
     def block_rects(self) -> List[Tuple[int, int, int, int]]:
         """Each block of a pass, in order: (x, y, width, height)."""
@@ -560,3 +562,9 @@ class _ImageStages:
         read_rows: Callable[[int, int], npt.ArrayLike],
     ) -> ImageFit:
         """The fit after the passes, from the records read_rows(y, rows) returns."""
+    def model_of(self, fit: ImageFit) -> str:
+        """The model of a finished fit's pixels (JSON) for evaluate."""
+    def evaluate(
+        self, model: str, basis: FloatArray, records: npt.NDArray[np.float32]
+    ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+        """(concentration (h, w, K), reflectance (h, w, n), ΔE2000 (h, w, lights)) of records (h, w, record_len)."""
