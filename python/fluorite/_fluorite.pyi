@@ -524,6 +524,9 @@ class _ImageStages:
     @property
     def diagonal_nm(self) -> List[float]: ...
     @property
+    def cell_grid(self) -> Optional[List[Tuple[int, int]]]:
+        """Each layout cell's (excitation, emission) index, canonical order (arrays only)."""
+    @property
     def block_rows(self) -> Optional[int]: ...
     def block_rects(self) -> List[Tuple[int, int, int, int]]:
         """Each block of a pass, in order: (x, y, width, height)."""

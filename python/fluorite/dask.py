@@ -187,9 +187,12 @@ def fit_image(
     fit-image``'s fit, writing the same files into ``output``.
 
     ``source`` is a path to a bispectral OpenEXR (read by chunks on the workers: the file
-    must be readable at the same path there), or an array of shape (height, width,
-    excitation, emission) with ``excitation_nm`` and ``emission_nm``: a Zarr array, a
-    dask array or a numpy array (as ``fluorite.fit_image`` takes it; float32 or float64).
+    must be readable at the same path there), or an array with ``excitation_nm`` and
+    ``emission_nm``: a Zarr array, a dask array or a numpy array (float32 or float64), of
+    shape (height, width, excitation, emission) as ``fluorite.fit_image`` takes it, or
+    (height, width, cells), every pixel's cells in the layout's canonical order (the
+    diagonal cells by wavelength, then λi → λo > λi excitation-major: the pixels × cells
+    form, without the anti-Stokes half).
 
     The other options are ``fluorite.fit_image``'s. ``client`` is a
     ``distributed.Client`` (None: Dask's current scheduler). ``chunks`` is the work of
@@ -230,9 +233,10 @@ def fit_image(
         array = None
     else:
         array = _as_dask_array(source)
-        if array.ndim != 4:
+        if array.ndim not in (3, 4):
             raise FluoriteError(
-                f"invalid source: expected an array of shape (height, width, excitation, emission), got shape {tuple(array.shape)}"
+                "invalid source: expected an array of shape (height, width, excitation, emission) or (height, width, cells), "
+                f"got shape {tuple(array.shape)}"
             )
         # Grids as lists: the plan is pickled into every task, and an array Dask
         # deserialises may come unaligned.
@@ -243,12 +247,17 @@ def fit_image(
         )
         plan = _Plan(uuid.uuid4().hex, None, options)
     stages = _stages(plan)  # checks the options and the image's header on the client
-    if array is not None and (array.shape[2], array.shape[3]) != (
+    if array is not None and array.ndim == 4 and tuple(array.shape[2:]) != (
         len(options["excitation_nm"]),
         len(options["emission_nm"]),
     ):
         raise FluoriteError(
             f"invalid source: shape {tuple(array.shape)} does not match {len(options['excitation_nm'])} excitation and {len(options['emission_nm'])} emission wavelengths"
+        )
+    if array is not None and array.ndim == 3 and array.shape[2] != stages.cells:
+        raise FluoriteError(
+            f"invalid source: shape {tuple(array.shape)}: the grids' layout has {stages.cells} cells per pixel "
+            "(the diagonal, then λi → λo > λi excitation-major; _ImageStages.cell_grid names them)"
         )
     if chunks is not None and (not isinstance(chunks, int) or chunks < 1):
         raise FluoriteError(f"invalid chunks: {chunks!r}: give a positive number of blocks (EXR) or rows (array)")
@@ -264,7 +273,7 @@ def fit_image(
             row_bytes = int(np.prod(array.shape[1:])) * array.dtype.itemsize
             chunks = max(rows, DEFAULT_ARRAY_BYTES // max(row_bytes, 1))
         per_task = -(-chunks // rows) * rows
-        array = array.rechunk((per_task, -1, -1, -1))
+        array = array.rechunk((per_task,) + (-1,) * (array.ndim - 1))
         pieces = array.to_delayed().ravel()
         work = [(piece, i * per_task, 0) for i, piece in enumerate(pieces)]
 
@@ -346,7 +355,7 @@ def _as_dask_array(source: Any) -> "da.Array":
     if isinstance(source, zarr.Array):
         return da.from_zarr(source)
     if isinstance(source, np.ndarray):
-        return da.from_array(source, chunks=(16, -1, -1, -1))
+        return da.from_array(source, chunks=(16,) + (-1,) * (source.ndim - 1))
     raise FluoriteError(
         "invalid source: expected a path (str or os.PathLike) to a bispectral OpenEXR, or a Zarr, dask or numpy "
         f"array of shape (height, width, excitation, emission), got {type(source).__name__}"

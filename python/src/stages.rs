@@ -159,8 +159,9 @@ impl Blocks<'_> {
     }
 }
 
-/// The rows of an array chunk (rows, width, excitation, emission) as the layout's cells,
-/// pixel-major (float32, as `fit_image` reads a numpy image).
+/// The rows of an array chunk as the layout's cells, pixel-major (float32, as
+/// `fit_image` reads a numpy image): (rows, width, excitation, emission), or (rows,
+/// width, cells) already in the layout's canonical cell order.
 fn chunk_values(
     pixels: &Bound<'_, PyAny>,
     cells: &[(usize, usize)],
@@ -169,21 +170,29 @@ fn chunk_values(
     no: usize,
 ) -> PyResult<Vec<f32>> {
     let check = |shape: &[usize]| -> PyResult<()> {
-        if shape.len() != 4 || shape[1] != width || shape[2] != ni || shape[3] != no {
+        let grid = shape.len() == 4 && shape[1] == width && shape[2] == ni && shape[3] == no;
+        let canonical = shape.len() == 3 && shape[1] == width && shape[2] == cells.len();
+        if !(grid || canonical) {
             return Err(invalid(
                 "pixels",
                 format!(
-                    "shape {shape:?}: expected (rows, {width}, {ni}, {no}) (rows, width, excitation, emission)"
+                    "shape {shape:?}: expected (rows, {width}, {ni}, {no}) (rows, width, excitation, emission) or (rows, {width}, {}) (rows, width, cells)",
+                    cells.len()
                 ),
             ));
         }
         Ok(())
     };
-    fn gathered<T: Copy + Into<f64>>(
-        view: ArrayViewD<'_, T>,
-        cells: &[(usize, usize)],
-    ) -> Vec<f32> {
-        gather(view, cells)
+    fn values<T: Copy + Into<f64>>(view: ArrayViewD<'_, T>, cells: &[(usize, usize)]) -> Vec<f32> {
+        if view.ndim() == 3 {
+            // Canonical cells: converted as `gather` converts them.
+            view.as_standard_layout()
+                .iter()
+                .map(|&v| v.into() as f32)
+                .collect()
+        } else {
+            gather(view, cells)
+        }
     }
     if pixels
         .cast::<PyUntypedArray>()
@@ -194,18 +203,18 @@ fn chunk_values(
     if let Ok(a) = pixels.cast::<PyArrayDyn<f32>>() {
         let a = a.readonly();
         check(a.shape())?;
-        return Ok(gathered(a.as_array(), cells));
+        return Ok(values(a.as_array(), cells));
     }
     if let Ok(a) = pixels.cast::<PyArrayDyn<f64>>() {
         let a = a.readonly();
         check(a.shape())?;
-        return Ok(gathered(a.as_array(), cells));
+        return Ok(values(a.as_array(), cells));
     }
     let a = pixels
         .extract::<PyArrayLikeDyn<'_, f32, AllowTypeChange>>()
         .map_err(|_| invalid("pixels", "expected a numpy array of real numbers"))?;
     check(a.shape())?;
-    Ok(gathered(a.as_array(), cells))
+    Ok(values(a.as_array(), cells))
 }
 
 /// The error for an array whose data are not aligned (one deserialised from a buffer):
@@ -404,6 +413,17 @@ impl PyImageStages {
                 fluorite::image::Cell::Reradiation(i, _) => layout.wavelengths[i],
             })
             .collect()
+    }
+
+    /// Each layout cell's (excitation, emission) index into the grids of an image given
+    /// as arrays, in the layout's canonical order (None for an EXR): `a[:, :, ex, em]`
+    /// with these indices is the (rows, width, cells) form of an array.
+    #[getter]
+    fn cell_grid(&self) -> Option<Vec<(usize, usize)>> {
+        match &self.input {
+            Input::Exr(..) => None,
+            Input::Array(_, cells, _) => Some(cells.clone()),
+        }
     }
 
     /// Floats per pixel record (the projection's output).

@@ -16,6 +16,7 @@ import fluorite
 from conftest import ROOT, assert_same_json, load_json, run_cli, unavailable
 
 try:
+    import dask.array as da
     import distributed
     import zarr
 
@@ -125,7 +126,7 @@ def test_fit_image_writes_the_files_fit_image_writes_on_an_exr(client, scan, tmp
     assert len(client.scheduler_info()["workers"]) == 2
 
 
-def test_fit_image_of_a_zarr_array_equals_fit_image_of_the_numpy_array(client, tmp_path):
+def test_fit_image_of_a_zarr_or_dask_array_equals_fit_image_of_the_numpy_array(client, tmp_path):
     from test_image import EM, EX, planted_image
 
     image = planted_image()[0].astype(np.float32)  # (20, 24, ex, em), one NaN pixel
@@ -133,10 +134,13 @@ def test_fit_image_of_a_zarr_array_equals_fit_image_of_the_numpy_array(client, t
     fluorite.fit_image(image, output=reference, excitation_nm=EX, emission_nm=EM, components=2)
     stored = zarr.create_array(store=str(tmp_path / "image.zarr"), shape=image.shape, chunks=(8, 24, len(EX), len(EM)), dtype="float32")
     stored[:] = image
-    for chunks in (16, 32):
-        out = tmp_path / f"zarr-{chunks}"
+    # The same pixels as a dask array of (height, width, cells) in the layout's order.
+    grid = fluorite._fluorite._ImageStages(None, excitation_nm=EX, emission_nm=EM, shape=image.shape[:2]).cell_grid
+    canonical = da.from_array(image[:, :, [i for i, _ in grid], [o for _, o in grid]], chunks=(4, -1, -1))
+    for name, source, chunks in (("zarr-16", stored, 16), ("zarr-32", stored, 32), ("cells", canonical, None)):
+        out = tmp_path / name
         fitted = fdask.fit_image(
-            stored, output=out, excitation_nm=EX, emission_nm=EM, components=2, client=client, chunks=chunks, timeout=TIMEOUT
+            source, output=out, excitation_nm=EX, emission_nm=EM, components=2, client=client, chunks=chunks, timeout=TIMEOUT
         )
         assert fitted.masked_pixels == 1
         assert_same_outputs(out, reference)
