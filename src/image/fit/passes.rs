@@ -14,20 +14,12 @@ use crate::error::Result;
 
 use super::colour::CellColours;
 use super::scratch::Scratch;
+pub use super::stages::Census;
 use super::stages::{
     accumulate, as_f32, power_block, projection_block, projection_matrix, sketch_block,
 };
 use crate::image::array::PixelSource;
 use crate::image::source::PlanarBlock;
-
-/// What the sketch pass found besides the sketch.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Census {
-    /// Pixels with at least one non-finite cell (masked).
-    pub masked_pixels: usize,
-    /// Non-finite cells in all.
-    pub non_finite_cells: usize,
-}
 
 /// Pass 1: the sketch (m × rank, row-major) and the census of non-finite cells.
 pub fn sketch(

@@ -14,7 +14,6 @@ use crate::numeric::SplitMix64;
 use super::colour::CellColours;
 use super::gauge;
 use super::gemm::{View, multiply};
-use super::passes::Census;
 use super::pixel::PixelModel;
 use super::scratch::RecordLayout;
 use super::shared::Shared;
@@ -23,6 +22,15 @@ use crate::image::layout::Layout;
 use crate::image::source::PlanarBlock;
 
 pub use crate::image::array::ROWS_PER_BLOCK;
+
+/// What the sketch pass found besides the sketch.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Census {
+    /// Pixels with at least one non-finite cell (masked).
+    pub masked_pixels: usize,
+    /// Non-finite cells in all.
+    pub non_finite_cells: usize,
+}
 
 /// Random signs for pixel `p` (±1), `rank` of them.
 fn signs(seed: u64, p: usize, rank: usize, out: &mut [f32]) {
