@@ -129,6 +129,9 @@ def parse_args(argv=None):
     p.add_argument("--origin", default="0,0", help="the data window's corner X,Y")
     p.add_argument("--names", choices=["reference", "short"], default="reference",
                    help="channel names as the reference writer's std::to_string (T.337,500000nm) or short (T.337,5nm)")
+    p.add_argument("--raw", action="store_true",
+                   help="also write the noisy cells as raw float32 (image.f32: cells × H × W, diagonal then λi → λo "
+                        "excitation-major) and grid.txt, for another writer (e.g. the reference implementation's)")
     p.add_argument("--shared", type=Path, default=DEFAULT_SHARED, help="the shared data folder")
     return p.parse_args(argv)
 
@@ -228,7 +231,7 @@ def build(width, height, grid, step, dyes):
         d["phi"] * (grid[ii] / d["mean_emission_nm"]) * d["a"][ii] * d["e"][oo] * step for d in dyes
     ])  # (3, cells)
     c, r = scene(width, height, dyes, grid)
-    truth = (unit.T @ c.T).astype(np.float32)  # (cells, P)
+    truth = unit.T.astype(np.float32) @ c.T.astype(np.float32)  # (cells, P), 32-bit to save memory
     absorbed = c @ np.stack([d["a"] for d in dyes])  # (P, n)
     truth[:n] += ((1.0 - absorbed) * r).T.astype(np.float32)
     return truth.reshape(len(cl), height, width), c, r, cl
@@ -320,8 +323,13 @@ def main(argv=None):
 
     # The measurement: noise on every cell, channels handed over in a shuffled order.
     rng = np.random.default_rng(args.seed)
-    noisy = truth + rng.standard_normal(truth.shape, dtype=np.float32) * np.float32(args.sigma)
+    noisy = rng.standard_normal(truth.shape, dtype=np.float32)
+    noisy *= np.float32(args.sigma)
+    noisy += truth
     order = rng.permutation(len(names))
+    if args.raw:
+        noisy.astype("<f4").tofile(args.out / "image.f32")
+        (args.out / "grid.txt").write_text("".join(f"{nm:.6f}\n" for nm in grid))
     write_exr(args.out / "image.exr", [(names[k], noisy[k]) for k in order], width, height, args,
               args.type, args.storage, args.compression, args.line_order, origin,
               extra=extra_channels(noisy, grid, c))
