@@ -146,3 +146,23 @@ def test_concentration_maps_follow_the_truth(fitted, writer):
         best[t_name] = max(scores, key=scores.get)
         assert scores[best[t_name]] >= 0.99, (t_name, scores)
     assert len(set(best.values())) == len(truth), best
+
+
+@pytest.mark.parametrize(
+    "compression, name", [("zstd", "ZSTD (code 13)"), ("htj2k32", "HTJ2K32 (code 11)")]
+)
+def test_a_compression_fluorite_cannot_decode_is_named(writer, cli, tmp_path, compression, name):
+    """Compressions of newer OpenEXR libraries, written by the OpenEXR library itself: the
+    exr crate fluorite reads with refuses ZSTD's header (code 13) and cannot decompress
+    HTJ2K's pixels (code 11; fit-image called that a truncated file). fit-image refuses
+    the file, says which compression it is, and writes nothing."""
+    process = subprocess.run(
+        [sys.executable, str(GENERATOR), str(tmp_path / "img"), "--size", "48x40",
+         "--grid", "350:700:25", "--compression", compression],
+        capture_output=True, text=True, timeout=600,
+    )
+    assert process.returncode == 0, process.stderr
+    fit = run_cli(cli, "fit-image", tmp_path / "img" / "image.exr", "-o", tmp_path / "fit")
+    assert fit.returncode == 2, fit.stderr
+    assert name in fit.stderr, fit.stderr
+    assert not (tmp_path / "fit").exists()
