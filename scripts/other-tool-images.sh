@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # fit-image on images another tool wrote (issue 24): scripts/other_tool_image.py writes the
 # same scene stored in each way below (storage, sample type, compression, line order, data
-# window, grid, channel names), fit-image fits it, and image-diff judges fitted.exr
+# window, grid, channel names, parts), fit-image fits it, and image-diff judges fitted.exr
 # against the generator's noise-free truth and the fitted concentration maps against its
 # truth maps. Prints one markdown row per variant (docs/results.md, "Images other tools
 # wrote"); a variant fluorite refuses prints its message instead.
@@ -25,6 +25,7 @@ variants=(
   "half-b44|--compression b44"
   "half-dwaa|--compression dwaa"
   "float-none|--type float --compression none"
+  "multipart-tiled24-half-b44|--multipart --storage tiled --tile 24 --compression b44 --seed 4"
   "half-htj2k32|--compression htj2k32"
   "half-zstd|--compression zstd"
 )

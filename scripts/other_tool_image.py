@@ -52,6 +52,7 @@ usage: python3 scripts/other_tool_image.py OUT [--size 256 | --size 48x40] [--se
            [--grid 330:720:7.5] [--type half|float] [--storage scanline|tiled]
            [--tile 32] [--compression zip|zips|piz|rle|pxr24|none]
            [--line-order increasing|decreasing] [--origin X,Y] [--names reference|short]
+           [--multipart] [--raw]
 Needs numpy and OpenEXR (`pip install numpy OpenEXR`).
 """
 
@@ -129,6 +130,8 @@ def parse_args(argv=None):
     p.add_argument("--origin", default="0,0", help="the data window's corner X,Y")
     p.add_argument("--names", choices=["reference", "short"], default="reference",
                    help="channel names as the reference writer's std::to_string (T.337,500000nm) or short (T.337,5nm)")
+    p.add_argument("--multipart", action="store_true",
+                   help="write image.exr in two parts: R, G, B and id first, the spectral channels second")
     p.add_argument("--raw", action="store_true",
                    help="also write the noisy cells as raw float32 (image.f32: cells × H × W, diagonal then λi → λo "
                         "excitation-major) and grid.txt, for another writer (e.g. the reference implementation's)")
@@ -298,9 +301,14 @@ def write_exr(path, named, width, height, args, sample_type, storage="scanline",
         return np.float16 if sample_type == "half" else np.float32
 
     channels = {name: np.ascontiguousarray(plane, dtype=dtype(name)) for name, plane in named}
-    for name, plane in (extra or {}).items():
-        channels[name] = np.ascontiguousarray(plane)
-    OpenEXR.File(header, channels).write(str(path))
+    others = {name: np.ascontiguousarray(plane) for name, plane in (extra or {}).items()}
+    if getattr(args, "multipart", False) and others:
+        # A preview part first (R, G, B, id), the spectral layout in the second part.
+        parts = [OpenEXR.Part(dict(header), others, "preview"), OpenEXR.Part(dict(header), channels, "spectral")]
+        OpenEXR.File(parts).write(str(path))
+    else:
+        channels.update(others)
+        OpenEXR.File(header, channels).write(str(path))
 
 
 def main(argv=None):
@@ -379,7 +387,8 @@ def main(argv=None):
         "sigma": args.sigma,
         "image": {"type": args.type, "storage": args.storage, "tile": args.tile if args.storage == "tiled" else None,
                   "compression": args.compression, "line_order": args.line_order, "origin": list(origin),
-                  "names": args.names, "extra_channels": ["R", "G", "B", "id (uint32)"]},
+                  "names": args.names, "multipart": args.multipart,
+                  "extra_channels": ["R", "G", "B", "id (uint32)"]},
         "fluorophores": [
             {"name": d["name"], "photon_yield": d["phi"], "mean_emission_nm": d["mean_emission_nm"],
              "max_concentration": float(c[:, k].max()), "source": d["source"]}
