@@ -17,19 +17,22 @@ a(λ): the dye's excitation spectrum on the grid, peak 1; e(λ): its emission sp
 Δλ the grid step. The layout has no channel for λo < λi: those cells are not written.
 Every pixel conserves energy and photons: c ≤ 1, Σk ck·ak(λ) ≤ 0.95 at every λ (the
 concentrations of a pixel are scaled down together where overlapping regions would
-exceed it), 0 ≤ r ≤ 1, Φ ≤ 1 and Φ·λi/λ̄e ≤ 1 wherever a > 0 (checked).
+exceed it), 0 ≤ r ≤ 1, Φ ≤ 1 (photons), and the albedo
+ρ(λi) = (1 − Σ c·a)·r + Σ c·Φ·(λi/λ̄e)·a ≤ 1 (energy; it binds only on the red tail of an
+absorption, above λ̄e, where the energy yield Φ·λi/λ̄e exceeds 1): checked for every pixel.
 
 The scene (u = x/(W−1), v = y/(H−1)): quinine in an ellipse upper left, its
 concentration falling downwards; fluorescein in a horizontal band, rising to the right;
-rhodamine 6G in an ellipse right of centre, highest at its middle; the regions overlap
-(all three meet near u = 0.45, v = 0.45); every edge is soft (tanh, 3 % of the image);
+rhodamine 6G in an ellipse right of centre, highest at its middle; rhodamine's region
+overlaps each of the others (with quinine near u = 0.45, v = 0.3; with fluorescein over
+most of the band's right half); every edge is soft (tanh, 3 % of the image);
 the bottom strip (v > 0.88) holds no fluorescence. The reflectance blends four smooth
 spectra (white with a UV drop, yellow, blue-grey, red) with soft weights and darkens
 towards the bottom.
 
 Measurement-like noise: Gaussian, σ = 6e-4 per cell (every cell, diagonal included,
-independent; the order of the noise of the shared BFC-450 matrices' anti-Stokes cells),
-drawn from --seed. With --type half the noisy values are then rounded to 16-bit floats
+independent; the cell noise issue 24 states for bispectral images; the BFC-450 files of
+../shared/data/measured are noisier, about ±0.003), drawn from --seed. With --type half the noisy values are then rounded to 16-bit floats
 (relative step 2^-11: at most 2.4e-4 just below 1, RMS 1.4e-4 there, below σ).
 
 What it writes into OUT:
@@ -39,8 +42,9 @@ What it writes into OUT:
                         names them (std::to_string: `T.337,500000nm`), plus R, G, B
                         preview channels as the reference writer adds them, a uint32
                         region id `id`, and the header attribute
-                        spectralLayoutVersion = "1.0". Storage,
-                        sample type, compression, line order and data window are options.
+                        spectralLayoutVersion = "1.0". Storage, sample type,
+                        compression, line order, data window, names and parts are
+                        options.
   truth.exr             the same channels without noise, 32-bit, scanline, ZIP.
   truth/material-map.json, truth/concentration.exr (c1 … c3), truth/reflectance.exr
                         the truth as a `fluorite-material-map/1` file, written by hand
@@ -49,8 +53,9 @@ What it writes into OUT:
   other-tool.json       the parameters: sources, yields, grid, seed, σ, file options.
 
 usage: python3 scripts/other_tool_image.py OUT [--size 256 | --size 48x40] [--seed 1]
-           [--grid 330:720:7.5] [--type half|float] [--storage scanline|tiled]
-           [--tile 32] [--compression zip|zips|piz|rle|pxr24|none]
+           [--grid 330:720:7.5] [--type half|float|mixed] [--storage scanline|tiled]
+           [--tile 32] [--compression zip|zips|piz|rle|pxr24|none|b44|b44a|dwaa|dwab|
+           htj2k32|zstd]
            [--line-order increasing|decreasing] [--origin X,Y] [--names reference|short]
            [--multipart] [--raw]
 Needs numpy and OpenEXR (`pip install numpy OpenEXR`).
