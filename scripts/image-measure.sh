@@ -25,9 +25,8 @@ done
 
 timed() { # label, command...: prints "label wall_s user_s sys_s peak_kb"
     local label="$1"; shift
-    local out
-    out=$( { /usr/bin/time -f "%e %U %S %M" "$@" >/dev/null 2>/dev/null; } 2>&1 | tail -1)
-    echo "$label $out"
+    /usr/bin/time -o "$work/time.txt" -f "%e %U %S %M" "$@" >/dev/null 2>&1
+    echo "$label $(tail -1 "$work/time.txt")"
 }
 
 echo "== accuracy and memory"
@@ -35,6 +34,14 @@ for size in 512 1024; do
     rm -rf "$work/f$size"
     echo "load: $(cut -d' ' -f1-3 /proc/loadavg)"
     timed "fit $size²:" "$bin" fit-image "$work/s$size/image.exr" -o "$work/f$size" -q
+    python3 -c '
+import json, sys
+fit = json.load(open(sys.argv[1]))["fit"]
+k = fit["components"]
+trial = [t for t in fit["trials"] if t["components"] == k][0]
+print("  K = %d; %.2f %% of pixels within the bound (fitted against measured); %d clamped pixels"
+      % (k, 100 * trial["share_within"], fit["clamped_pixels"]))
+' "$work/f$size/material-map.json"
     "$bin" image-diff "$work/f$size/fitted.exr" "$work/s$size/image.truth.exr" \
         --maps "$work/f$size/material-map.json" "$work/s$size/image.truth/material-map.json" -q
 done

@@ -427,7 +427,8 @@ pub struct PatchColorimeter {
     pub light: String,
     /// ∫L·h_i over the excitation grid.
     light_weights: Vec<f64>,
-    /// ∫L·x̄·h_j over the emission grid (reflected light).
+    /// (∫L·h_i)·(∫x̄·h_j)/Δλ_j for the diagonal cell of emission sample j (i its
+    /// excitation sample; the emission grid's own ∫L·h_j where there is none).
     reflected_weights: Vec<Xyz>,
     /// ∫x̄·h_j over the emission grid (emitted light, density per nm).
     emitted_weights: Vec<Xyz>,
@@ -454,13 +455,8 @@ impl PatchColorimeter {
         };
         let light_weights =
             hat_integrals_with(excitation_nm, |l| light.power(l), sub(excitation_nm));
-        let channel = |c: usize, with_light: bool| {
-            hat_integrals_with(
-                emission_nm,
-                |l| observer.at(l)[c] * if with_light { light.power(l) } else { 1.0 },
-                sub(emission_nm),
-            )
-        };
+        let channel =
+            |c: usize| hat_integrals_with(emission_nm, |l| observer.at(l)[c], sub(emission_nm));
         let zip3 = |x: Vec<f64>, y: Vec<f64>, z: Vec<f64>| -> Vec<Xyz> {
             x.into_iter()
                 .zip(y)
@@ -468,8 +464,29 @@ impl PatchColorimeter {
                 .map(|((x, y), z)| [x, y, z])
                 .collect()
         };
-        let reflected_weights = zip3(channel(0, true), channel(1, true), channel(2, true));
-        let emitted_weights = zip3(channel(0, false), channel(1, false), channel(2, false));
+        let emitted_weights = zip3(channel(0), channel(1), channel(2));
+        let emission_bin_widths = crate::spectrum::bin_widths(emission_nm);
+        // Every cell, the diagonal included, sees the light through the excitation
+        // bandpass and is seen through the emission bandpass (model.md §7: per emission
+        // bin Σi L(λi)·Δλi·M[λi, λo] / Δλo, with L and x̄ each projected on the grid's
+        // hats). Projecting the product L·x̄ for the diagonal instead differs under a line
+        // spectrum: 0.10 ΔE2000 on CIBA12 under F11, against an evaluator written from
+        // model.md.
+        let emission_light = hat_integrals_with(emission_nm, |l| light.power(l), sub(emission_nm));
+        let per_nm =
+            |j: usize, lw: f64| emitted_weights[j].map(|w| w * lw / emission_bin_widths[j]);
+        let reflected_weights: Vec<Xyz> = emission_nm
+            .iter()
+            .enumerate()
+            .map(|(j, &nm)| {
+                let lw = crate::spectrum::find_wavelength(excitation_nm, nm)
+                    .map_or(emission_light[j], |i| light_weights[i]);
+                per_nm(j, lw)
+            })
+            .collect();
+        // The perfect white: a matrix whose diagonal is 1 (L* = 100 exactly; where the
+        // emission grid starts inside the excitation grid this takes the excitation hat
+        // of the first bin, as the diagonal cell does).
         let mut white = [0.0; 3];
         for w in &reflected_weights {
             for c in 0..3 {
@@ -486,7 +503,7 @@ impl PatchColorimeter {
             light_weights,
             reflected_weights,
             emitted_weights,
-            emission_bin_widths: crate::spectrum::bin_widths(emission_nm),
+            emission_bin_widths,
             excitation_nm: excitation_nm.to_vec(),
             emission_nm: emission_nm.to_vec(),
             white: white.map(|v| v * scale),
@@ -584,7 +601,7 @@ impl PatchColorimeter {
     }
 
     /// The projections behind [`PatchColorimeter::xyz_from`]: ∫L·h_i per excitation
-    /// sample, ∫L·x̄·h_j and ∫x̄·h_j per emission sample, the emission bin widths and the
+    /// sample, the diagonal's weights and ∫x̄·h_j per emission sample, the emission bin widths and the
     /// factor scaling the white to Y = 100. XYZ is linear in the matrix with these
     /// weights, which is what a fit needs to differentiate colour.
     pub fn weights(&self) -> (&[f64], &[Xyz], &[Xyz], &[f64], f64) {

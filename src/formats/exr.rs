@@ -143,6 +143,111 @@ fn quantity_nm(text: &str) -> Option<f64> {
     (nm.is_finite() && nm > 0.0).then_some(nm)
 }
 
+/// OpenEXR's compression codes, by the names the OpenEXR library gives them.
+const COMPRESSIONS: [&str; 14] = [
+    "none", "RLE", "ZIPS", "ZIP", "PIZ", "PXR24", "B44", "B44A", "DWAA", "DWAB", "HTJ2K256",
+    "HTJ2K32", "LJ2K", "ZSTD",
+];
+/// The codes up to this one are those the `exr` crate decodes (0–9: none … DWAB). It
+/// reads the headers of HTJ2K files (10, 11) but cannot decompress their pixels, and
+/// refuses the headers of the codes after them.
+const LAST_DECODED_COMPRESSION: u8 = 9;
+
+/// Why a file compressed with `code` cannot be read, and what to do, when the `exr`
+/// crate cannot decode that compression; `None` when it can.
+pub fn compression_not_decoded(code: u8) -> Option<String> {
+    if code <= LAST_DECODED_COMPRESSION {
+        return None;
+    }
+    let name = COMPRESSIONS.get(usize::from(code)).map_or_else(
+        || format!("compression {code}"),
+        |n| format!("{n} (code {code})"),
+    );
+    Some(format!(
+        "it is compressed with {name}, which fluorite's OpenEXR reader (the exr crate) cannot decode; rewrite it with one of {} (e.g. `oiiotool IN.exr --compression zip -o OUT.exr`, or the OpenEXR Python bindings)",
+        COMPRESSIONS[..=usize::from(LAST_DECODED_COMPRESSION)].join(", ")
+    ))
+}
+
+/// [`compression_not_decoded`] for a header the `exr` crate has read.
+pub fn compression_not_decoded_in(header: &exr::meta::header::Header) -> Option<String> {
+    use exr::compression::Compression;
+    match header.compression {
+        Compression::HTJ2K256 => compression_not_decoded(10),
+        Compression::HTJ2K32 => compression_not_decoded(11),
+        _ => None,
+    }
+}
+
+/// Why an OpenEXR file the `exr` crate refused cannot be read, when the reason is a
+/// compression it does not decode (HTJ2K, LJ2K, ZSTD: codes 10–13, or a later code):
+/// read from the headers' attribute lists alone, without decoding. The crate itself
+/// says only "missing or invalid compression attribute" or "yet unimplemented
+/// compression method". `None` when every part's compression is one the crate decodes,
+/// or the headers cannot be walked.
+pub fn unsupported_compression(reader: impl std::io::Read) -> Option<String> {
+    header_compressions(reader)?
+        .into_iter()
+        .find_map(compression_not_decoded)
+}
+
+/// The `compression` attribute of every header of an OpenEXR file (one per part), from
+/// the attribute lists: name and type (NUL-terminated), size (i32, little-endian),
+/// value. `None` when the bytes do not walk as headers.
+fn header_compressions(reader: impl std::io::Read) -> Option<Vec<u8>> {
+    use std::io::{BufRead, Read};
+    /// A NUL-terminated name of at most 255 bytes, without its NUL.
+    fn name(r: &mut impl BufRead) -> Option<Vec<u8>> {
+        let mut out = Vec::new();
+        r.take(256).read_until(0, &mut out).ok()?;
+        (out.pop() == Some(0)).then_some(out)
+    }
+    let mut r = std::io::BufReader::new(reader);
+    let mut start = [0u8; 8];
+    r.read_exact(&mut start).ok()?;
+    if start[..4] != MAGIC {
+        return None;
+    }
+    let multipart = u32::from_le_bytes([start[4], start[5], start[6], start[7]]) & 0x1000 != 0;
+    let mut codes = Vec::new();
+    for _ in 0..10_000 {
+        let mut attributes = 0;
+        loop {
+            let attribute = name(&mut r)?;
+            if attribute.is_empty() {
+                break;
+            }
+            attributes += 1;
+            let kind = name(&mut r)?;
+            let mut size = [0u8; 4];
+            r.read_exact(&mut size).ok()?;
+            let size = u64::try_from(i32::from_le_bytes(size)).ok()?;
+            if attribute == b"compression" && kind == b"compression" && size == 1 {
+                let mut code = [0u8; 1];
+                r.read_exact(&mut code).ok()?;
+                codes.push(code[0]);
+            } else if std::io::copy(&mut (&mut r).take(size), &mut std::io::sink()).ok()? != size {
+                return None;
+            }
+        }
+        // A single-part file has one header; a multi-part file's list of headers ends
+        // with an empty one.
+        if !multipart || attributes == 0 {
+            return Some(codes);
+        }
+    }
+    None
+}
+
+/// The message for a file the `exr` crate refused: its error, and the compression the
+/// crate lacks when that is why.
+pub fn unreadable(error: impl std::fmt::Display, file: impl std::io::Read) -> String {
+    match unsupported_compression(file) {
+        Some(why) => format!("not a readable OpenEXR file: {why}"),
+        None => format!("not a readable OpenEXR file: {error}"),
+    }
+}
+
 /// Reads a bispectral EXR into an excitation-major matrix on its wavelength grid.
 pub(super) fn read(path: &Path, bytes: &[u8]) -> Result<Parsed> {
     use exr::prelude::{ReadChannels, ReadLayers, read};
@@ -155,7 +260,7 @@ pub(super) fn read(path: &Path, bytes: &[u8]) -> Result<Parsed> {
         .all_layers()
         .all_attributes()
         .from_buffered(std::io::Cursor::new(bytes))
-        .map_err(|e| fail(format!("not a readable OpenEXR file: {e}")))?;
+        .map_err(|e| fail(unreadable(e, bytes)))?;
     // The layout is one part; take the first layer holding reflective channels.
     let mut layers = image.layer_data.iter().map(named_channels);
     let channels = loop {
@@ -260,11 +365,15 @@ pub(super) fn read(path: &Path, bytes: &[u8]) -> Result<Parsed> {
     Ok(Parsed::surface(grid.clone(), grid, values, notes))
 }
 
-/// Refuses, from the header alone, an image whose samples (pixels × channels, summed over
-/// its parts) exceed [`crate::limits::MAX_IMAGE_SAMPLES`], before any pixel is decoded.
+/// Refuses, from the header alone, a compression the `exr` crate cannot decode and an
+/// image whose samples (pixels × channels, summed over its parts) exceed
+/// [`crate::limits::MAX_IMAGE_SAMPLES`], before any pixel is decoded.
 fn check_image_size(bytes: &[u8]) -> std::result::Result<(), String> {
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
-        .map_err(|e| format!("not a readable OpenEXR file: {e}"))?;
+        .map_err(|e| unreadable(e, bytes))?;
+    if let Some(why) = meta.headers.iter().find_map(compression_not_decoded_in) {
+        return Err(format!("not a readable OpenEXR file: {why}"));
+    }
     let mut samples: u64 = 0;
     for header in &meta.headers {
         let size = header.layer_size;
@@ -295,6 +404,67 @@ fn named_channels(layer: &Layer) -> Vec<(Channel, &exr::image::FlatSamples)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A two-part OpenEXR file in memory (ZIP, then PIZ), as the `exr` crate writes it.
+    fn two_parts() -> Vec<u8> {
+        use exr::prelude::*;
+        let layer = |name: &str, compression| {
+            Layer::new(
+                (4, 3),
+                LayerAttributes::named(name),
+                Encoding {
+                    compression,
+                    ..Encoding::default()
+                },
+                AnyChannels::sort(SmallVec::from_vec(vec![AnyChannel::new(
+                    "T.500nm",
+                    FlatSamples::F32(vec![0.5; 12]),
+                )])),
+            )
+        };
+        let image = Image::from_layers(
+            ImageAttributes::new(IntegerBounds::from_dimensions((4, 3))),
+            SmallVec::from_vec(vec![
+                layer("one", Compression::ZIP16),
+                layer("two", Compression::PIZ),
+            ]),
+        );
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        image.write().to_buffered(&mut bytes).unwrap();
+        bytes.into_inner()
+    }
+
+    #[test]
+    fn a_compression_newer_than_the_reader_is_named() {
+        let mut bytes = two_parts();
+        // OpenEXR's codes: ZIP 3, PIZ 4; the crate reads both.
+        assert_eq!(header_compressions(bytes.as_slice()), Some(vec![3, 4]));
+        assert_eq!(unsupported_compression(bytes.as_slice()), None);
+        // The second part's compression as OpenEXR 3.4's ZSTD (13): the crate refuses the
+        // file without naming why; the message names it.
+        let key = b"compression\0compression\0\x01\0\0\0";
+        let at: Vec<usize> = (0..bytes.len() - key.len())
+            .filter(|&i| bytes[i..].starts_with(key))
+            .collect();
+        assert_eq!(at.len(), 2);
+        bytes[at[1] + key.len()] = 13;
+        assert_eq!(header_compressions(bytes.as_slice()), Some(vec![3, 13]));
+        let refused = exr::meta::MetaData::read_from_buffered(bytes.as_slice(), false).unwrap_err();
+        let message = unreadable(refused, bytes.as_slice());
+        assert!(message.contains("ZSTD (code 13)"), "{message}");
+        bytes[at[1] + key.len()] = 40;
+        let message = unsupported_compression(bytes.as_slice()).unwrap();
+        assert!(message.contains("compression 40"), "{message}");
+        // HTJ2K: the crate reads the header, not the pixels.
+        bytes[at[1] + key.len()] = 11;
+        let meta = exr::meta::MetaData::read_from_buffered(bytes.as_slice(), false).unwrap();
+        let message = compression_not_decoded_in(&meta.headers[1]).unwrap();
+        assert!(message.contains("HTJ2K32 (code 11)"), "{message}");
+        assert_eq!(compression_not_decoded_in(&meta.headers[0]), None);
+        // Not an OpenEXR file, or one cut inside its header: nothing to name.
+        assert_eq!(header_compressions(&b"P6 4 3 255"[..]), None);
+        assert_eq!(header_compressions(&bytes[..at[0] + 5]), None);
+    }
 
     #[test]
     fn channel_names_follow_the_reference_grammar() {

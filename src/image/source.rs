@@ -163,8 +163,13 @@ impl ExrImage {
             ));
         }
         let file = File::open(path).map_err(|e| Error::io(path, e))?;
-        let meta = MetaData::read_from_buffered(BufReader::new(file), false)
-            .map_err(|e| fail(format!("not a readable OpenEXR file: {e}")))?;
+        let meta = MetaData::read_from_buffered(BufReader::new(file), false).map_err(|e| {
+            // Name the compression when the exr crate refused a newer one.
+            match File::open(path) {
+                Ok(file) => fail(crate::formats::exr::unreadable(e, file)),
+                Err(_) => fail(format!("not a readable OpenEXR file: {e}")),
+            }
+        })?;
         let mut chosen = None;
         for (index, header) in meta.headers.iter().enumerate() {
             if header.deep {
@@ -187,6 +192,9 @@ impl ExrImage {
             ));
         };
         let header = &meta.headers[layer];
+        if let Some(why) = crate::formats::exr::compression_not_decoded_in(header) {
+            return Err(fail(format!("not a readable OpenEXR file: {why}")));
+        }
         let mut grid = Vec::new();
         let mut named = Vec::new();
         let mut notes = Vec::new();
@@ -525,8 +533,13 @@ impl ExrImage {
                     .map(|(k, chunk)| {
                         let block = UncompressedBlock::decompress_chunk(chunk, &meta, false)
                             .map_err(|e| {
+                                let why = if matches!(e, exr::error::Error::NotSupported(_)) {
+                                    "the exr crate does not decode this case of its compression"
+                                } else {
+                                    "the file is truncated or damaged"
+                                };
                                 fail(format!(
-                                    "chunk {} of {total} cannot be decompressed ({e}): the file is truncated or damaged",
+                                    "chunk {} of {total} cannot be decompressed ({e}): {why}",
                                     done + k + 1,
                                 ))
                             })?;

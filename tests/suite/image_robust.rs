@@ -673,3 +673,46 @@ fn non_finite_cells_mask_their_pixels_are_counted_exactly_and_are_nan_in_the_map
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Newer OpenEXR libraries write compressions the `exr` crate does not decode: HTJ2K
+/// (codes 10, 11), whose header it reads and whose pixels it calls "yet unimplemented"
+/// (fit-image called that a truncated file), and LJ2K and ZSTD (12, 13), which it
+/// refuses as "missing or invalid compression attribute". fit-image, image-diff and fit
+/// say which compression it is and what to do, and write nothing. (scripts/other_tool_image.py --compression zstd writes such a file
+/// with the OpenEXR library itself; python/tests/test_other_tool_image.py runs it.)
+#[test]
+fn an_image_compressed_with_a_codec_the_reader_lacks_is_refused_naming_it() {
+    let dir = common::temp_dir("zstd");
+    let path = dir.join("zstd.exr");
+    write_uniform(
+        &path,
+        (4, 4),
+        &[("T.400nm", 0.5), ("T.500nm", 0.6), ("T.400nm.500nm", 0.01)],
+    );
+    let mut bytes = std::fs::read(&path).unwrap();
+    let key = b"compression\0compression\0\x01\0\0\0";
+    let at = (0..bytes.len() - key.len())
+        .find(|&i| bytes[i..].starts_with(key))
+        .expect("a compression attribute")
+        + key.len();
+    for (code, name) in [
+        (13u8, "ZSTD (code 13)"),
+        (12, "LJ2K (code 12)"),
+        (11, "HTJ2K32 (code 11)"),
+        (10, "HTJ2K256 (code 10)"),
+    ] {
+        bytes[at] = code;
+        std::fs::write(&path, &bytes).unwrap();
+        let message = refused_writing_nothing(&path);
+        assert!(
+            message.contains(name) && message.contains("ZIP, PIZ"),
+            "{message}"
+        );
+        for args in [vec!["fit"], vec!["image-diff", path.to_str().unwrap()]] {
+            let (code, message) = common::refused(common::fluorite().args(&args).arg(&path));
+            assert_eq!(code, Some(2), "{message}");
+            assert!(message.contains(name), "{args:?}: {message}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
