@@ -147,6 +147,15 @@ def test_fit_image_of_a_zarr_or_dask_array_equals_fit_image_of_the_numpy_array(c
         assert_maps_hold_the_outputs(out)
 
 
+def test_without_a_client_dask_s_threads_give_the_same_files(client, scan, tmp_path):
+    import dask
+
+    image, reference = scan
+    with dask.config.set(scheduler="threads"):
+        fdask.fit_image(image, output=tmp_path / "threads", components=K, chunks=2, timeout=TIMEOUT)
+    assert_same_outputs(tmp_path / "threads", reference)
+
+
 def test_a_worker_killed_mid_run_changes_nothing(client, scan, tmp_path):
     image, reference = scan
     pids = list(client.run(os.getpid, wait=True).values())
