@@ -44,6 +44,7 @@ pub(crate) fn image<'py, T: numpy::Element>(
 /// A 1-D sequence of numbers (numpy array, list, tuple…) as a vector; `what` names the
 /// argument in the error.
 pub(crate) fn floats(value: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
+    let value = &aligned(value)?;
     let array: PyArrayLike1<'_, f64, AllowTypeChange> = value.extract().map_err(|_| {
         invalid(
             what,
@@ -58,6 +59,7 @@ pub(crate) fn floats(value: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>>
 
 /// A 2-D array of numbers as (rows, columns, row-major values).
 pub(crate) fn floats2(value: &Bound<'_, PyAny>, what: &str) -> PyResult<(usize, usize, Vec<f64>)> {
+    let value = &aligned(value)?;
     let array: PyArrayLike2<'_, f64, AllowTypeChange> = value.extract().map_err(|_| {
         invalid(
             what,
@@ -71,10 +73,23 @@ pub(crate) fn floats2(value: &Bound<'_, PyAny>, what: &str) -> PyResult<(usize, 
 
 /// Whether `value` converts to a 1-D array of numbers (without raising).
 pub(crate) fn is_floats(value: &Bound<'_, PyAny>) -> bool {
+    let Ok(value) = aligned(value) else {
+        return false;
+    };
     !value.is_instance_of::<PyString>()
         && value
             .extract::<PyArrayLike1<'_, f64, AllowTypeChange>>()
             .is_ok()
+}
+
+/// `value` itself, or a copy when it is a numpy array whose data are not aligned for its
+/// type (a buffer received over the network or sliced from bytes can be): the numpy
+/// crate's views require alignment and would panic instead of raising.
+pub(crate) fn aligned<'py>(value: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    match value.cast::<numpy::PyUntypedArray>() {
+        Ok(array) if !numpy::PyUntypedArrayMethods::is_aligned(array) => value.call_method0("copy"),
+        _ => Ok(value.clone()),
+    }
 }
 
 /// The Python type name of `value`, for messages.

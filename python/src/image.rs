@@ -183,6 +183,7 @@ fn array_image(
             ),
         )
     };
+    let source = &crate::convert::aligned(source)?;
     // One of the three views, kept alive while the values are gathered.
     let borrowed = |_| {
         invalid(

@@ -97,13 +97,17 @@ def test_any_real_dtype_and_memory_order_gives_the_same_file(planted, tmp_path):
         "fortran": np.asfortranarray(image),
         "strided": np.repeat(image, 2, axis=1)[:, ::2],
         "float16-cast": image.astype(np.float16).astype(np.float32),
+        # Data one byte into a buffer are not aligned for float32 (as Dask can hand them
+        # over): copied, not a panic.
+        "unaligned": np.frombuffer(b"\0" + image.tobytes(), dtype=np.float32, offset=1).reshape(image.shape),
     }
+    assert not variants["unaligned"].flags.aligned
     written = {
         name: (tmp_path / f"{name}.exr", fluorite.write_image(tmp_path / f"{name}.exr", v, excitation_nm=EX, emission_nm=EM))
         for name, v in variants.items()
     }
     reference = written["float32"][0].read_bytes()
-    for name in ("float64", "fortran", "strided"):
+    for name in ("float64", "fortran", "strided", "unaligned"):
         assert written[name][0].read_bytes() == reference, name
     assert written["float16-cast"][0].read_bytes() != reference
     half = tmp_path / "half.exr"
