@@ -242,6 +242,27 @@ pub fn cells_of(layout: &Layout) -> Cells {
     }
 }
 
+/// The per-pixel record of a fit with a sketch of `rank` vectors, and the sizes of the
+/// work files it keeps (the basis, the scratch file): what a resumed run checks.
+fn work_sizes(
+    image: PixelSource<'_>,
+    options: &ImageFitOptions,
+    rank: usize,
+) -> (RecordLayout, state::Expected) {
+    let layout = image.layout();
+    let m = layout.len() - layout.diagonal_count;
+    let record = RecordLayout {
+        rank,
+        diagonal: layout.diagonal_count,
+        lights: options.lights.len(),
+    };
+    let expected = state::Expected {
+        basis_bytes: (m * rank * 8) as u64,
+        scratch_bytes: (image.pixels() * record.len() * 4) as u64,
+    };
+    (record, expected)
+}
+
 /// The work folder of an output folder.
 pub fn work_folder(out: &Path) -> PathBuf {
     out.join(".fluorite-work")
@@ -298,15 +319,7 @@ fn run(
     let m = layout.len() - layout.diagonal_count;
     let rank = options.rank.min(m);
     let colours = CellColours::new(layout, &options.lights);
-    let record = RecordLayout {
-        rank,
-        diagonal: layout.diagonal_count,
-        lights: options.lights.len(),
-    };
-    let expected = state::Expected {
-        basis_bytes: (m * rank * 8) as u64,
-        scratch_bytes: (image.pixels() * record.len() * 4) as u64,
-    };
+    let (record, expected) = work_sizes(image, options, rank);
     let mut state = State::open(work, image, &options.key(), expected)?;
     let mut resumed = Vec::new();
     let blocks = image.blocks();
@@ -417,15 +430,7 @@ pub fn fit_image_from_records(
     if work.exists() {
         std::fs::remove_dir_all(&work).map_err(|e| Error::io(&work, e))?;
     }
-    let record = RecordLayout {
-        rank,
-        diagonal: layout.diagonal_count,
-        lights: options.lights.len(),
-    };
-    let expected = state::Expected {
-        basis_bytes: (m * rank * 8) as u64,
-        scratch_bytes: (image.pixels() * record.len() * 4) as u64,
-    };
+    let (record, expected) = work_sizes(image, options, rank);
     let mut state = State::open(&work, image, &options.key(), expected)?;
     let scratch_path = state.folder()?.join("scratch.f32");
     let scratch = Scratch::create(&scratch_path, record, image.pixels())?;
