@@ -37,9 +37,9 @@ worst = max(abs(mine[k] - theirs[k]) for k in theirs)
 problems = "; ".join(r["conservation"]["problems"])
 suffix = " (conservation: " + problems + ")" if problems else ""
 print(f"{cells} | {worst:.3f}{suffix}")
-print(worst, file=sys.stderr)' 2>/tmp/fluorite-evaluate-worst)
+print(worst, file=sys.stderr)' 2>"$out/worst.txt")
         echo "| $fit | $name | $line |"
-        worst=$(python3 -c "print(max($worst, $(cat /tmp/fluorite-evaluate-worst)))")
+        worst=$(python3 -c "print(max($worst, $(cat "$out/worst.txt")))")
     done
 done
 echo

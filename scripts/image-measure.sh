@@ -25,7 +25,7 @@ done
 
 timed() { # label, command...: prints "label wall_s user_s sys_s peak_kb"
     local label="$1"; shift
-    /usr/bin/time -o "$work/time.txt" -f "%e %U %S %M" "$@" >/dev/null 2>&1
+    /usr/bin/time -o "$work/time.txt" -f "%e %U %S %M" "$@" >"$work/output.txt" 2>&1
     echo "$label $(tail -1 "$work/time.txt")"
 }
 
@@ -52,9 +52,13 @@ one=(); two=()
 for _ in $(seq "$runs"); do
     rm -rf "$work/t1" "$work/t2"
     echo "load: $(cut -d' ' -f1-3 /proc/loadavg)"
-    line=$(timed one taskset -c 0 "$bin" fit-image "$work/s512/image.exr" -o "$work/t1" -q); echo "$line"
+    # Without -q the report ends with the `time:` line: each stage's wall time, to see
+    # which stages scale.
+    line=$(timed one taskset -c 0 "$bin" fit-image "$work/s512/image.exr" -o "$work/t1"); echo "$line"
+    grep "time:" "$work/output.txt"
     one+=("$(echo "$line" | cut -d' ' -f2)")
-    line=$(timed two "$bin" fit-image "$work/s512/image.exr" -o "$work/t2" -q); echo "$line"
+    line=$(timed two "$bin" fit-image "$work/s512/image.exr" -o "$work/t2"); echo "$line"
+    grep "time:" "$work/output.txt"
     two+=("$(echo "$line" | cut -d' ' -f2)")
     cmp -s "$work/t1/fitted.exr" "$work/t2/fitted.exr" || { echo "one and two cores wrote different fitted.exr" >&2; exit 1; }
 done
