@@ -12,7 +12,6 @@ use std::path::{Path, PathBuf};
 
 use exr::block::UncompressedBlock;
 use exr::block::chunk::Chunk;
-use exr::block::reader::ChunksReader;
 use exr::meta::MetaData;
 use exr::meta::attribute::SampleType;
 use rayon::prelude::*;
@@ -22,9 +21,32 @@ use crate::formats::exr::{Channel, parse_channel};
 
 use super::layout::{Cell, Layout};
 
-/// Chunks decoded together per thread in a pass: enough to keep every thread busy,
-/// few enough that a pass holds only a handful of chunks.
-const CHUNKS_PER_THREAD: usize = 1;
+/// Chunks read and decoded per thread between two folds of a pass: enough to keep every
+/// thread busy, few enough that a pass holds only a handful of chunks' results.
+const CHUNKS_PER_THREAD: usize = 4;
+
+/// Reads `buffer.len()` bytes of `file` (opened from `path`) at `offset`, from any thread.
+fn read_at(
+    #[allow(unused_variables)] path: &Path,
+    file: &File,
+    buffer: &mut [u8],
+    offset: u64,
+) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileExt;
+        file.read_exact_at(buffer, offset)
+    }
+    #[cfg(not(unix))]
+    {
+        // A handle of its own: a cloned handle would share the file position.
+        use std::io::{Read, Seek, SeekFrom};
+        let _ = file;
+        let mut file = File::open(path)?;
+        file.seek(SeekFrom::Start(offset))?;
+        file.read_exact(buffer)
+    }
+}
 
 /// A block of pixels: a scanline block or a tile of the image.
 #[derive(Debug, Clone, PartialEq)]
@@ -467,100 +489,164 @@ impl ExrImage {
         mut fold: impl FnMut(T) -> Result<()>,
         mut progress: impl FnMut(usize),
     ) -> Result<()> {
-        let fail = |message: String| Error::parse(&self.path, 0, 0, message);
+        let index = self.chunk_index()?;
         let file = File::open(&self.path).map_err(|e| Error::io(&self.path, e))?;
-        let layer = self.layer;
-        let reader = exr::block::read(BufReader::with_capacity(1 << 20, file), false)
-            .map_err(|e| fail(format!("not a readable OpenEXR file: {e}")))?;
-        let mut chunks = reader
-            .filter_chunks(false, |_, tile, block| {
-                block.layer == layer && tile.level_index == exr::math::Vec2(0, 0)
-            })
-            .map_err(|e| {
-                fail(format!(
-                    "cannot read the chunk offsets ({e}): the file is truncated or damaged"
-                ))
-            })?;
-        let meta = chunks.meta_data().clone();
+        let length = file.metadata().map_err(|e| Error::io(&self.path, e))?.len();
+        let total = index.places.len();
+        let raw = self.raw_chunks(&index.meta);
+        // Every thread reads its own chunks (copying from the page cache in parallel),
+        // decompresses and maps them; the results are folded in file order, a group at a
+        // time, so a pass holds a few chunks and its result does not depend on the number
+        // of threads.
         let group = CHUNKS_PER_THREAD * rayon::current_num_threads().max(1);
-        let total = self.chunks;
         let mut done = 0;
-        // A reader thread reads the next group of chunks from the file while the current
-        // one is decompressed and mapped: reading is copying from the page cache (or
-        // waiting for the disk), one thread's work that would otherwise leave the others
-        // idle.
-        let (sender, receiver) = std::sync::mpsc::sync_channel::<Result<Vec<Chunk>>>(1);
-        std::thread::scope(|scope| -> Result<()> {
-            scope.spawn(move || {
-                let mut read = 0;
-                loop {
-                    let mut batch: Vec<Chunk> = Vec::with_capacity(group);
-                    let mut failure = None;
-                    for chunk in chunks.by_ref().take(group) {
-                        match chunk {
-                            Ok(chunk) => batch.push(chunk),
-                            Err(e) => {
-                                failure = Some(fail(format!(
-                                    "chunk {} of {total} cannot be read ({e}): the file is truncated or damaged",
-                                    read + batch.len() + 1,
-                                )));
-                                break;
-                            }
-                        }
-                    }
-                    read += batch.len();
-                    let last = batch.is_empty() || failure.is_some();
-                    let message = match failure {
-                        Some(e) => Err(e),
-                        None => Ok(batch),
-                    };
-                    // The receiver is gone when the pass failed or was interrupted.
-                    if sender.send(message).is_err() || last {
-                        return;
-                    }
-                }
-            });
-            for batch in receiver.iter() {
-                crate::files::check_interrupted(&self.path)?;
-                let batch = batch?;
-                if batch.is_empty() {
-                    break;
-                }
-                let count = batch.len();
-                let results: Vec<Result<T>> = batch
-                    .into_par_iter()
-                    .enumerate()
-                    .map(|(k, chunk)| {
-                        let block = UncompressedBlock::decompress_chunk(chunk, &meta, false)
-                            .map_err(|e| {
-                                let why = if matches!(e, exr::error::Error::NotSupported(_)) {
-                                    "the exr crate does not decode this case of its compression"
-                                } else {
-                                    "the file is truncated or damaged"
-                                };
-                                fail(format!(
-                                    "chunk {} of {total} cannot be decompressed ({e}): {why}",
-                                    done + k + 1,
-                                ))
-                            })?;
-                        map(&block)
-                    })
-                    .collect();
-                for r in results {
-                    fold(r?)?;
-                }
-                done += count;
-                progress(done);
+        while done < total {
+            crate::files::check_interrupted(&self.path)?;
+            let end = (done + group).min(total);
+            let results: Vec<Result<T>> = (done..end)
+                .into_par_iter()
+                .map_init(Vec::new, |buffer: &mut Vec<u8>, position| {
+                    let block = self.read_block(&file, length, &index, position, raw, buffer)?;
+                    let result = map(&block);
+                    // The block's bytes are the next block's buffer.
+                    *buffer = block.data;
+                    result
+                })
+                .collect();
+            for r in results {
+                fold(r?)?;
             }
-            Ok(())
-        })?;
-        if done != self.chunks {
-            return Err(fail(format!(
-                "{done} of {} chunks were read: the file is truncated",
-                self.chunks
-            )));
+            done = end;
+            progress(done);
         }
         Ok(())
+    }
+
+    /// The length of an uncompressed chunk's own fields before its pixels, when the
+    /// image's chunks are uncompressed and the machine little-endian (the file's order):
+    /// then a block's pixels are read straight into its buffer, not through the exr
+    /// crate's chunk reader and decompressor (each a copy of the block).
+    fn raw_chunks(&self, meta: &MetaData) -> Option<usize> {
+        let header = &meta.headers[self.layer];
+        let uncompressed = header.compression == exr::compression::Compression::Uncompressed;
+        if !uncompressed || header.deep || cfg!(target_endian = "big") {
+            return None;
+        }
+        let part = if meta.requirements.is_multilayer() {
+            4
+        } else {
+            0
+        };
+        let fields = match header.blocks {
+            exr::meta::BlockDescription::Tiles(_) => 5 * 4,
+            exr::meta::BlockDescription::ScanLines => 2 * 4,
+        };
+        Some(part + fields)
+    }
+
+    /// Block `position` of a pass (in [`ExrImage::chunk_index`]'s order), decompressed;
+    /// `buffer` is spare memory it may use.
+    fn read_block(
+        &self,
+        file: &File,
+        length: u64,
+        index: &ChunkIndex,
+        position: usize,
+        raw: Option<usize>,
+        buffer: &mut Vec<u8>,
+    ) -> Result<UncompressedBlock> {
+        let fail = |message: String| Error::parse(&self.path, 0, 0, message);
+        let (meta, places) = (&index.meta, &index.places);
+        let total = places.len();
+        let place = places[position];
+        let begin = place.offset;
+        let truncated = || {
+            fail(format!(
+                "chunk {} of {total} at byte {begin} is cut short by the end of the file's {length} bytes: the file is truncated or damaged",
+                position + 1
+            ))
+        };
+        if let Some(fields) = raw {
+            // The chunk's fields must name the block the offset table places there (its
+            // part, its tile or first row, its size); a chunk that does not goes through
+            // the exr crate's reader below, which judges it.
+            let mut head = vec![0u8; fields];
+            if begin + fields as u64 > length {
+                return Err(truncated());
+            }
+            read_at(&self.path, file, &mut head, begin).map_err(|e| Error::io(&self.path, e))?;
+            let values: Vec<i32> = head
+                .chunks_exact(4)
+                .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect();
+            let bytes_per_line: usize = self.channel_bytes.iter().map(|b| b * place.width).sum();
+            let size = bytes_per_line * place.height;
+            let header = &meta.headers[self.layer];
+            let part = meta.requirements.is_multilayer();
+            let at = |i: usize| values[i + usize::from(part)] as i64;
+            let matches = (!part || values[0] as i64 == self.layer as i64)
+                && match header.blocks {
+                    exr::meta::BlockDescription::Tiles(t) => {
+                        at(0) * t.tile_size.x() as i64 == place.x as i64
+                            && at(1) * t.tile_size.y() as i64 == place.y as i64
+                            && at(2) == 0
+                            && at(3) == 0
+                            && at(4) == size as i64
+                    }
+                    exr::meta::BlockDescription::ScanLines => {
+                        at(0) == place.y as i64 + header.own_attributes.layer_position.y() as i64
+                            && at(1) == size as i64
+                    }
+                };
+            if matches {
+                if begin + (fields + size) as u64 > length {
+                    return Err(truncated());
+                }
+                buffer.resize(size, 0);
+                read_at(&self.path, file, buffer, begin + fields as u64)
+                    .map_err(|e| Error::io(&self.path, e))?;
+                return Ok(UncompressedBlock {
+                    index: exr::block::BlockIndex {
+                        layer: self.layer,
+                        level: exr::math::Vec2(0, 0),
+                        pixel_position: exr::math::Vec2(place.x, place.y),
+                        pixel_size: exr::math::Vec2(place.width, place.height),
+                    },
+                    data: std::mem::take(buffer),
+                });
+            }
+        }
+        // A chunk is at most its block's bytes and the chunk's own fields (part number,
+        // tile coordinates and levels, sizes); anything past that before the next chunk
+        // (another part's chunks) is not read.
+        let largest = meta.headers[self.layer].max_block_byte_size() as u64 + 64;
+        let stop = places
+            .get(position + 1)
+            .map_or(length, |next| next.offset)
+            .min(begin.saturating_add(largest))
+            .min(length);
+        if begin >= stop {
+            return Err(truncated());
+        }
+        buffer.resize((stop - begin) as usize, 0);
+        read_at(&self.path, file, buffer, begin).map_err(|e| Error::io(&self.path, e))?;
+        let chunk = Chunk::read(&mut buffer.as_slice(), meta).map_err(|e| {
+            fail(format!(
+                "chunk {} of {total} cannot be read ({e}): the file is truncated or damaged",
+                position + 1
+            ))
+        })?;
+        UncompressedBlock::decompress_chunk(chunk, meta, false).map_err(|e| {
+            let why = if matches!(e, exr::error::Error::NotSupported(_)) {
+                "the exr crate does not decode this case of its compression"
+            } else {
+                "the file is truncated or damaged"
+            };
+            fail(format!(
+                "chunk {} of {total} cannot be decompressed ({e}): {why}",
+                position + 1,
+            ))
+        })
     }
 
     /// A decompressed block's samples, converted to f32 planes in canonical cell order.
