@@ -563,8 +563,17 @@ class _ImageStages:
         masked_pixels: int,
         non_finite_cells: int,
         read_rows: Callable[[int, int], npt.ArrayLike],
+        map_chunks: Optional[Callable[[str, int], List[str]]] = None,
     ) -> ImageFit:
-        """The fit after the passes, from the records read_rows(y, rows) returns."""
+        """The fit after the passes, from the records read_rows(y, rows) returns; with
+        map_chunks(kernel, chunks), the passes over the records run through it (the
+        results of run_records on every chunk of RECORD_CHUNK records, in order)."""
+    RECORD_CHUNK: int
+    """Records per chunk of a pass over the records."""
+    def run_records(
+        self, basis: FloatArray, kernel: str, first: int, records: npt.NDArray[np.float32]
+    ) -> List[str]:
+        """A pass's results on records (n, record_len) of pixels first..first + n, one per chunk."""
     def model_of(self, fit: ImageFit) -> str:
         """The model of a finished fit's pixels (JSON) for evaluate."""
     def evaluate(

@@ -6,9 +6,10 @@ image (the sketch, the power steps, the projection) maps the library's kernel ov
 chunks of the image's blocks on the workers (GIL released), and the client sums the
 blocks' small contributions in block order, exactly as the command does, so the result
 does not depend on the number of workers or the chunking. The projection's per-pixel
-records are written to a Zarr array by the workers; the client then fits the shared
-fluorophores on those records and writes the command's files through the same library
-code.
+records are written to a Zarr array by the workers; every pass of the shared fit over
+those records (its iterations, the start and the judge of every K) runs on the workers
+too, the client folding each chunk's small result in chunk order; the client writes the
+command's files from the records through the same library code.
 
 ``fit_files`` fits many files as a Dask bag (``fluorite.fit_many`` on each partition)
 and gathers the fits, their materials and a summary table.
@@ -118,6 +119,18 @@ def _project_task(plan: _Plan, basis: np.ndarray, records: str, pixels: Any, sta
     return written
 
 
+def _records_task(plan: _Plan, basis: np.ndarray, records: str, kernel: str, first: int, count: int) -> List[str]:
+    """A pass over the records of pixels first..first + count (whole chunks of
+    ``RECORD_CHUNK`` records but the image's last): one result per chunk, in order."""
+    stages = _stages(plan)
+    width = stages.width
+    y0, y1 = first // width, (first + count - 1) // width + 1
+    band = _aligned(zarr.open_array(records, mode="r")[y0:y1], np.float32).reshape(-1, stages.record_len)
+    start = first - y0 * width
+    piece = np.ascontiguousarray(band[start : start + count])
+    return stages.run_records(_aligned(basis, np.float64), kernel, first, piece)
+
+
 def _maps_task(plan: _Plan, model: str, basis: np.ndarray, records: str, maps: str, y: int, rows: int) -> int:
     """The maps of rows y..y + rows from their records, into the Zarr group `maps`."""
     band = _aligned(zarr.open_array(records, mode="r")[y : y + rows], np.float32)
@@ -179,6 +192,7 @@ def fit_image(
     client: Any = None,
     chunks: Optional[int] = None,
     records: Optional[PathLike] = None,
+    record_chunks: Optional[int] = None,
     maps: Union[PathLike, bool] = True,
     timeout: float = DEFAULT_TIMEOUT,
     progress: Optional[Callable[[str, int, int], None]] = None,
@@ -200,7 +214,9 @@ def fit_image(
     (rounded up to a multiple of 16; default: about 64 MB of pixels). ``records`` is the Zarr array the workers write every
     pixel's record into (float32, (height, width, record_len)); by default
     ``output/records.zarr``: ``output`` (or ``records``) must be on storage the workers
-    and the client share. ``maps`` is the Zarr group the workers write the maps into
+    and the client share. ``record_chunks`` is the work of one task of the shared fit's
+    passes over the records, in chunks of ``RECORD_CHUNK`` (4096) records (default:
+    about 64 MB of records). ``maps`` is the Zarr group the workers write the maps into
     from the records (default ``output/maps.zarr``; False: none): ``concentration``
     (height, width, K), ``reflectance`` (height, width, n) with its ``wavelengths_nm``
     attribute, ``delta_e`` (height, width, lights) with ``lights``, float32, NaN at masked
@@ -322,10 +338,38 @@ def fit_image(
     if written != stages.width * stages.height:
         raise FluoriteError(f"internal error in fluorite.dask: {written} of {stages.width * stages.height} pixels projected: please report")
 
-    # The shared fluorophores and the outputs, on the client, from the records.
+    # The shared fluorophores: every pass over the records (each iteration, start and
+    # judge of every K, the noise) runs on the workers, in tasks of whole chunks of
+    # RECORD_CHUNK records whose results come back in chunk order; the client folds them
+    # and updates the spectra. The outputs are written on the client from its copy of
+    # the records.
+    pixels = stages.width * stages.height
+    chunk = stages.RECORD_CHUNK
+    if record_chunks is not None and (not isinstance(record_chunks, int) or record_chunks < 1):
+        raise FluoriteError(f"invalid record_chunks: {record_chunks!r}: give a positive number of chunks of {chunk} records")
+    records_per_task = (record_chunks or max(1, DEFAULT_ARRAY_BYTES // (stages.record_len * 4 * chunk))) * chunk
+    passes = 0
+
+    def map_chunks(kernel: str, count: int) -> List[str]:
+        nonlocal passes
+        passes += 1
+        tasks = [
+            dask.delayed(_records_task, pure=True)(plan_d, basis_d, records_path, kernel, first, min(records_per_task, pixels - first))
+            for first in range(0, pixels, records_per_task)
+        ]
+        results: List[str] = []
+        for part in runner.ordered(f"shared fit (pass {passes})", tasks):
+            results.extend(part)
+        return results
+
     stored = zarr.open_array(records_path, mode="r")
     fit = stages.fit_records(
-        output, basis, masked, non_finite, lambda y, n: np.asarray(stored[y : y + n], dtype=np.float32)
+        output,
+        basis,
+        masked,
+        non_finite,
+        lambda y, n: np.asarray(stored[y : y + n], dtype=np.float32),
+        map_chunks,
     )
     if maps is False:
         return fit

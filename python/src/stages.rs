@@ -15,6 +15,9 @@ use std::sync::Mutex;
 
 use fluorite::image::fit::colour::CellColours;
 use fluorite::image::fit::passes::{Census, orthonormal};
+use fluorite::image::fit::records::{
+    ChunkMapper, ChunkResult, RECORD_CHUNK, RecordContext, RecordKernel,
+};
 use fluorite::image::fit::scratch::RecordLayout;
 use fluorite::image::fit::shared::Shared;
 use fluorite::image::fit::{ImageFitOptions, fit_image_from_records, stages};
@@ -616,7 +619,13 @@ impl PyImageStages {
     /// power steps, the sketch's census, and `read_rows(y, rows)` returning the records
     /// of rows y..y + rows as float32 (rows, width, record_len). The records are copied
     /// into the run's scratch file band by band; the shared fluorophores, the gauge and
-    /// every output are then `fit_image`'s. Returns an ``ImageFit``.
+    /// every output are then `fit_image`'s. With `map_chunks`, the passes over the
+    /// records of the shared fit run through it: `map_chunks(kernel, chunks)` returns, in
+    /// order, the `chunks` results of `run_records(basis, kernel, first, records)` on
+    /// every chunk of ``RECORD_CHUNK`` records (pixel order, the last shorter), as text.
+    /// Returns an ``ImageFit``.
+    #[pyo3(signature = (output, basis, masked_pixels, non_finite_cells, read_rows, map_chunks = None))]
+    #[allow(clippy::too_many_arguments)]
     fn fit_records(
         &self,
         py: Python<'_>,
@@ -625,6 +634,7 @@ impl PyImageStages {
         masked_pixels: usize,
         non_finite_cells: usize,
         read_rows: Py<PyAny>,
+        map_chunks: Option<Py<PyAny>>,
     ) -> PyResult<PyImageFit> {
         let out = crate::convert::path(output, "output")?;
         let basis = basis_of(basis, self.m, self.record.rank)?;
@@ -642,6 +652,11 @@ impl PyImageStages {
         const BAND: usize = 64;
         let image = self.image();
         let options = &self.options;
+        let mapper = map_chunks.map(|call| PythonMapper {
+            call,
+            raised: &raised,
+        });
+        let mapper = mapper.as_ref().map(|m| m as &dyn ChunkMapper);
         let result = detached(py, "fluorite.dask fit", || {
             fit_image_from_records(
                 image,
@@ -688,6 +703,7 @@ impl PyImageStages {
                     }
                     Ok(())
                 },
+                mapper,
                 &|_| {},
             )
         });
@@ -700,6 +716,60 @@ impl PyImageStages {
             Input::Array(..) => fit.notes.clone(),
         };
         PyImageFit::new(py, fit, &self.options, notes)
+    }
+
+    /// Records per chunk of a pass over the records (``fit_records``' `map_chunks`).
+    #[classattr]
+    #[allow(non_snake_case)]
+    fn RECORD_CHUNK() -> usize {
+        RECORD_CHUNK
+    }
+
+    /// A pass over records (a worker's part of ``fit_records``' `map_chunks`): `kernel`
+    /// (text, as `map_chunks` got it) on `records` (n, record_len) float32, the records
+    /// of pixels first..first + n, `first` a multiple of ``RECORD_CHUNK``; basis (m,
+    /// rank) the fit's. Returns one text result per chunk of ``RECORD_CHUNK`` records, in
+    /// order. GIL released.
+    fn run_records(
+        &self,
+        py: Python<'_>,
+        basis: PyReadonlyArray2<'_, f64>,
+        kernel: &str,
+        first: usize,
+        records: PyReadonlyArray2<'_, f32>,
+    ) -> PyResult<Vec<String>> {
+        let kernel: RecordKernel = serde_json::from_str(kernel)
+            .map_err(|e| invalid("kernel", format!("not a kernel of fit_records ({e})")))?;
+        let basis = basis_of(basis, self.m, self.record.rank)?;
+        let len = self.record.len();
+        if records.shape()[1] != len {
+            return Err(invalid(
+                "records",
+                format!("shape {:?}: expected (n, {len})", records.shape()),
+            ));
+        }
+        if !first.is_multiple_of(RECORD_CHUNK) {
+            return Err(invalid(
+                "first",
+                format!("{first} is not a multiple of RECORD_CHUNK ({RECORD_CHUNK})"),
+            ));
+        }
+        let values: Vec<f32> = records.as_array().iter().copied().collect();
+        let layout = self.image().layout().clone();
+        let (options, record) = (&self.options, self.record);
+        detached(py, "fluorite.dask records", || {
+            let context = RecordContext::new(&layout, &basis, record, options);
+            let prepared = context.prepare(&kernel);
+            values
+                .chunks(RECORD_CHUNK * len)
+                .enumerate()
+                .map(|(i, chunk)| {
+                    let result = context.run(&prepared, first + i * RECORD_CHUNK, chunk)?;
+                    serde_json::to_string(&result)
+                        .map_err(|e| fluorite::Error::invalid("records", e.to_string()))
+                })
+                .collect()
+        })
     }
 
     /// The model of a finished fit's pixels, as text for `evaluate` (the chosen K's
@@ -803,5 +873,47 @@ fn floats_len(value: Option<&Bound<'_, PyAny>>, what: &str) -> PyResult<usize> {
             what,
             "is required for an image given as arrays (nm, 1-D)",
         )),
+    }
+}
+
+/// The passes over the records run by a Python callable (``fluorite.dask``'s tasks).
+struct PythonMapper<'a> {
+    call: Py<PyAny>,
+    /// A Python error of the callable, raised again as it was.
+    raised: &'a Mutex<Option<PyErr>>,
+}
+
+impl ChunkMapper for PythonMapper<'_> {
+    fn map_chunks(
+        &self,
+        kernel: &RecordKernel,
+        chunks: usize,
+    ) -> fluorite::Result<Vec<ChunkResult>> {
+        let text = serde_json::to_string(kernel)
+            .map_err(|e| fluorite::Error::invalid("kernel", e.to_string()))?;
+        let answer = Python::attach(|py| -> PyResult<Vec<String>> {
+            self.call.call1(py, (text, chunks))?.extract(py)
+        });
+        let texts = match answer {
+            Ok(texts) => texts,
+            Err(e) => {
+                *self.raised.lock().expect("not poisoned") = Some(e);
+                return Err(fluorite::Error::invalid(
+                    "map_chunks",
+                    "raised an exception",
+                ));
+            }
+        };
+        texts
+            .iter()
+            .map(|t| {
+                serde_json::from_str(t).map_err(|e| {
+                    fluorite::Error::invalid(
+                        "map_chunks",
+                        format!("returned a result that is not run_records' ({e})"),
+                    )
+                })
+            })
+            .collect()
     }
 }

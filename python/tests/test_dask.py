@@ -113,11 +113,17 @@ def test_fit_image_writes_the_files_fit_image_writes_on_an_exr(client, scan, tmp
         components=K,
         client=client,
         chunks=1,
+        record_chunks=1,
         timeout=TIMEOUT,
         progress=lambda stage, done, total: seen.append((stage, done, total)),
     )
     assert fitted.components == K
     assert ("sketch", 6, 6) in seen and ("projection", 6, 6) in seen and ("maps", 2, 2) in seen
+    # The shared fit's passes over the records ran on the workers: 96 × 160 pixels are
+    # four chunks of 4096 records, one task each (the noise, the start's extreme pixels,
+    # every iteration and the judge).
+    record_passes = {stage for stage, done, total in seen if stage.startswith("shared fit") and total == 4}
+    assert len(record_passes) > 10, sorted(record_passes)
     assert_same_outputs(tmp_path / "dask", reference)
     assert_maps_hold_the_outputs(tmp_path / "dask")
     records = zarr.open_array(str(tmp_path / "dask" / "records.zarr"), mode="r")

@@ -233,6 +233,41 @@ fn write_tiles(
     write_tiles_with_exr(tmp, header, spec, order, produce, progress)
 }
 
+/// Makes the results of `blocks` in parallel, a group of `group` at a time, one group
+/// ahead of `consume`, which gets each group's results in order on this thread: copying a
+/// group into a file is one thread's work that would otherwise leave the others idle.
+fn produce_ahead<B: Sync, T: Send>(
+    tmp: &Path,
+    blocks: &[B],
+    group: usize,
+    make: impl Fn(&B) -> Result<T> + Sync,
+    mut consume: impl FnMut(Vec<T>) -> Result<()>,
+) -> Result<()> {
+    let (sender, receiver) = std::sync::mpsc::sync_channel::<Result<Vec<T>>>(1);
+    let make = &make;
+    std::thread::scope(|scope| {
+        // The producer owns the sender: the loop below ends when it does.
+        scope.spawn(move || {
+            for group_blocks in blocks.chunks(group.max(1)) {
+                let results = crate::files::check_interrupted(tmp)
+                    .and_then(|()| group_blocks.par_iter().map(make).collect());
+                let failed = results.is_err();
+                // The receiver is gone when consuming failed.
+                if sender.send(results).is_err() || failed {
+                    return;
+                }
+            }
+        });
+        // Owned here, the receiver goes when this closure returns, early on an error, so
+        // that a producer waiting to send ends instead of waiting for ever.
+        let receiver = receiver;
+        for results in receiver.iter() {
+            consume(results?)?;
+        }
+        Ok(())
+    })
+}
+
 /// [`write_tiles`] through the exr crate's writer (compressed images).
 fn write_tiles_with_exr(
     tmp: &Path,
@@ -261,60 +296,36 @@ fn write_tiles_with_exr(
         headers,
         true,
         |meta, writer| {
-            // Tiles are produced (in parallel) a group ahead of the writing: copying a
-            // group into the file is one thread's work that would otherwise leave the
-            // others idle.
-            type Group = Result<Vec<(usize, exr::block::chunk::Chunk)>>;
-            let (sender, receiver) = std::sync::mpsc::sync_channel::<Group>(1);
-            std::thread::scope(|scope| {
-                // The producer owns the sender: the receiver's loop ends when it does.
-                scope.spawn(move || {
-                    for group_blocks in blocks.chunks(group) {
-                        let chunks: Group = crate::files::check_interrupted(tmp).and_then(|()| {
-                            group_blocks
-                                .par_iter()
-                                .map(|&(index, block)| {
-                                    let rect = Rect {
-                                        x: block.pixel_position.x(),
-                                        y: block.pixel_position.y(),
-                                        width: block.pixel_size.x(),
-                                        height: block.pixel_size.y(),
-                                    };
-                                    let data = tile_bytes(&produce(rect)?, rect, spec, order)?;
-                                    let chunk = UncompressedBlock { index: block, data }
-                                        .compress_to_chunk(&meta.headers)
-                                        .map_err(encode_failure)?;
-                                    Ok((index, chunk))
-                                })
-                                .collect()
-                        });
-                        let failed = chunks.is_err();
-                        // The receiver is gone when writing failed.
-                        if sender.send(chunks).is_err() || failed {
-                            return;
-                        }
-                    }
-                });
-                // Owned here, the receiver goes when this closure returns, early on an
-                // error, so that a producer waiting to send ends.
-                let receiver = receiver;
-                let mut written = 0;
-                for chunks in receiver.iter() {
-                    match chunks {
-                        Ok(chunks) => {
-                            written += chunks.len();
-                            for (index, chunk) in chunks {
-                                writer.write_chunk(index, chunk)?;
-                            }
-                        }
-                        Err(e) => {
-                            failure = Some(e);
-                            return Err(exr::error::Error::Aborted);
-                        }
+            let mut written = 0;
+            produce_ahead(
+                tmp,
+                &blocks,
+                group,
+                |&(index, block)| {
+                    let rect = Rect {
+                        x: block.pixel_position.x(),
+                        y: block.pixel_position.y(),
+                        width: block.pixel_size.x(),
+                        height: block.pixel_size.y(),
+                    };
+                    let data = tile_bytes(&produce(rect)?, rect, spec, order)?;
+                    let chunk = UncompressedBlock { index: block, data }
+                        .compress_to_chunk(&meta.headers)
+                        .map_err(encode_failure)?;
+                    Ok((index, chunk))
+                },
+                |chunks| {
+                    written += chunks.len();
+                    for (index, chunk) in chunks {
+                        writer.write_chunk(index, chunk).map_err(encode_failure)?;
                     }
                     progress(written, total);
-                }
-                Ok(())
+                    Ok(())
+                },
+            )
+            .map_err(|e| {
+                failure = Some(e);
+                exr::error::Error::Aborted
             })
         },
     )
@@ -539,60 +550,43 @@ fn write_direct(
         Ok(())
     };
     push(head, &mut filled, &mut position)?;
-    type Group = Result<Vec<Vec<u8>>>;
-    let (sender, receiver) = std::sync::mpsc::sync_channel::<Group>(1);
-    std::thread::scope(|scope| -> Result<()> {
-        // The producer owns the sender: the loop below ends when it does.
-        scope.spawn(move || {
-            for group_blocks in blocks.chunks(group) {
-                let chunks: Group = crate::files::check_interrupted(tmp).and_then(|()| {
-                    group_blocks
-                        .par_iter()
-                        .map(|(_, block)| {
-                            let rect = Rect {
-                                x: block.pixel_position.x(),
-                                y: block.pixel_position.y(),
-                                width: block.pixel_size.x(),
-                                height: block.pixel_size.y(),
-                            };
-                            let values = produce(rect)?;
-                            let size = data_size(block);
-                            let mut bytes = vec![0u8; CHUNK_HEAD + size];
-                            let tile = |v: usize| (v / TILE) as i32;
-                            for (field, value) in bytes[..CHUNK_HEAD].chunks_exact_mut(4).zip([
-                                tile(rect.x),
-                                tile(rect.y),
-                                0,
-                                0,
-                                size as i32,
-                            ]) {
-                                field.copy_from_slice(&value.to_le_bytes());
-                            }
-                            fill_tile_bytes(&values, rect, spec, order, &mut bytes[CHUNK_HEAD..])?;
-                            Ok(bytes)
-                        })
-                        .collect()
-                });
-                let failed = chunks.is_err();
-                // The receiver is gone when writing failed.
-                if sender.send(chunks).is_err() || failed {
-                    return;
-                }
+    let mut written = 0;
+    produce_ahead(
+        tmp,
+        blocks,
+        group,
+        |(_, block)| {
+            let rect = Rect {
+                x: block.pixel_position.x(),
+                y: block.pixel_position.y(),
+                width: block.pixel_size.x(),
+                height: block.pixel_size.y(),
+            };
+            let values = produce(rect)?;
+            let size = data_size(block);
+            let mut bytes = vec![0u8; CHUNK_HEAD + size];
+            let tile = |v: usize| (v / TILE) as i32;
+            for (field, value) in bytes[..CHUNK_HEAD].chunks_exact_mut(4).zip([
+                tile(rect.x),
+                tile(rect.y),
+                0,
+                0,
+                size as i32,
+            ]) {
+                field.copy_from_slice(&value.to_le_bytes());
             }
-        });
-        // Owned here, the receiver goes when this closure returns, early on an error, so
-        // that a producer waiting to send ends instead of waiting for ever.
-        let receiver = receiver;
-        let mut written = 0;
-        for chunks in receiver.iter() {
-            for bytes in chunks? {
+            fill_tile_bytes(&values, rect, spec, order, &mut bytes[CHUNK_HEAD..])?;
+            Ok(bytes)
+        },
+        |chunks| {
+            for bytes in chunks {
                 push(&bytes, &mut filled, &mut position)?;
                 written += 1;
             }
             progress(written, total);
-        }
-        Ok(())
-    })?;
+            Ok(())
+        },
+    )?;
     if written_all(position + filled as u64, length, tmp)? && filled > 0 {
         // The last, partial block is written whole and the file cut to its length.
         let whole = filled.div_ceil(DIRECT_ALIGN) * DIRECT_ALIGN;

@@ -19,6 +19,7 @@ pub mod nnls;
 pub mod outputs;
 pub mod passes;
 pub mod pixel;
+pub mod records;
 pub mod scratch;
 pub mod shared;
 pub mod stages;
@@ -381,7 +382,7 @@ fn run(
         scratch
     };
     let fit = conclude(
-        image, out, options, report, &mut state, &basis, &census, &scratch, resumed,
+        image, out, options, report, &mut state, &basis, &census, &scratch, None, resumed,
     )?;
     state.finish()?;
     Ok(fit)
@@ -392,9 +393,12 @@ fn run(
 /// pixels, and `fill` writes every pixel's record (pass 3's, [`stages::projection_block`])
 /// into the scratch file it is given. The rest is `fit_image`'s: the shared fluorophores
 /// for K = 1, 2, …, the gauge and the outputs, written into `out` from the scratch file
-/// (kept in `out`'s work folder while it runs). Only `image`'s size, layout and names are
-/// used, never its pixels. An earlier run's work folder in `out` is replaced: this run
+/// (kept in `out`'s work folder while it runs). With `mapper`, the passes over the records
+/// of the shared fit (its iterations, start and judge of every K, the noise) run there,
+/// on the cluster's copy of the same records, with the same results. Only `image`'s size,
+/// layout and names are used, never its pixels. An earlier run's work folder in `out` is replaced: this run
 /// resumes nothing.
+#[allow(clippy::too_many_arguments)]
 pub fn fit_image_from_records(
     image: PixelSource<'_>,
     out: &Path,
@@ -402,6 +406,7 @@ pub fn fit_image_from_records(
     basis: &[f64],
     census: &passes::Census,
     fill: impl FnOnce(&Scratch) -> Result<()>,
+    mapper: Option<&dyn records::ChunkMapper>,
     report: &(dyn Fn(Step) + Sync),
 ) -> Result<ImageFit> {
     options.validate()?;
@@ -444,6 +449,7 @@ pub fn fit_image_from_records(
         basis,
         census,
         &scratch,
+        mapper,
         Vec::new(),
     )?;
     state.finish()?;
@@ -462,6 +468,7 @@ fn conclude(
     basis: &[f64],
     census: &passes::Census,
     scratch: &Scratch,
+    mapper: Option<&dyn records::ChunkMapper>,
     mut resumed: Vec<String>,
 ) -> Result<ImageFit> {
     let layout = &image.layout();
@@ -470,7 +477,12 @@ fn conclude(
     let record = scratch.layout;
     let cells = cells_of(layout);
     let colours = CellColours::new(layout, &options.lights);
-    let sigma = scratch.noise_sigma(m)?;
+    let records = records::Records {
+        scratch,
+        context: records::RecordContext::new(layout, basis, record, options),
+        mapper,
+    };
+    let sigma = records.noise_sigma(m)?;
 
     // The shared fluorophores, K = 1, 2, … (or the K asked for).
     let ks: Vec<usize> = match options.components {
@@ -493,7 +505,11 @@ fn conclude(
                     total: options.max_iterations,
                 });
                 if extremes.is_none() {
-                    extremes = Some(shared::extreme_pixels(scratch, shared::START_EXTREMES)?);
+                    extremes = Some(shared::extreme_pixels(
+                        scratch,
+                        shared::START_EXTREMES,
+                        |directions| records.farthest(directions),
+                    )?);
                 }
                 let start = shared::start(
                     scratch,
@@ -506,18 +522,17 @@ fn conclude(
                     options.start_pixels,
                 )?;
                 let fitted = shared::refine(
-                    scratch,
                     &cells,
                     basis,
+                    rank,
                     start,
                     options.max_iterations,
                     options.tolerance,
+                    |s| records.scores(s),
                     |i| report(Step::Done(i)),
                 )?;
                 let fitted = prune(fitted);
-                let t = judge(
-                    scratch, &fitted, &cells, layout, basis, &colours, sigma, options,
-                )?;
+                let t = judge(&records, &fitted, sigma)?;
                 state.save_trial(&t)?;
                 t
             }
@@ -649,73 +664,9 @@ fn prune(mut shared: Shared) -> Shared {
 /// pixel meets the bound under a light when its ΔE2000 is within the bound or within
 /// what the measured colour's own noise explains (3 × its RMS ΔE76 from cell noise σ, as
 /// the single fit's noise-aware bound): fitting beyond that is fitting noise.
-#[allow(clippy::too_many_arguments)]
-fn judge(
-    scratch: &Scratch,
-    shared: &Shared,
-    cells: &Cells,
-    layout: &Layout,
-    basis: &[f64],
-    colours: &CellColours,
-    sigma: f64,
-    options: &ImageFitOptions,
-) -> Result<Trial> {
-    use rayon::prelude::*;
-    let gauge = gauge::choose(shared, cells, options.yield_preference);
-    let model = pixel::PixelModel::new(
-        shared,
-        &gauge,
-        cells,
-        layout,
-        basis,
-        scratch.layout,
-        colours.clone(),
-        sigma,
-    );
-    let lights = options.lights.len();
-    const CHUNK: usize = 4096;
-    let chunks: Vec<usize> = (0..scratch.pixels.div_ceil(CHUNK)).collect();
-    // Per chunk: ΔE per light and pixel, and whether each pixel is within its bounds.
-    type Judged = (Vec<Vec<f32>>, Vec<bool>);
-    let per_chunk: Vec<Result<Judged>> =
-        chunks
-            .par_iter()
-            .map(|&chunk| {
-                let first = chunk * CHUNK;
-                let count = CHUNK.min(scratch.pixels - first);
-                let records = scratch.read(first, count)?;
-                let mut out = vec![Vec::new(); lights];
-                let mut within = Vec::new();
-                for r in records.chunks_exact(scratch.layout.len()) {
-                    let fit = model.fit(r);
-                    if fit.masked {
-                        continue;
-                    }
-                    let colours = model.colours(r, &fit);
-                    for (l, d) in colours.delta_e.iter().enumerate() {
-                        out[l].push(*d as f32);
-                    }
-                    within.push(colours.delta_e.iter().zip(&colours.noise_delta_e).all(
-                        |(d, n)| {
-                            *d <= options
-                                .max_delta_e
-                                .max(crate::fit::assess::NOISE_COVERAGE * n)
-                        },
-                    ));
-                }
-                Ok((out, within))
-            })
-            .collect();
-    let mut per_light: Vec<Vec<f64>> = vec![Vec::new(); lights];
-    let mut within = Vec::new();
-    for chunk in per_chunk {
-        let (chunk, inside) = chunk?;
-        within.extend(inside);
-        for (l, values) in chunk.into_iter().enumerate() {
-            per_light[l].extend(values.into_iter().map(f64::from));
-        }
-    }
-    let share_within = within.iter().filter(|&&w| w).count() as f64 / within.len().max(1) as f64;
+fn judge(records: &records::Records<'_>, shared: &Shared, sigma: f64) -> Result<Trial> {
+    let (per_light, inside, counted) = records.judge(shared, sigma)?;
+    let share_within = inside as f64 / counted.max(1) as f64;
     let stat = |q: f64| -> Vec<f64> {
         per_light
             .iter()

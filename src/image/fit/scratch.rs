@@ -125,31 +125,6 @@ impl Scratch {
             .collect())
     }
 
-    /// The noise σ per reradiation cell, independent of any model: the energy of the
-    /// unmasked pixels outside the basis, per dimension outside it (`cells` reradiation
-    /// cells per pixel). The basis holds the fluorescence; what it leaves is noise.
-    pub fn noise_sigma(&self, cells: usize) -> Result<f64> {
-        const CHUNK: usize = 8192;
-        let len = self.layout.len();
-        let (mut outside, mut pixels) = (0.0f64, 0usize);
-        for first in (0..self.pixels).step_by(CHUNK) {
-            let records = self.read(first, CHUNK.min(self.pixels - first))?;
-            for r in records.chunks_exact(len) {
-                if r[0] != 0.0 {
-                    continue;
-                }
-                let inside: f64 = r[self.layout.y()]
-                    .iter()
-                    .map(|&v| f64::from(v).powi(2))
-                    .sum();
-                outside += (f64::from(r[1]) - inside).max(0.0);
-                pixels += 1;
-            }
-        }
-        let dimensions = (cells.saturating_sub(self.layout.rank)).max(1) * pixels.max(1);
-        Ok((outside / dimensions as f64).sqrt())
-    }
-
     /// Flushes to disk (before a stage is recorded as done).
     pub fn sync(&self) -> Result<()> {
         self.file.sync_all().map_err(|e| Error::io(&self.path, e))

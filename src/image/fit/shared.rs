@@ -8,10 +8,9 @@
 //! - the sums Sᵀ·S and Sᵀ·X ≈ (Sᵀ·Y)·Qᵀ give β and ε by hierarchical ALS on their rows,
 //!   with the layout's mask (only λo > λi exists) in the row Gram matrices.
 //!
-//! One iteration reads every record once; the start comes from the joint fit's
+//! One iteration reads every record once (a pass of [`super::records`]); the start comes from the joint fit's
 //! non-negative PARAFAC on a regular grid of pixels rebuilt from their coordinates.
 
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
@@ -20,8 +19,6 @@ use crate::fit::joint::parafac;
 use super::nnls;
 use super::scratch::Scratch;
 
-/// Records read together by one task of a pass.
-const CHUNK: usize = 4096;
 /// Coordinate-descent sweeps of each factor update.
 const INNER_SWEEPS: usize = 3;
 /// Ridge of the row updates, relative to the best-determined row: an excitation row
@@ -140,18 +137,24 @@ impl Projected {
     }
 }
 
-/// Sums over pixels of one iteration.
-#[derive(Debug, Clone)]
-struct Sums {
-    sts: Vec<f64>,
-    sty: Vec<f64>,
-    loss: f64,
-    energy: f64,
-    max_scores: Vec<f64>,
+/// Sums over the pixels of one iteration of the shared fit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Sums {
+    /// Sᵀ·S, K × K.
+    pub sts: Vec<f64>,
+    /// Sᵀ·Y, K × rank.
+    pub sty: Vec<f64>,
+    /// Σ squared residual (compressed estimate).
+    pub loss: f64,
+    /// Σ energy.
+    pub energy: f64,
+    /// Largest score per component.
+    pub max_scores: Vec<f64>,
 }
 
 impl Sums {
-    fn zero(k: usize, rank: usize) -> Sums {
+    /// Nothing summed yet.
+    pub fn zero(k: usize, rank: usize) -> Sums {
         Sums {
             sts: vec![0.0; k * k],
             sty: vec![0.0; k * rank],
@@ -161,7 +164,8 @@ impl Sums {
         }
     }
 
-    fn add(&mut self, o: &Sums) {
+    /// Adds another chunk's sums.
+    pub fn add(&mut self, o: &Sums) {
         for (a, b) in self.sts.iter_mut().zip(&o.sts) {
             *a += b;
         }
@@ -174,53 +178,6 @@ impl Sums {
             *a = a.max(*b);
         }
     }
-}
-
-/// One pass over the scratch records: scores of every unmasked pixel and the sums.
-fn score_pass(scratch: &Scratch, p: &Projected) -> Result<Sums> {
-    let rank = scratch.layout.rank;
-    let k = p.k;
-    let chunks: Vec<usize> = (0..scratch.pixels.div_ceil(CHUNK)).collect();
-    let partial: Vec<Result<Sums>> = chunks
-        .par_iter()
-        .map(|&chunk| {
-            let first = chunk * CHUNK;
-            let count = CHUNK.min(scratch.pixels - first);
-            let records = scratch.read(first, count)?;
-            let mut sums = Sums::zero(k, rank);
-            let len = scratch.layout.len();
-            for r in records.chunks_exact(len) {
-                if r[0] != 0.0 {
-                    continue;
-                }
-                let y = &r[scratch.layout.y()];
-                let s = p.scores(y);
-                let mut gs = 0.0;
-                let mut shs = 0.0;
-                for a in 0..k {
-                    sums.max_scores[a] = sums.max_scores[a].max(s[a]);
-                    for b in 0..k {
-                        sums.sts[a * k + b] += s[a] * s[b];
-                        shs += s[a] * p.h[a * k + b] * s[b];
-                    }
-                    for (t, &v) in y.iter().enumerate() {
-                        let v = f64::from(v);
-                        sums.sty[a * rank + t] += s[a] * v;
-                        gs += s[a] * p.g[t * k + a] * v;
-                    }
-                }
-                let energy = f64::from(r[1]);
-                sums.energy += energy;
-                sums.loss += energy - 2.0 * gs + shs;
-            }
-            Ok(sums)
-        })
-        .collect();
-    let mut total = Sums::zero(k, rank);
-    for s in partial {
-        total.add(&s?);
-    }
-    Ok(total)
 }
 
 /// Updates β and ε from Sᵀ·S and Sᵀ·X (K × m) by row-wise coordinate descent.
@@ -362,46 +319,23 @@ fn normalise(shared: &mut Shared, ni: usize, no: usize) {
 /// endmember search of hyperspectral unmixing): each the unmasked pixel farthest from the
 /// span of those picked before, in the compressed coordinates. With non-negative mixtures
 /// these are the purest pixels of each fluorophore, wherever they lie in the image.
-pub fn extreme_pixels(scratch: &Scratch, count: usize) -> Result<Vec<usize>> {
+///
+/// `farthest(directions)` is a pass over the records: the unmasked pixel farthest from the
+/// span of `directions` (its squared distance and index), none if every pixel is masked.
+pub fn extreme_pixels(
+    scratch: &Scratch,
+    count: usize,
+    mut farthest: impl FnMut(&[Vec<f64>]) -> Result<Option<(f64, usize)>>,
+) -> Result<Vec<usize>> {
     let rank = scratch.layout.rank;
-    let len = scratch.layout.len();
     let mut picked: Vec<usize> = Vec::new();
     // Orthonormal directions of the picked pixels' coordinates.
     let mut directions: Vec<Vec<f64>> = Vec::new();
     for _ in 0..count.min(rank) {
-        let chunks: Vec<usize> = (0..scratch.pixels.div_ceil(CHUNK)).collect();
-        let best: Vec<Result<(f64, usize)>> = chunks
-            .par_iter()
-            .map(|&chunk| {
-                let first = chunk * CHUNK;
-                let count = CHUNK.min(scratch.pixels - first);
-                let records = scratch.read(first, count)?;
-                let mut best = (f64::NEG_INFINITY, usize::MAX);
-                for (q, r) in records.chunks_exact(len).enumerate() {
-                    if r[0] != 0.0 {
-                        continue;
-                    }
-                    let y = &r[scratch.layout.y()];
-                    let mut norm: f64 = y.iter().map(|&v| f64::from(v).powi(2)).sum();
-                    for d in &directions {
-                        let dot: f64 = d.iter().zip(y).map(|(a, &b)| a * f64::from(b)).sum();
-                        norm -= dot * dot;
-                    }
-                    if norm > best.0 {
-                        best = (norm, first + q);
-                    }
-                }
-                Ok(best)
-            })
-            .collect();
-        let mut winner = (f64::NEG_INFINITY, usize::MAX);
-        for b in best {
-            let b = b?;
-            if b.0 > winner.0 {
-                winner = b;
-            }
-        }
-        if winner.1 == usize::MAX || winner.0 <= 0.0 {
+        let Some(winner) = farthest(&directions)? else {
+            break;
+        };
+        if winner.0 <= 0.0 {
             break;
         }
         let record = scratch.read(winner.1, 1)?;
@@ -511,25 +445,26 @@ pub fn start(
     Ok(shared)
 }
 
-/// Refines `shared` on every pixel of `scratch` until the loss changes by less than
-/// `tolerance` (relative) or `max_iterations` passes; `progress` gets each iteration.
+/// Refines `shared` on every pixel until the loss changes by less than `tolerance`
+/// (relative) or `max_iterations` passes; `scores(shared)` is a pass over the records
+/// (the sums of every unmasked pixel's scores); `progress` gets each iteration.
+#[allow(clippy::too_many_arguments)]
 pub fn refine(
-    scratch: &Scratch,
     cells: &Cells,
     basis: &[f64],
+    rank: usize,
     mut shared: Shared,
     max_iterations: usize,
     tolerance: f64,
+    mut scores: impl FnMut(&Shared) -> Result<Sums>,
     mut progress: impl FnMut(usize),
 ) -> Result<Shared> {
-    let rank = scratch.layout.rank;
     let k = shared.k;
     let m = cells.len();
     let mut previous = f64::INFINITY;
     for iteration in 1..=max_iterations {
         crate::files::check_interrupted(std::path::Path::new("image fit"))?;
-        let projected = Projected::new(&shared, cells, basis, rank);
-        let sums = score_pass(scratch, &projected)?;
+        let sums = scores(&shared)?;
         shared.loss = sums.loss.max(0.0);
         shared.energy = sums.energy;
         shared.max_scores = sums.max_scores.clone();
