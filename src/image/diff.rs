@@ -3,10 +3,11 @@
 //! concentration maps of one match the other's.
 //!
 //! This is the yardstick for a fit against its truth, so it uses nothing from a fit:
-//! each pixel's colour is that of its cells on the layout's one grid, cells the layout
-//! lacks counted as zero, with the weights `fluorite fit` judges a bispectral EXR by
-//! ([`CellColours`], model.md §7). Pixels holding a non-finite cell in either image are
-//! skipped and counted.
+//! each pixel's colour is that of its matrix (its cells on the layout's one grid, cells
+//! the layout lacks counted as zero) through [`PatchColorimeter`], the colorimeter
+//! `fluorite fit` judges a matrix by and that `../shared/tools/evaluate.py` checks
+//! (model.md §7); the image fit's own per-cell weights are not used. Pixels holding a
+//! non-finite cell in either image are skipped and counted.
 //!
 //! Memory: the images are streamed block by block, one after the other (their block
 //! layouts may differ), keeping per pixel only the first image's XYZ under each light
@@ -18,9 +19,9 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::colour::Light;
+use crate::colour::{Light, PatchColorimeter, Xyz, delta_e2000, xyz_to_lab};
 use crate::error::{Error, Result};
-use crate::image::fit::colour::CellColours;
+use crate::image::layout::{Cell, Layout};
 use crate::image::map::{MaterialMap, read_whole};
 use crate::image::source::{ExrImage, PixelBlock};
 
@@ -106,21 +107,75 @@ pub fn check_compatible(a: &ExrImage, b: &ExrImage) -> Result<()> {
     Ok(())
 }
 
+/// The colour of a pixel's matrix under each light: the matrix rebuilt on the layout's
+/// grid (excitation × emission, per bin) and measured with [`PatchColorimeter`].
+struct Yardstick {
+    /// Light names, in order.
+    lights: Vec<String>,
+    /// One colorimeter per light on the layout's grid (both axes).
+    colorimeters: Vec<PatchColorimeter>,
+    /// The layout's cells: (excitation, emission) grid indices, equal on the diagonal.
+    cells: Vec<(usize, usize)>,
+    /// Grid samples.
+    n: usize,
+}
+
+impl Yardstick {
+    fn new(layout: &Layout, lights: &[Light]) -> Yardstick {
+        let grid = &layout.wavelengths;
+        Yardstick {
+            lights: lights.iter().map(|l| l.name.clone()).collect(),
+            colorimeters: lights
+                .iter()
+                .map(|l| PatchColorimeter::new(l, grid, grid))
+                .collect(),
+            cells: layout
+                .cells
+                .iter()
+                .map(|c| match *c {
+                    Cell::Diagonal(i) => (i, i),
+                    Cell::Reradiation(i, o) => (i, o),
+                })
+                .collect(),
+            n: grid.len(),
+        }
+    }
+
+    /// XYZ under every light (`3 × lights`, light-major) of a pixel's cells.
+    fn xyz(&self, cells: &[f32]) -> Vec<f64> {
+        let n = self.n;
+        let mut diagonal = vec![0.0; n];
+        let mut reradiation = vec![0.0; n * n];
+        for (&(i, o), &v) in self.cells.iter().zip(cells) {
+            if i == o {
+                diagonal[i] = f64::from(v);
+            } else {
+                reradiation[i * n + o] = f64::from(v);
+            }
+        }
+        self.colorimeters
+            .iter()
+            .flat_map(|c| c.xyz_from(&diagonal, |i, o| reradiation[i * n + o]))
+            .collect()
+    }
+
+    /// ΔE2000 between two XYZ under light `l`.
+    fn delta_e(&self, l: usize, a: Xyz, b: Xyz) -> f64 {
+        let white = self.colorimeters[l].white;
+        delta_e2000(xyz_to_lab(a, white), xyz_to_lab(b, white))
+    }
+}
+
 /// Per pixel of a block: its XYZ under every light (`3 × lights` numbers, light-major),
 /// or None when a cell is non-finite.
-fn block_xyz(block: &PixelBlock, colours: &CellColours) -> Vec<Option<Vec<f64>>> {
-    let lights = colours.lights.len();
+fn block_xyz(block: &PixelBlock, colours: &Yardstick) -> Vec<Option<Vec<f64>>> {
     (0..block.pixel_count())
         .map(|q| {
             let cells = block.pixel(q);
             if cells.iter().any(|v| !v.is_finite()) {
                 return None;
             }
-            let mut xyz = Vec::with_capacity(3 * lights);
-            for l in 0..lights {
-                xyz.extend(colours.xyz(l, 0, cells));
-            }
-            Some(xyz)
+            Some(colours.xyz(cells))
         })
         .collect()
 }
@@ -150,7 +205,7 @@ pub fn diff_images(
     if lights.is_empty() {
         return Err(Error::invalid("--lights", "give at least one light"));
     }
-    let colours = CellColours::new(&a.layout, lights);
+    let colours = Yardstick::new(&a.layout, lights);
     let nl = lights.len();
     let width = a.width;
     let pixels = a.pixels();
@@ -226,7 +281,7 @@ pub fn diff_images(
 /// ΔE2000 against the first image's XYZ `xyz_a` (left NaN where either is non-finite).
 fn pass_b(
     b: &ExrImage,
-    colours: &CellColours,
+    colours: &Yardstick,
     xyz_a: &[f32],
     delta: &mut [f32],
     non_finite_b: &mut usize,
