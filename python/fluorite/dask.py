@@ -22,7 +22,10 @@ the same bytes each time).
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
+import shutil
 import uuid
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, Iterable, List, NamedTuple, Optional, Sequence, Tuple, Union
@@ -223,7 +226,9 @@ def fit_image(
     pixels: the values of the EXR outputs. ``timeout`` bounds every wait on the cluster (seconds);
     ``progress(stage, done, total)`` is called on the client as tasks finish.
 
-    The result equals ``fluorite.fit_image``'s on the same image (the EXR: ``fluorite
+    A run whose client was lost resumes: called again with the same EXR and options, it
+    skips the passes over the image that run finished (kept in ``output/.fluorite-dask``
+    until the fit ends). The result equals ``fluorite.fit_image``'s on the same image (the EXR: ``fluorite
     fit-image``'s), whatever the number of workers and ``chunks``: the blocks are the
     library's, and their contributions are summed in block order. Returns an
     ``ImageFit``; raises ``FluoriteError`` naming the argument at fault.
@@ -296,20 +301,34 @@ def fit_image(
     runner = _Runner(client, timeout, progress)
     plan_d = dask.delayed(plan, traverse=False)
     m, rank = stages.m, stages.rank
+    records_path = os.fspath(records) if records is not None else os.path.join(output, "records.zarr")
+    os.makedirs(output, exist_ok=True)
+    # What an earlier run with the same input and options finished (its client gone
+    # before the end): the passes are skipped, their results read back.
+    resume = _Resume(output, _resume_key(source, options, records_path))
 
     # Pass 1: the sketch, summed in block order (as the library's pass folds it).
-    z = np.zeros((m, rank))
-    masked = non_finite = 0
-    tasks = [dask.delayed(_sketch_task, pure=True)(plan_d, p, s, c) for p, s, c in work]
-    for parts, chunk_masked, chunk_non_finite in runner.ordered("sketch", tasks):
-        for part in parts:
-            z += part
-        masked += chunk_masked
-        non_finite += chunk_non_finite
-    basis = stages.orthonormal(z)
+    found = resume.basis(0)
+    if found is not None:
+        basis, masked, non_finite = found
+    else:
+        z = np.zeros((m, rank))
+        masked = non_finite = 0
+        tasks = [dask.delayed(_sketch_task, pure=True)(plan_d, p, s, c) for p, s, c in work]
+        for parts, chunk_masked, chunk_non_finite in runner.ordered("sketch", tasks):
+            for part in parts:
+                z += part
+            masked += chunk_masked
+            non_finite += chunk_non_finite
+        basis = stages.orthonormal(z)
+        resume.save_basis(0, basis, masked, non_finite)
 
     # The power steps.
     for step in range(stages.power_steps):
+        found = resume.basis(step + 1)
+        if found is not None:
+            basis = found[0]
+            continue
         basis_d = dask.delayed(basis, traverse=False)
         z = np.zeros((m, rank))
         tasks = [dask.delayed(_power_task, pure=True)(plan_d, basis_d, p, s, c) for p, s, c in work]
@@ -317,26 +336,27 @@ def fit_image(
             for part in parts:
                 z += part
         basis = stages.orthonormal(z)
+        resume.save_basis(step + 1, basis, masked, non_finite)
 
     # Pass 3: the projection, every pixel's record into Zarr.
-    records_path = os.fspath(records) if records is not None else os.path.join(output, "records.zarr")
-    os.makedirs(output, exist_ok=True)
     rects = stages.block_rects()
     chunk_h = max(h for _, _, _, h in rects[:1])
     chunk_w = max(w for _, _, w, _ in rects[:1])
-    zarr.create_array(
-        store=records_path,
-        shape=(stages.height, stages.width, stages.record_len),
-        chunks=(chunk_h, chunk_w, stages.record_len),
-        dtype="float32",
-        fill_value=np.nan,
-        overwrite=True,
-    )
     basis_d = dask.delayed(basis, traverse=False)
-    tasks = [dask.delayed(_project_task, pure=True)(plan_d, basis_d, records_path, p, s, c) for p, s, c in work]
-    written = sum(runner.ordered("projection", tasks))
-    if written != stages.width * stages.height:
-        raise FluoriteError(f"internal error in fluorite.dask: {written} of {stages.width * stages.height} pixels projected: please report")
+    if not resume.done("projection"):
+        zarr.create_array(
+            store=records_path,
+            shape=(stages.height, stages.width, stages.record_len),
+            chunks=(chunk_h, chunk_w, stages.record_len),
+            dtype="float32",
+            fill_value=np.nan,
+            overwrite=True,
+        )
+        tasks = [dask.delayed(_project_task, pure=True)(plan_d, basis_d, records_path, p, s, c) for p, s, c in work]
+        written = sum(runner.ordered("projection", tasks))
+        if written != stages.width * stages.height:
+            raise FluoriteError(f"internal error in fluorite.dask: {written} of {stages.width * stages.height} pixels projected: please report")
+        resume.mark("projection")
 
     # The shared fluorophores: every pass over the records (each iteration, start and
     # judge of every K, the noise) runs on the workers, in tasks of whole chunks of
@@ -371,6 +391,7 @@ def fit_image(
         lambda y, n: np.asarray(stored[y : y + n], dtype=np.float32),
         map_chunks,
     )
+    resume.finish()
     if maps is False:
         return fit
 
@@ -391,6 +412,75 @@ def fit_image(
     if sum(runner.ordered("maps", tasks)) != height:
         raise FluoriteError("internal error in fluorite.dask: the maps miss rows: please report")
     return fit
+
+
+def _resume_key(source: Any, options: Dict[str, Any], records_path: str) -> Optional[str]:
+    """What must not change for a run to resume another's passes: the EXR (its path, size
+    and modification time) and the options; None for an array source, whose runs never
+    resume (nothing cheap tells that its values are the same)."""
+    if not _is_path(source):
+        return None
+    path = os.path.abspath(os.fspath(source))
+    info = os.stat(path)
+    text = json.dumps([path, info.st_size, info.st_mtime_ns, options, records_path], sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+class _Resume:
+    """The passes an interrupted run of the client finished, in ``output/.fluorite-dask``:
+    the basis after the sketch and each power step (with the sketch's census), and
+    whether the projection wrote every record. Written atomically; removed when the fit
+    ends."""
+
+    def __init__(self, output: str, key: Optional[str]):
+        self.folder = os.path.join(output, ".fluorite-dask")
+        self.key = key
+        self.state: Dict[str, Any] = {"key": key, "done": []}
+        if key is None:
+            return
+        try:
+            with open(os.path.join(self.folder, "state.json")) as f:
+                found = json.load(f)
+        except (OSError, ValueError):
+            found = None
+        if isinstance(found, dict) and found.get("key") == key:
+            self.state = found
+        elif os.path.isdir(self.folder):
+            shutil.rmtree(self.folder, ignore_errors=True)
+
+    def _write(self) -> None:
+        os.makedirs(self.folder, exist_ok=True)
+        tmp = os.path.join(self.folder, "state.json.tmp")
+        with open(tmp, "w") as f:
+            json.dump(self.state, f)
+        os.replace(tmp, os.path.join(self.folder, "state.json"))
+
+    def done(self, stage: str) -> bool:
+        return self.key is not None and stage in self.state["done"]
+
+    def mark(self, stage: str) -> None:
+        if self.key is not None:
+            self.state["done"].append(stage)
+            self._write()
+
+    def basis(self, step: int) -> Optional[Tuple[np.ndarray, int, int]]:
+        if not self.done(f"basis {step}"):
+            return None
+        basis = np.load(os.path.join(self.folder, f"basis-{step}.npy"))
+        return basis, int(self.state["masked"]), int(self.state["non_finite"])
+
+    def save_basis(self, step: int, basis: np.ndarray, masked: int, non_finite: int) -> None:
+        if self.key is None:
+            return
+        os.makedirs(self.folder, exist_ok=True)
+        tmp = os.path.join(self.folder, f"basis-{step}.tmp.npy")
+        np.save(tmp, basis)
+        os.replace(tmp, os.path.join(self.folder, f"basis-{step}.npy"))
+        self.state.update(masked=masked, non_finite=non_finite)
+        self.mark(f"basis {step}")
+
+    def finish(self) -> None:
+        shutil.rmtree(self.folder, ignore_errors=True)
 
 
 def _as_dask_array(source: Any) -> "da.Array":

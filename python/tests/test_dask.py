@@ -181,6 +181,38 @@ def test_a_worker_killed_mid_run_changes_nothing(client, scan, tmp_path):
     assert_same_outputs(tmp_path / "killed", reference)
 
 
+def test_a_client_stopped_after_the_passes_resumes_without_them(client, scan, tmp_path):
+    """The client dies (here: its progress callback raises) once the projection has
+    written every record; the same call again reads the passes' results back, runs none
+    of them, and writes the undisturbed run's files."""
+    image, reference = scan
+
+    class ClientGone(Exception):
+        pass
+
+    def stop(stage, done, total):
+        if stage.startswith("shared fit"):
+            raise ClientGone()
+
+    with pytest.raises(ClientGone):
+        fdask.fit_image(image, output=tmp_path / "resumed", components=K, client=client, chunks=1, timeout=TIMEOUT, progress=stop)
+    assert (tmp_path / "resumed" / ".fluorite-dask" / "state.json").is_file()
+    seen = []
+    fdask.fit_image(
+        image,
+        output=tmp_path / "resumed",
+        components=K,
+        client=client,
+        chunks=1,
+        timeout=TIMEOUT,
+        progress=lambda stage, done, total: seen.append(stage),
+    )
+    assert not {"sketch", "power step 1", "projection"} & set(seen), sorted(set(seen))
+    assert any(stage.startswith("shared fit") for stage in seen)
+    assert not (tmp_path / "resumed" / ".fluorite-dask").exists()
+    assert_same_outputs(tmp_path / "resumed", reference)
+
+
 def test_fit_files_returns_fit_many_s_fits(client, examples, tmp_path):
     paths = [str(p) for p in examples] * 2
     expected = fluorite.fit_many(paths, threads=1)
