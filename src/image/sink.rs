@@ -228,7 +228,15 @@ fn write_tiles(
 ) -> Result<()> {
     #[cfg(unix)]
     if !spec.zip {
-        return write_uncompressed_tiles(tmp, header, spec, order, produce, progress, true);
+        return write_uncompressed_tiles(
+            tmp,
+            header,
+            spec,
+            order,
+            produce,
+            progress,
+            Direct::Large,
+        );
     }
     write_tiles_with_exr(tmp, header, spec, order, produce, progress)
 }
@@ -336,10 +344,24 @@ fn write_tiles_with_exr(
     Ok(())
 }
 
+/// When an uncompressed image is written with O_DIRECT.
+#[cfg(unix)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Direct {
+    /// From 64 MB up (Linux).
+    Large,
+    /// Whatever its size (Linux; tests).
+    #[cfg_attr(not(test), allow(dead_code))]
+    Always,
+    /// Never: through a map.
+    #[cfg_attr(not(test), allow(dead_code))]
+    Never,
+}
+
 /// [`write_tiles`] for an uncompressed image, whose every chunk's size, and so its place
-/// in the file, is known before any pixel is produced. With `direct` (Linux, on a file
-/// system that takes O_DIRECT) the bytes are streamed past the page cache
-/// ([`write_direct`]); otherwise each thread writes the tiles it produces straight into
+/// in the file, is known before any pixel is produced. With `direct` (Linux, by default
+/// an image of at least 64 MB, on a file system that takes O_DIRECT) the bytes are streamed past the
+/// page cache ([`write_direct`]); otherwise each thread writes the tiles it produces straight into
 /// their places in the mapped file, which shares the copying between the threads without
 /// the file lock that serialises `write` calls (measured: threads writing with `pwrite`
 /// spend their time waiting for each other). Either way the bytes are those the exr
@@ -355,7 +377,7 @@ fn write_uncompressed_tiles(
     order: &[usize],
     produce: &(impl Fn(Rect) -> Result<Vec<f32>> + Sync),
     progress: &mut impl FnMut(usize, usize),
-    direct: bool,
+    direct: Direct,
 ) -> Result<()> {
     let io = |e: std::io::Error| Error::io(tmp, e);
     let encode_failure = |e: exr::error::Error| {
@@ -410,7 +432,7 @@ fn write_uncompressed_tiles(
     #[cfg(not(target_os = "linux"))]
     let _ = direct;
     #[cfg(target_os = "linux")]
-    if direct {
+    if direct == Direct::Always || (direct == Direct::Large && next >= DIRECT_MIN_BYTES) {
         use std::os::unix::fs::OpenOptionsExt;
         // Not every file system takes O_DIRECT (tmpfs does not): then the map below.
         if let Ok(file) = std::fs::OpenOptions::new()
@@ -495,6 +517,11 @@ fn write_uncompressed_tiles(
 /// logical block size of common devices.
 #[cfg(target_os = "linux")]
 const DIRECT_ALIGN: usize = 4096;
+
+/// The smallest image written with O_DIRECT: a smaller one fits the page cache cheaply,
+/// and through it the writer does not wait for the disk.
+#[cfg(target_os = "linux")]
+const DIRECT_MIN_BYTES: u64 = 64 << 20;
 
 /// Bytes gathered before each O_DIRECT write.
 #[cfg(target_os = "linux")]
@@ -688,7 +715,16 @@ mod tests {
                 &order,
                 &produce,
                 &mut progress,
-                false,
+                Direct::Never,
+            ),
+            "direct" => write_uncompressed_tiles(
+                &path,
+                header,
+                spec,
+                &order,
+                &produce,
+                &mut progress,
+                Direct::Always,
             ),
             _ => unreachable!(),
         }
@@ -705,11 +741,16 @@ mod tests {
             // channels: over 8 MB, more than one buffer of the direct writer.
             let ours = written(dir.path(), "a.exr", &spec, "write_image");
             let map = written(dir.path(), "b.exr", &spec, "map");
+            let direct = written(dir.path(), "d.exr", &spec, "direct");
             let crate_bytes = written(dir.path(), "c.exr", &spec, "exr");
             assert!(half || ours.len() > 8 << 20, "{}", ours.len());
             assert!(
                 ours == crate_bytes,
                 "write_image (half {half}) differs from the exr crate's writer"
+            );
+            assert!(
+                direct == crate_bytes,
+                "the O_DIRECT writer (half {half}) differs from the exr crate's writer"
             );
             assert!(
                 map == crate_bytes,
