@@ -14,9 +14,13 @@ For every material and light this script
 
 Renderers (each optional): the Mitsuba 3 fluorescence fork as released (`--fork`), the
 same fork with the lobe-weighting patch (`--fork-patched`, see docs/renderers.md) and
-PearRay (`--pearray`). Exit 1 when a ΔE2000 of the fluorite render or of a renderer
-marked as required (`--require`) against the exact colour exceeds `--bound` for a
-material with one fluorophore.
+PearRay (`--pearray`). The fork and PearRay hold one fluorophore: for a material with
+several, the renderers are graded against the exact colour of the fluorophore their
+export keeps, and the cost of the others (ΔE2000 between the two exact colours) is
+printed. Exit 1 when a ΔE2000 of the fluorite render or of a renderer marked as required
+(`--require`) against its exact colour exceeds `--bound` (1: a just-noticeable
+difference; the renderers are unbiased, so at convergence only their spectral sampling
+and tables separate them from the exact integral).
 Run through scripts/verify-renderers.sh.
 """
 
@@ -127,13 +131,14 @@ PEARRAY_SCENE = """(scene
 \t:render_width {size}
 \t:render_height {size}
 \t:camera 'camera'
+\t:spectral_domain [360, 830]
 \t(integrator :type 'direct' :max_ray_depth 2 :max_camera_ray_depth 2 :max_light_ray_depth 2)
 \t(sampler :slot 'aa' :type 'mjitt' :sample_count {spp})
 \t(output :name 'image' (channel :type 'color' :color 'xyz'))
 \t(camera :name 'camera' :type 'standard' :width 0.5359 :height 0.5359
 \t\t:local_direction [0,0,-1] :local_up [0,1,0] :local_right [1,0,0]
 \t\t:near 0.1 :far 100 :transform [1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1])
-\t(infinitelight :name 'environment' :type 'env' :radiance (spd '{light_csv}' 1))
+\t(light :name 'environment' :type 'env' :radiance (spd '{light_csv}' 1))
 {material}
 \t(entity :name 'ball' :type 'sphere' :radius 1 :material '{material_name}')
 )
@@ -148,7 +153,8 @@ def pearray_render(args, prc_text, material_name, light_csv, work, tag):
         f.write(PEARRAY_SCENE.format(size=128, spp=args.pearray_spp, light_csv=light_csv,
                                      material=prc_text, material_name=material_name))
     run([args.pearray, "-i", scene, "-o", d, "-t", "2", "-q"], args.log)
-    xyz = read_exr(os.path.join(d, "results", "image.exr"), "XYZ")
+    # `:color 'xyz'` writes X, Y, Z into the channels named R, G, B.
+    xyz = read_exr(os.path.join(d, "results", "image.exr"), "RGB")
     return mean_and_error(disc(xyz, 0.4))
 
 
@@ -164,7 +170,7 @@ def main():
     p.add_argument("--fluorite-spp", type=int, default=256)
     p.add_argument("--pearray-spp", type=int, default=1024)
     p.add_argument("--bound", type=float, default=1.0)
-    p.add_argument("--require", default="fork-patched,pearray",
+    p.add_argument("--require", default="fork-patched",
                    help="renderers whose ΔE2000 against the exact colour must be within --bound")
     p.add_argument("--keep", help="keep renders and scenes in this folder")
     p.add_argument("materials", nargs="+")
@@ -190,14 +196,28 @@ def main():
         for light in lights:
             spd = fx.light(light, args.shared)
             exact, exact_white = fx.furnace_xyz(m, spd, cmf)
-            exact_lab = fx.lab(exact, exact_white)
+            full_lab = fx.lab(exact, exact_white)
+            exact_lab = full_lab
             row = {"material": stem, "light": light, "fluorophores": n_fluo,
                    "Y exact": exact[1] / exact_white[1]}
+            if n_fluo > 1:
+                # One-fluorophore targets keep the one their export names (the same for
+                # the fork and PearRay); they are graded against that fluorophore alone,
+                # and the cost of the others is ΔE2000 between the two exact colours.
+                out = os.path.join(work, f"kept_{stem}_{light}")
+                run([args.fluorite, "export", material, "--to", "mitsuba", "--light", light,
+                     "-o", out + "/"], args.log)
+                with open(os.path.join(out, f"{stem}_fluoro.xml")) as f:
+                    kept = int(re.search(r"Kept: fluorophore (\d+)", f.read()).group(1))
+                kept_xyz, _ = fx.furnace_xyz(m, spd, cmf, keep={kept})
+                exact_lab = fx.lab(kept_xyz, exact_white)
+                row["kept"] = kept
+                row["drop"] = fx.delta_e2000(full_lab, exact_lab)
             if ("fluorite", light) not in whites:
                 whites[("fluorite", light)] = fluorite_render(args, white_json, light, work, "white")[0]
             fl, fl_err = fluorite_render(args, material, light, work, stem)
             fl_lab = fx.lab(fl, whites[("fluorite", light)])
-            row["fluorite"] = (fx.delta_e2000(exact_lab, fl_lab), fl_err)
+            row["fluorite"] = (fx.delta_e2000(full_lab, fl_lab), fl_err)
             out = os.path.join(work, f"export_{stem}_{light}")
             if "fork" in renderers or "fork_patched" in renderers:
                 run([args.fluorite, "export", material, "--to", "mitsuba", "--light", light,
@@ -238,9 +258,41 @@ def main():
             print(f"  {stem} {light}: " + ", ".join(
                 f"{k} ΔE {row[k][0]:.2f}" for k in ["fluorite"] + renderers), file=sys.stderr)
     report(args, rows, renderers, required)
-    worst = [row[k][0] for row in rows if row["fluorophores"] == 1
-             for k in ["fluorite"] + [r for r in renderers if r in required]]
+    if "pearray" in renderers:
+        pearray_diagnostic(args, work, cmf)
+    worst = [row[k][0] for row in rows for k in ["fluorite"] + [r for r in renderers if r in required]]
     return 0 if all(w <= args.bound for w in worst) else 1
+
+
+def pearray_diagnostic(args, work, cmf):
+    """PearRay's `fluorescent` material with c = 0 against its `diffuse` with the same albedo.
+
+    With no fluorophore the material is a Lambertian of reflectance `albedo`, so both must
+    show the exact colour of that reflectance. Uses the first material's exported CSV."""
+    material = args.materials[0]
+    stem = os.path.splitext(os.path.basename(material))[0]
+    light = args.lights.split(",")[0]
+    pr_out = os.path.join(work, f"pearray_{stem}_{light}")
+    csv = os.path.join(pr_out, f"{stem}_pearray.csv")
+    light_csv = os.path.join(work, f"light_{light}.csv")
+    white = pearray_render(args, "(material :name 'white' :type 'diffuse' :albedo 1)", "white",
+                           light_csv, work, f"pearray_white_{light}")[0]
+    lambert = f"(material :name 'm' :type 'diffuse' :albedo (spd '{csv}' 3))"
+    fluo = (f"(material :name 'm' :type 'fluorescent' :absorption (spd '{csv}' 1) "
+            f":emission (spd '{csv}' 2) :albedo (spd '{csv}' 3) :aefactor 1 :concentration 0)")
+    rows = np.loadtxt(csv, delimiter=",", skiprows=1)
+    albedo_only = {"schema": "fluorite-material/1", "name": "albedo",
+                   "reflectance": {"wavelength_nm": list(rows[:, 0]), "value": list(rows[:, 3])},
+                   "fluorophores": []}
+    exact, exact_white = fx.furnace_xyz(albedo_only, fx.light(light, args.shared), cmf)
+    print()
+    print(f"PearRay check ({stem}'s exported albedo, no fluorescence, {light}): Y exact "
+          f"{exact[1] / exact_white[1]:.4f}", end="")
+    for name, prc in (("diffuse", lambert), ("fluorescent, concentration 0", fluo)):
+        xyz, err = pearray_render(args, prc, "m", light_csv, work, f"pearray_check_{name[:7]}")
+        de = fx.delta_e2000(fx.lab(exact, exact_white), fx.lab(xyz, white))
+        print(f"; `{name}` Y {xyz[1] / white[1]:.4f} (ΔE2000 {de:.2f})", end="")
+    print(".")
 
 
 def write_light_csv(path, spd):
@@ -253,26 +305,41 @@ def write_light_csv(path, spd):
             f.write(f"{l},{v:.9g}\n")
 
 
-NAMES = {"fork": "fork as released", "fork_patched": "fork, lobe patch", "pearray": "PearRay"}
+NAMES = {"fluorite": "fluorite render", "fork": "fork as released", "fork_patched": "fork, lobe patch", "pearray": "PearRay"}
 
 
 def report(args, rows, renderers, required):
-    print(f"Furnace (sphere in a uniform environment of the light), CIEDE2000 against the exact colour "
-          f"(scripts/furnace_exact.py); fluorite {args.fluorite_spp} spp at 96×96, renderers "
-          f"{args.spp} spp (PearRay {args.pearray_spp}) at 128×128; ± = relative standard error of Y.")
-    print()
-    head = ["material", "light", "Y exact", "fluorite ΔE"]
-    for r in renderers:
-        head += [f"{NAMES[r]}: Y", "ΔE exact", "ΔE vs fluorite"]
-    print("| " + " | ".join(head) + " |")
-    print("|" + "---|" * len(head))
-    for row in rows:
-        cells = [row["material"], row["light"], f"{row['Y exact']:.4f}",
-                 f"{row['fluorite'][0]:.2f} (±{100 * row['fluorite'][1]:.2f} %)"]
+    print(f"Furnace (sphere in a uniform environment of the light): CIEDE2000 against the exact colour "
+          f"(scripts/furnace_exact.py); fluorite {args.fluorite_spp} spp at 96×96, Mitsuba fork "
+          f"{args.spp} spp, PearRay {args.pearray_spp} spp, both 128×128; ± = relative standard "
+          f"error of the sphere's mean Y.")
+    for several in (False, True):
+        sel = [r for r in rows if (r["fluorophores"] > 1) == several]
+        if not sel:
+            continue
+        print()
+        if several:
+            print("Several fluorophores: the fork and PearRay hold one (the export keeps the one "
+                  "re-emitting most under the light); 'drop' = ΔE2000 between the exact colour "
+                  "with every fluorophore and with the kept one alone (what the target cannot "
+                  "show); renderers are graded against the kept one alone.")
+            print()
+        head = ["material", "light", "Y exact", "fluorite ΔE"]
+        if several:
+            head += ["kept", "drop ΔE"]
         for r in renderers:
-            de, err, de_fl, y = row[r]
-            cells += [f"{y:.4f} (±{100 * err:.2f} %)", f"{de:.2f}", f"{de_fl:.2f}"]
-        print("| " + " | ".join(cells) + " |")
+            head += [f"{NAMES[r]}: Y", "ΔE exact" + (" (kept)" if several else ""), "ΔE vs fluorite"]
+        print("| " + " | ".join(head) + " |")
+        print("|" + "---|" * len(head))
+        for row in sel:
+            cells = [row["material"], row["light"], f"{row['Y exact']:.4f}",
+                     f"{row['fluorite'][0]:.2f} (±{100 * row['fluorite'][1]:.2f} %)"]
+            if several:
+                cells += [str(row["kept"]), f"{row['drop']:.2f}"]
+            for r in renderers:
+                de, err, de_fl, y = row[r]
+                cells += [f"{y:.4f} (±{100 * err:.2f} %)", f"{de:.2f}", f"{de_fl:.2f}"]
+            print("| " + " | ".join(cells) + " |")
     print()
     for k in ["fluorite"] + renderers:
         worst = max(row[k][0] for row in rows)
