@@ -66,7 +66,9 @@ def main():
     p.add_argument("--spp", type=int, default=256)
     p.add_argument("-o", "--output", required=True)
     args = p.parse_args()
-    stem = os.path.splitext(os.path.basename(args.material))[0]
+    label = os.path.relpath(args.material, "fits")[:-5] if args.material.startswith("fits/") else \
+        os.path.splitext(os.path.basename(args.material))[0]
+    stem = label.replace("/", "_")
     k, light = args.keep, args.light
     panels = []
     out = os.path.join(k, f"picture_fluorite_{stem}_{light}.png")

@@ -198,13 +198,15 @@ def main():
             exact, exact_white = fx.furnace_xyz(m, spd, cmf)
             full_lab = fx.lab(exact, exact_white)
             exact_lab = full_lab
-            row = {"material": stem, "light": light, "fluorophores": n_fluo,
+            label = os.path.relpath(material, "fits")[:-5] if material.startswith("fits/") else stem
+            tag = label.replace("/", "_")
+            row = {"material": label, "light": light, "fluorophores": n_fluo,
                    "Y exact": exact[1] / exact_white[1]}
             if n_fluo > 1:
                 # One-fluorophore targets keep the one their export names (the same for
                 # the fork and PearRay); they are graded against that fluorophore alone,
                 # and the cost of the others is ΔE2000 between the two exact colours.
-                out = os.path.join(work, f"kept_{stem}_{light}")
+                out = os.path.join(work, f"kept_{tag}_{light}")
                 run([args.fluorite, "export", material, "--to", "mitsuba", "--light", light,
                      "-o", out + "/"], args.log)
                 with open(os.path.join(out, f"{stem}_fluoro.xml")) as f:
@@ -215,10 +217,10 @@ def main():
                 row["drop"] = fx.delta_e2000(full_lab, exact_lab)
             if ("fluorite", light) not in whites:
                 whites[("fluorite", light)] = fluorite_render(args, white_json, light, work, "white")[0]
-            fl, fl_err = fluorite_render(args, material, light, work, stem)
+            fl, fl_err = fluorite_render(args, material, light, work, tag)
             fl_lab = fx.lab(fl, whites[("fluorite", light)])
             row["fluorite"] = (fx.delta_e2000(full_lab, fl_lab), fl_err)
-            out = os.path.join(work, f"export_{stem}_{light}")
+            out = os.path.join(work, f"export_{tag}_{light}")
             if "fork" in renderers or "fork_patched" in renderers:
                 run([args.fluorite, "export", material, "--to", "mitsuba", "--light", light,
                      "-o", out + "/"], args.log)
@@ -233,12 +235,12 @@ def main():
                             binary, mitsuba_scene(fork_scene, args.spp, white=True), work,
                             f"{r}_white_{light}", args.log)[0]
                     xyz, err = mitsuba_render(binary, mitsuba_scene(fork_scene, args.spp), work,
-                                              f"{r}_{stem}_{light}", args.log)
+                                              f"{r}_{tag}_{light}", args.log)
                     r_lab = fx.lab(xyz, whites[(r, light)])
                     row[r] = (fx.delta_e2000(exact_lab, r_lab), err,
                               fx.delta_e2000(fl_lab, r_lab), xyz[1] / whites[(r, light)][1])
             if "pearray" in renderers:
-                pr_out = os.path.join(work, f"pearray_{stem}_{light}")
+                pr_out = os.path.join(work, f"pearray_{tag}_{light}")
                 run([args.fluorite, "export", material, "--to", "pearray", "--light", light,
                      "-o", pr_out + "/"], args.log)
                 with open(os.path.join(pr_out, f"{stem}.prc")) as f:
@@ -250,12 +252,12 @@ def main():
                     white_prc = "(material :name 'white' :type 'diffuse' :albedo 1)"
                     whites[("pearray", light)] = pearray_render(
                         args, white_prc, "white", light_csv, work, f"pearray_white_{light}")[0]
-                xyz, err = pearray_render(args, prc, stem, light_csv, work, f"pearray_{stem}_{light}_r")
+                xyz, err = pearray_render(args, prc, stem, light_csv, work, f"pearray_{tag}_{light}_r")
                 r_lab = fx.lab(xyz, whites[("pearray", light)])
                 row["pearray"] = (fx.delta_e2000(exact_lab, r_lab), err,
                                   fx.delta_e2000(fl_lab, r_lab), xyz[1] / whites[("pearray", light)][1])
             rows.append(row)
-            print(f"  {stem} {light}: " + ", ".join(
+            print(f"  {label} {light}: " + ", ".join(
                 f"{k} ΔE {row[k][0]:.2f}" for k in ["fluorite"] + renderers), file=sys.stderr)
     report(args, rows, renderers, required)
     if "pearray" in renderers:
@@ -271,8 +273,9 @@ def pearray_diagnostic(args, work, cmf):
     show the exact colour of that reflectance. Uses the first material's exported CSV."""
     material = args.materials[0]
     stem = os.path.splitext(os.path.basename(material))[0]
+    tag = (os.path.relpath(material, "fits")[:-5] if material.startswith("fits/") else stem).replace("/", "_")
     light = args.lights.split(",")[0]
-    pr_out = os.path.join(work, f"pearray_{stem}_{light}")
+    pr_out = os.path.join(work, f"pearray_{tag}_{light}")
     csv = os.path.join(pr_out, f"{stem}_pearray.csv")
     light_csv = os.path.join(work, f"light_{light}.csv")
     white = pearray_render(args, "(material :name 'white' :type 'diffuse' :albedo 1)", "white",
