@@ -87,8 +87,8 @@ def main():
             names.append(tag)
     f = os.path.join(k, f"pearray_{stem}_{light}_r", "results", "image.exr")
     if os.path.exists(f):
-        white = disc(read_exr(os.path.join(k, f"pearray_white_{light}", "results", "image.exr"), "XYZ"), 0.4).mean(axis=0)
-        panels.append(display(read_exr(f, "XYZ"), white))
+        white = disc(read_exr(os.path.join(k, f"pearray_white_{light}", "results", "image.exr"), "RGB"), 0.4).mean(axis=0)
+        panels.append(display(read_exr(f, "RGB"), white))  # PearRay: X, Y, Z in R, G, B
         names.append("pearray")
     gap = np.full((SIZE, 4, 3), 128, np.uint8)
     strip = [panels[0]]
