@@ -204,10 +204,10 @@ fn fork_scene(
 \x20               (c = {c}, {q}){several}\n\
      Valid under every light; the environment below is light \"{light}\".\n\
      RENDERED in the fork (61931a78, scalar_spectral; scripts/verify-renderers.sh, docs/renderers.md): as\n\
-     released, pathfluoro shows a material with both lobes too dark (furnace ΔE2000 up to 20): when\n\
+     released, pathfluoro shows a material with both lobes too dark (furnace ΔE2000 4.6-23.7): when\n\
      diffusefluoro's sample() picks one lobe with probability p, its eval_pdf()/eval_pdf_fluoro() give the\n\
      emitter-sampling term that lobe's value undivided by p and a density of pdf/p instead of sample()'s pdf·p.\n\
-     With both corrected (value/p, pdf·p) this scene matches the exact furnace colour within ΔE2000 1.",
+     With both corrected (value/p, pdf·p) the scene matches the exact furnace colour within ΔE2000 0.19.",
         c = number(f.concentration),
         q = match f.yield_form {
             crate::material::YieldForm::Energy => format!("Q = {}", number(f.quantum_yield)),
