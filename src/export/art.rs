@@ -11,7 +11,8 @@
 //! whole array sits on one line, as the parser skips only spaces between series. Grids
 //! are regular (start and increment); ART's interpolation divides offsets by 10 nm
 //! (`ArRSSpectrum2D.c`), so 10 nm steps are the default. The model's full matrix is
-//! written, every fluorophore summed, anti-Stokes cells included.
+//! written, every fluorophore summed, anti-Stokes cells included. ART was not built for
+//! the project, so the entry's description says it is checked against the format only.
 
 use crate::error::{Error, Result};
 use crate::material::Material;
@@ -23,6 +24,10 @@ use super::{VERSION, one_line};
 
 /// The step ART's interpolation assumes (nm).
 const ART_STEP_NM: f64 = 10.0;
+
+/// What the archive has been checked against, in its description (the archive holds no
+/// comments): ART was not built for the project, so nothing rendered it.
+const ART_CHECKED: &str = "Checked against ART's archive format only (a parser written from ArfMeasurementArchive.m), not rendered in ART: ART was not built for fluorite (docs/renderers.md).";
 
 /// A regular grid's start and step, or an error naming `what` and the fix.
 fn regular(grid: &[f64], what: &str) -> Result<(f64, f64)> {
@@ -96,7 +101,7 @@ Archive content: fluorite {VERSION} export of material \"{name}\": the reradiati
 \n\
 Entry ID:   {stem}\n\
 ---------------------------------------------------------------------------\n\
-Description           :  fluorite model of {name}: bispectral radiance factor per emission bin (trapezoid widths: {em_step} nm, half at the two ends), dimensionless; series = emission wavelengths, values within a series = excitation wavelengths; every cell of the model, the anti-Stokes ones included.{step_note}\n\
+Description           :  fluorite model of {name}: bispectral radiance factor per emission bin (trapezoid widths: {em_step} nm, half at the two ends), dimensionless; series = emission wavelengths, values within a series = excitation wavelengths; every cell of the model, the anti-Stokes ones included.{step_note} {ART_CHECKED}\n\
 Type                  :  reflectance spectrum\n\
 Fluorescence data     :  yes\n\
 Measurement device    :  fluorite {VERSION} (a model, not a measurement)\n\

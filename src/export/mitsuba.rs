@@ -9,7 +9,10 @@
 //! - `NAME_fluoro.xml` for the fluorescence fork (blzq/mitsuba3, branch `fluorescence`):
 //!   its `diffusefluoro` BSDF (`reflectance` = d, `fluorescence` = e, normalised by the
 //!   plugin, `excitation` = c·Q(λi)·a, the energy fraction re-emitted) with its
-//!   `pathfluoro` integrator. It holds one fluorophore.
+//!   `pathfluoro` integrator. It holds one fluorophore. Rendered in the fork
+//!   (`scripts/verify-renderers.sh`), it matches the exact furnace colour once the fork's
+//!   lobe weighting is corrected; as released the fork renders it too dark, which the
+//!   scene's comment says (docs/renderers.md).
 //!
 //! Every spectrum is written inline (`value="λ:v, λ:v, …"`, parsed by
 //! `Properties::Spectrum(std::string_view)`), so a scene needs no other file and a
@@ -199,7 +202,12 @@ fn fork_scene(
 \x20 fluorescence  e, emission density in 1/nm (∫e dλ = 1; the plugin normalises it anyway)\n\
 \x20 excitation    X = c·Q(λi)·a(λi), dimensionless: the fraction of energy arriving at λi re-emitted\n\
 \x20               (c = {c}, {q}){several}\n\
-     Valid under every light; the environment below is light \"{light}\".",
+     Valid under every light; the environment below is light \"{light}\".\n\
+     RENDERED in the fork (61931a78, scalar_spectral; scripts/verify-renderers.sh, docs/renderers.md): as\n\
+     released, pathfluoro shows a material with both lobes too dark (furnace ΔE2000 4.6-23.7): when\n\
+     diffusefluoro's sample() picks one lobe with probability p, its eval_pdf()/eval_pdf_fluoro() give the\n\
+     emitter-sampling term that lobe's value undivided by p and a density of pdf/p instead of sample()'s pdf·p.\n\
+     With both corrected (value/p, pdf·p) the scene matches the exact furnace colour within ΔE2000 0.19.",
         c = number(f.concentration),
         q = match f.yield_form {
             crate::material::YieldForm::Energy => format!("Q = {}", number(f.quantum_yield)),

@@ -11,6 +11,10 @@
 //! fluorophore's absorption; the others' re-emission is dropped (the `.prc` says how
 //! much).
 //!
+//! Rendered in PearRay 95f065ad (`scripts/verify-renderers.sh`), the material does not show
+//! the model (its non-fluorescent term vanishes on the diagonal; docs/renderers.md), so the
+//! `.prc` says it is checked against PearRay's formats only.
+//!
 //! The CSV follows what PearRay's readers accept: `src/base/container/CSV.cpp` has no
 //! comment lines (a header row of names, then numbers parsed by `std::stof`), and the
 //! `spd` node (`src/plugins/main/node/SPDFileNode.cpp`) places the rows on an
@@ -22,6 +26,14 @@ use crate::material::{Material, YieldForm};
 use super::baked::strongest_fluorophore;
 use super::spectra::{number, union_grid};
 use super::{VERSION, one_line};
+
+/// What this export has been checked against, for its header: PearRay 95f065ad renders
+/// the file but its `fluorescent` material does not show the model (docs/renderers.md).
+const PEARRAY_CHECKED: &str = "\
+; CHECKED AGAINST PEARRAY'S FORMATS ONLY (its CSV reader and spd node), not against a render: PearRay\n\
+; 95f065ad loads and renders this file, but its `fluorescent` material with the `direct` integrator does not\n\
+; show the model (docs/renderers.md): it weights the non-fluorescent term by |λ - λ'| (nonFlourescency), 0\n\
+; on the diagonal, so even concentration 0 renders black, and the re-emission comes out far too dark.\n";
 
 /// The whole-nanometre grid the CSV holds: the material's samples and 300–830 nm.
 fn csv_grid(material: &Material) -> Vec<f64> {
@@ -144,6 +156,7 @@ pub(super) fn pearray(material: &Material, stem: &str, lights: &[Light]) -> Vec<
 ; reader has none); columns: 0 wavelength (nm), 1 absorption a (dimensionless, max 1), 2 emission e\n\
 ; (1/nm, integral 1; PearRay normalises it again), 3 albedo (dimensionless reflectance of the\n\
 ; non-fluorescent part). aefactor is the energy quantum yield Q, concentration c. Valid under every light.\n\
+{PEARRAY_CHECKED}\
 {about}\
 {block}",
     );

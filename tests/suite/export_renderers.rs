@@ -1059,3 +1059,32 @@ fn a_plain_material_exports_as_plain_diffuse() {
         ));
     }
 }
+
+/// Each fluorescent export says in its header how it was checked: the fork's scene that it
+/// was rendered (and what the released fork gets wrong), PearRay's and ART's that they are
+/// checked against the format only (docs/renderers.md).
+#[test]
+fn fluorescent_exports_say_how_they_were_checked() {
+    for m in materials() {
+        if m.fluorophores.is_empty() {
+            continue;
+        }
+        let files = render(&m, ExportFormat::Mitsuba);
+        let fork = file(&files, &format!("{}_fluoro.xml", m.name));
+        assert!(fork.contains("RENDERED in the fork"), "{fork}");
+        assert!(fork.contains("value/p, pdf·p"));
+        let files = render(&m, ExportFormat::Pearray);
+        let prc = file(&files, &format!("{}.prc", m.name));
+        assert!(
+            prc.contains("; CHECKED AGAINST PEARRAY'S FORMATS ONLY"),
+            "{prc}"
+        );
+        let files = render(&m, ExportFormat::Art);
+        let ark = file(&files, &format!("{}.ark", m.name));
+        let description = ark
+            .lines()
+            .find(|l| l.starts_with("Description"))
+            .expect("a description line");
+        assert!(description.contains("Checked against ART's archive format only"));
+    }
+}

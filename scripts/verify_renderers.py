@@ -1,0 +1,354 @@
+"""Renders fluorite's fluorescent exports in the renderers they are written for.
+
+For every material and light this script
+  1. computes the exact furnace colour from the material JSON and the CIE tables
+     (scripts/furnace_exact.py: no fluorite code),
+  2. renders `fluorite render MAT --scene furnace --light L --exr` and a white material,
+  3. for each renderer given: exports the material with `fluorite export` (the file as
+     written; the script changes only the sample count, the film's pixel format and, for
+     PearRay, wraps the included material in a furnace scene), renders it and a white
+     diffuser in the same scene, and takes the sphere's mean colour,
+  4. prints CIEDE2000 of every render against the exact colour (and the renderer against
+     fluorite's render), each in CIELAB against its own renderer's white, with the
+     relative standard error of Y of the sphere's mean (pixels are independent).
+
+Renderers (each optional): the Mitsuba 3 fluorescence fork as released (`--fork`), the
+same fork with the lobe-weighting patch (`--fork-patched`, see docs/renderers.md) and
+PearRay (`--pearray`). The fork and PearRay hold one fluorophore: for a material with
+several, the renderers are graded against the exact colour of the fluorophore their
+export keeps, and the cost of the others (ΔE2000 between the two exact colours) is
+printed. Exit 1 when a ΔE2000 of the fluorite render or of a renderer marked as required
+(`--require`) against its exact colour exceeds `--bound` (1: a just-noticeable
+difference; the renderers are unbiased, so at convergence only their spectral sampling
+and tables separate them from the exact integral).
+Run through scripts/verify-renderers.sh.
+"""
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+import OpenEXR
+
+import furnace_exact as fx
+
+# fluorite's XYZ → linear sRGB (src/colour/mod.rs); its EXR holds this matrix times XYZ.
+XYZ_TO_SRGB = np.array(
+    [
+        [3.2404542, -1.5371385, -0.4985314],
+        [-0.9692660, 1.8760108, 0.0415560],
+        [0.0556434, -0.2040259, 1.0572252],
+    ]
+)
+SRGB_TO_XYZ = np.linalg.inv(XYZ_TO_SRGB)
+
+
+def read_exr(path, names):
+    """H×W×3 float array of the channels `names` (e.g. "XYZ", "RGB")."""
+    with OpenEXR.File(path, separate_channels=True) as f:
+        ch = f.channels()
+        keys = list(ch.keys())
+        planes = []
+        for n in names:
+            key = next((k for k in keys if k == n or k.endswith("." + n)), None)
+            if key is None:
+                raise KeyError(f"{path}: no channel {n} (has {keys})")
+            planes.append(np.asarray(ch[key].pixels, dtype=float))
+    return np.stack(planes, axis=-1)
+
+
+def disc(image, radius_fraction):
+    """Pixels within radius_fraction·(half width) of the centre, as N×3."""
+    h, w = image.shape[:2]
+    y, x = np.mgrid[0:h, 0:w]
+    r = radius_fraction * w / 2
+    mask = (x + 0.5 - w / 2) ** 2 + (y + 0.5 - h / 2) ** 2 < r**2
+    return image[mask]
+
+
+def mean_and_error(pixels):
+    """Mean XYZ and the relative standard error of the mean's Y."""
+    m = pixels.mean(axis=0)
+    se = pixels[:, 1].std(ddof=1) / np.sqrt(len(pixels))
+    return m, (se / m[1] if m[1] > 0 else float("nan"))
+
+
+def run(cmd, log):
+    with open(log, "a") as f:
+        f.write("$ " + " ".join(cmd) + "\n")
+        f.flush()
+        subprocess.run(cmd, check=True, stdout=f, stderr=subprocess.STDOUT)
+
+
+# ---------------------------------------------------------------- fluorite
+def fluorite_render(args, material, light, work, tag):
+    out = os.path.join(work, f"fluorite_{tag}_{light}.png")
+    run(
+        [args.fluorite, "render", material, "--scene", "furnace", "--light", light, "--exr",
+         "--quiet", "--spp", str(args.fluorite_spp), "--size", "96x96", "-o", out],
+        args.log,
+    )
+    rgb = read_exr(out[:-4] + ".exr", "RGB")
+    # The furnace frames the unit sphere in 2.4 half widths: keep the inner 0.25.
+    return mean_and_error(disc(rgb @ SRGB_TO_XYZ.T, 0.25))
+
+
+# ---------------------------------------------------------------- Mitsuba fork
+WHITE_BSDF = '<bsdf type="diffuse" id="white">\n        <spectrum name="reflectance" value="1"/>\n    </bsdf>'
+
+
+def mitsuba_scene(text, spp, white=False):
+    text = re.sub(r'(<integer name="sample_count" value=")\d+', rf"\g<1>{spp}", text)
+    text = text.replace(
+        '<film type="hdrfilm">',
+        '<film type="hdrfilm">\n            <string name="pixel_format" value="xyz"/>',
+    )
+    if white:
+        text = re.sub(r"<bsdf .*?</bsdf>", WHITE_BSDF, text, flags=re.S)
+        text = re.sub(r'<ref id="[^"]*"/>', '<ref id="white"/>', text)
+        text = text.replace('<integrator type="pathfluoro">', '<integrator type="path">')
+    return text
+
+
+def mitsuba_render(binary, scene_text, work, tag, log):
+    scene = os.path.join(work, f"{tag}.xml")
+    with open(scene, "w") as f:
+        f.write(scene_text)
+    out = os.path.join(work, f"{tag}.exr")
+    run([binary, "-m", "scalar_spectral", "-t", "2", "-o", out, scene], log)
+    # The sphere spans tan(asin(1/5))/tan(15°) = 0.76 of the half width: keep the inner 0.4.
+    return mean_and_error(disc(read_exr(out, "XYZ"), 0.4))
+
+
+# ---------------------------------------------------------------- PearRay
+PEARRAY_SCENE = """(scene
+\t:name 'furnace'
+\t:render_width {size}
+\t:render_height {size}
+\t:camera 'camera'
+\t:spectral_domain [360, 830]
+\t(integrator :type 'direct' :max_ray_depth 2 :max_camera_ray_depth 2 :max_light_ray_depth 2)
+\t(sampler :slot 'aa' :type 'mjitt' :sample_count {spp})
+\t(output :name 'image' (channel :type 'color' :color 'xyz'))
+\t(camera :name 'camera' :type 'standard' :width 0.5359 :height 0.5359
+\t\t:local_direction [0,0,-1] :local_up [0,1,0] :local_right [1,0,0]
+\t\t:near 0.1 :far 100 :transform [1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1])
+\t(light :name 'environment' :type 'env' :radiance (spd '{light_csv}' 1))
+{material}
+\t(entity :name 'ball' :type 'sphere' :radius 1 :material '{material_name}')
+)
+"""
+
+
+def pearray_render(args, prc_text, material_name, light_csv, work, tag):
+    d = os.path.join(work, tag)
+    os.makedirs(d, exist_ok=True)
+    scene = os.path.join(d, "scene.prc")
+    with open(scene, "w") as f:
+        f.write(PEARRAY_SCENE.format(size=128, spp=args.pearray_spp, light_csv=light_csv,
+                                     material=prc_text, material_name=material_name))
+    run([args.pearray, "-i", scene, "-o", d, "-t", "2", "-q"], args.log)
+    # `:color 'xyz'` writes X, Y, Z into the channels named R, G, B.
+    xyz = read_exr(os.path.join(d, "results", "image.exr"), "RGB")
+    return mean_and_error(disc(xyz, 0.4))
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--fluorite", required=True)
+    p.add_argument("--shared", required=True)
+    p.add_argument("--fork")
+    p.add_argument("--fork-patched")
+    p.add_argument("--pearray")
+    p.add_argument("--lights", default="d65,a,f11,uv")
+    p.add_argument("--spp", type=int, default=1024, help="samples per pixel of the renderers")
+    p.add_argument("--fluorite-spp", type=int, default=256)
+    p.add_argument("--pearray-spp", type=int, default=1024)
+    p.add_argument("--bound", type=float, default=1.0)
+    p.add_argument("--require", default="fork-patched",
+                   help="renderers whose ΔE2000 against the exact colour must be within --bound")
+    p.add_argument("--keep", help="keep renders and scenes in this folder")
+    p.add_argument("materials", nargs="+")
+    args = p.parse_args()
+    lights = args.lights.split(",")
+    cmf = fx.observer(args.shared)
+    work = args.keep or tempfile.mkdtemp(prefix="verify-renderers-")
+    os.makedirs(work, exist_ok=True)
+    args.log = os.path.join(work, "commands.log")
+    white_json = os.path.join(work, "white.json")
+    with open(white_json, "w") as f:
+        json.dump({"schema": "fluorite-material/1", "name": "white",
+                   "reflectance": {"wavelength_nm": [300.0, 830.0], "value": [1.0, 1.0]},
+                   "fluorophores": []}, f)
+    renderers = [r for r in ("fork", "fork_patched", "pearray") if getattr(args, r)]
+    required = set(args.require.replace("-", "_").split(","))
+    whites = {}
+    rows = []
+    for material in args.materials:
+        m = fx.load(material)
+        stem = os.path.splitext(os.path.basename(material))[0]
+        n_fluo = len(m["fluorophores"])
+        for light in lights:
+            spd = fx.light(light, args.shared)
+            exact, exact_white = fx.furnace_xyz(m, spd, cmf)
+            full_lab = fx.lab(exact, exact_white)
+            exact_lab = full_lab
+            label = os.path.relpath(material, "fits")[:-5] if material.startswith("fits/") else stem
+            tag = label.replace("/", "_")
+            row = {"material": label, "light": light, "fluorophores": n_fluo,
+                   "Y exact": exact[1] / exact_white[1]}
+            if n_fluo > 1:
+                # One-fluorophore targets keep the one their export names (the same for
+                # the fork and PearRay); they are graded against that fluorophore alone,
+                # and the cost of the others is ΔE2000 between the two exact colours.
+                out = os.path.join(work, f"kept_{tag}_{light}")
+                run([args.fluorite, "export", material, "--to", "mitsuba", "--light", light,
+                     "-o", out + "/"], args.log)
+                with open(os.path.join(out, f"{stem}_fluoro.xml")) as f:
+                    kept = int(re.search(r"Kept: fluorophore (\d+)", f.read()).group(1))
+                kept_xyz, _ = fx.furnace_xyz(m, spd, cmf, keep={kept})
+                exact_lab = fx.lab(kept_xyz, exact_white)
+                row["kept"] = kept
+                row["drop"] = fx.delta_e2000(full_lab, exact_lab)
+            if ("fluorite", light) not in whites:
+                whites[("fluorite", light)] = fluorite_render(args, white_json, light, work, "white")[0]
+            fl, fl_err = fluorite_render(args, material, light, work, tag)
+            fl_lab = fx.lab(fl, whites[("fluorite", light)])
+            row["fluorite"] = (fx.delta_e2000(full_lab, fl_lab), fl_err)
+            out = os.path.join(work, f"export_{tag}_{light}")
+            if "fork" in renderers or "fork_patched" in renderers:
+                run([args.fluorite, "export", material, "--to", "mitsuba", "--light", light,
+                     "-o", out + "/"], args.log)
+                with open(os.path.join(out, f"{stem}_fluoro.xml")) as f:
+                    fork_scene = f.read()
+                for r in ("fork", "fork_patched"):
+                    binary = getattr(args, r)
+                    if not binary:
+                        continue
+                    if (r, light) not in whites:
+                        whites[(r, light)] = mitsuba_render(
+                            binary, mitsuba_scene(fork_scene, args.spp, white=True), work,
+                            f"{r}_white_{light}", args.log)[0]
+                    xyz, err = mitsuba_render(binary, mitsuba_scene(fork_scene, args.spp), work,
+                                              f"{r}_{tag}_{light}", args.log)
+                    r_lab = fx.lab(xyz, whites[(r, light)])
+                    row[r] = (fx.delta_e2000(exact_lab, r_lab), err,
+                              fx.delta_e2000(fl_lab, r_lab), xyz[1] / whites[(r, light)][1])
+            if "pearray" in renderers:
+                pr_out = os.path.join(work, f"pearray_{tag}_{light}")
+                run([args.fluorite, "export", material, "--to", "pearray", "--light", light,
+                     "-o", pr_out + "/"], args.log)
+                with open(os.path.join(pr_out, f"{stem}.prc")) as f:
+                    prc = f.read().replace(f"(spd '{stem}_pearray.csv'",
+                                           f"(spd '{os.path.join(pr_out, stem + '_pearray.csv')}'")
+                light_csv = os.path.join(work, f"light_{light}.csv")
+                write_light_csv(light_csv, spd)
+                if ("pearray", light) not in whites:
+                    white_prc = "(material :name 'white' :type 'diffuse' :albedo 1)"
+                    whites[("pearray", light)] = pearray_render(
+                        args, white_prc, "white", light_csv, work, f"pearray_white_{light}")[0]
+                xyz, err = pearray_render(args, prc, stem, light_csv, work, f"pearray_{tag}_{light}_r")
+                r_lab = fx.lab(xyz, whites[("pearray", light)])
+                row["pearray"] = (fx.delta_e2000(exact_lab, r_lab), err,
+                                  fx.delta_e2000(fl_lab, r_lab), xyz[1] / whites[("pearray", light)][1])
+            rows.append(row)
+            print(f"  {label} {light}: " + ", ".join(
+                f"{k} ΔE {row[k][0]:.2f}" for k in ["fluorite"] + renderers), file=sys.stderr)
+    report(args, rows, renderers, required)
+    if "pearray" in renderers:
+        pearray_diagnostic(args, work, cmf)
+    worst = [row[k][0] for row in rows for k in ["fluorite"] + [r for r in renderers if r in required]]
+    return 0 if all(w <= args.bound for w in worst) else 1
+
+
+def pearray_diagnostic(args, work, cmf):
+    """PearRay's `fluorescent` material with c = 0 against its `diffuse` with the same albedo.
+
+    With no fluorophore the material is a Lambertian of reflectance `albedo`, so both must
+    show the exact colour of that reflectance. Uses the first material's exported CSV."""
+    material = args.materials[0]
+    stem = os.path.splitext(os.path.basename(material))[0]
+    tag = (os.path.relpath(material, "fits")[:-5] if material.startswith("fits/") else stem).replace("/", "_")
+    light = args.lights.split(",")[0]
+    pr_out = os.path.join(work, f"pearray_{tag}_{light}")
+    csv = os.path.join(pr_out, f"{stem}_pearray.csv")
+    light_csv = os.path.join(work, f"light_{light}.csv")
+    white = pearray_render(args, "(material :name 'white' :type 'diffuse' :albedo 1)", "white",
+                           light_csv, work, f"pearray_white_{light}")[0]
+    lambert = f"(material :name 'm' :type 'diffuse' :albedo (spd '{csv}' 3))"
+    fluo = (f"(material :name 'm' :type 'fluorescent' :absorption (spd '{csv}' 1) "
+            f":emission (spd '{csv}' 2) :albedo (spd '{csv}' 3) :aefactor 1 :concentration 0)")
+    rows = np.loadtxt(csv, delimiter=",", skiprows=1)
+    albedo_only = {"schema": "fluorite-material/1", "name": "albedo",
+                   "reflectance": {"wavelength_nm": list(rows[:, 0]), "value": list(rows[:, 3])},
+                   "fluorophores": []}
+    exact, exact_white = fx.furnace_xyz(albedo_only, fx.light(light, args.shared), cmf)
+    print()
+    print(f"PearRay check ({stem}'s exported albedo, no fluorescence, {light}): Y exact "
+          f"{exact[1] / exact_white[1]:.4f}", end="")
+    for name, prc in (("diffuse", lambert), ("fluorescent, concentration 0", fluo)):
+        xyz, err = pearray_render(args, prc, "m", light_csv, work, f"pearray_check_{name[:7]}")
+        de = fx.delta_e2000(fx.lab(exact, exact_white), fx.lab(xyz, white))
+        print(f"; `{name}` Y {xyz[1] / white[1]:.4f} (ΔE2000 {de:.2f})", end="")
+    print(".")
+
+
+def write_light_csv(path, spd):
+    """The light on a 1 nm grid, zero-padded at both ends (PearRay repeats end values)."""
+    grid = np.arange(299, 832)
+    value = np.interp(grid, fx.GRID, spd, left=0, right=0)
+    with open(path, "w") as f:
+        f.write("wavelength,power\n")
+        for l, v in zip(grid, value):
+            f.write(f"{l},{v:.9g}\n")
+
+
+NAMES = {"fluorite": "fluorite render", "fork": "fork as released", "fork_patched": "fork, lobe patch", "pearray": "PearRay"}
+
+
+def report(args, rows, renderers, required):
+    print(f"Furnace (sphere in a uniform environment of the light): CIEDE2000 against the exact colour "
+          f"(scripts/furnace_exact.py); fluorite {args.fluorite_spp} spp at 96×96, Mitsuba fork "
+          f"{args.spp} spp, PearRay {args.pearray_spp} spp, both 128×128; ± = relative standard "
+          f"error of the sphere's mean Y.")
+    for several in (False, True):
+        sel = [r for r in rows if (r["fluorophores"] > 1) == several]
+        if not sel:
+            continue
+        print()
+        if several:
+            print("Several fluorophores: the fork and PearRay hold one (the export keeps the one "
+                  "re-emitting most under the light); 'drop' = ΔE2000 between the exact colour "
+                  "with every fluorophore and with the kept one alone (what the target cannot "
+                  "show); renderers are graded against the kept one alone.")
+            print()
+        head = ["material", "light", "Y exact", "fluorite ΔE"]
+        if several:
+            head += ["kept", "drop ΔE"]
+        for r in renderers:
+            head += [f"{NAMES[r]}: Y", "ΔE exact" + (" (kept)" if several else ""), "ΔE vs fluorite"]
+        print("| " + " | ".join(head) + " |")
+        print("|" + "---|" * len(head))
+        for row in sel:
+            cells = [row["material"], row["light"], f"{row['Y exact']:.4f}",
+                     f"{row['fluorite'][0]:.2f} (±{100 * row['fluorite'][1]:.2f} %)"]
+            if several:
+                cells += [str(row["kept"]), f"{row['drop']:.2f}"]
+            for r in renderers:
+                de, err, de_fl, y = row[r]
+                cells += [f"{y:.4f} (±{100 * err:.2f} %)", f"{de:.2f}", f"{de_fl:.2f}"]
+            print("| " + " | ".join(cells) + " |")
+    print()
+    for k in ["fluorite"] + renderers:
+        worst = max(row[k][0] for row in rows)
+        tag = "required" if k == "fluorite" or k in required else "reported"
+        print(f"Largest ΔE2000 against the exact colour, {NAMES.get(k, k)}: {worst:.2f} ({tag}; bound {args.bound}).")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
