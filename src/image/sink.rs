@@ -348,7 +348,7 @@ fn write_tiles_with_exr(
 #[cfg(unix)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Direct {
-    /// From 64 MB up (Linux).
+    /// From 64 MB up (Linux; a smaller image goes through the exr crate's writer).
     Large,
     /// Whatever its size (Linux; tests).
     #[cfg_attr(not(test), allow(dead_code))]
@@ -359,8 +359,9 @@ enum Direct {
 }
 
 /// [`write_tiles`] for an uncompressed image, whose every chunk's size, and so its place
-/// in the file, is known before any pixel is produced. With `direct` (Linux, by default
-/// an image of at least 64 MB, on a file system that takes O_DIRECT) the bytes are streamed past the
+/// in the file, is known before any pixel is produced. By default an image under 64 MB
+/// goes through the exr crate's writer (the page cache takes it cheaply). With `direct`
+/// (Linux, on a file system that takes O_DIRECT) the bytes are streamed past the
 /// page cache ([`write_direct`]); otherwise each thread writes the tiles it produces straight into
 /// their places in the mapped file, which shares the copying between the threads without
 /// the file lock that serialises `write` calls (measured: threads writing with `pwrite`
@@ -429,10 +430,14 @@ fn write_uncompressed_tiles(
             "the image is larger than this machine's address space",
         ));
     }
-    #[cfg(not(target_os = "linux"))]
-    let _ = direct;
+    if direct == Direct::Large && next < DIRECT_MIN_BYTES {
+        // Small: the page cache takes it cheaply (measured: the 64² criterion bench
+        // 0.20 s through per-tile maps, 0.16 s through the exr crate's buffered writer).
+        let [header] = headers;
+        return write_tiles_with_exr(tmp, header, spec, order, produce, progress);
+    }
     #[cfg(target_os = "linux")]
-    if direct == Direct::Always || (direct == Direct::Large && next >= DIRECT_MIN_BYTES) {
+    if direct != Direct::Never {
         use std::os::unix::fs::OpenOptionsExt;
         // Not every file system takes O_DIRECT (tmpfs does not): then the map below.
         if let Ok(file) = std::fs::OpenOptions::new()
@@ -518,9 +523,9 @@ fn write_uncompressed_tiles(
 #[cfg(target_os = "linux")]
 const DIRECT_ALIGN: usize = 4096;
 
-/// The smallest image written with O_DIRECT: a smaller one fits the page cache cheaply,
-/// and through it the writer does not wait for the disk.
-#[cfg(target_os = "linux")]
+/// The smallest image written past the page cache: a smaller one fits it cheaply, and
+/// through it the writer does not wait for the disk.
+#[cfg(unix)]
 const DIRECT_MIN_BYTES: u64 = 64 << 20;
 
 /// Bytes gathered before each O_DIRECT write.
