@@ -174,7 +174,7 @@ fn fork_scene(
     let n = material.fluorophores.len();
     let several = if n > 1 {
         format!(
-            "\n     This material has {n} fluorophores; diffusefluoro holds one. Kept: fluorophore {kept}, which re-emits\n\
+            "\nThis material has {n} fluorophores; diffusefluoro holds one. Kept: fluorophore {kept}, which re-emits\n\
      {:.1} % of the fluorescent energy under light \"{}\". The others' absorption stays in the reflectance d\n\
      (their light is absorbed and not re-emitted here); the stock scenes' baked βT keeps every one.",
             100.0 * share,
