@@ -26,6 +26,9 @@ import tempfile
 import numpy as np
 import mitsuba as mi
 
+# CIELAB and CIEDE2000, written apart from fluorite (shared with verify_renderers.py).
+from furnace_exact import delta_e2000, lab
+
 mi.set_variant("scalar_spectral")
 
 # fluorite's XYZ → linear sRGB (src/colour/mod.rs, xyz_to_linear_srgb); its EXR of a
@@ -38,69 +41,6 @@ XYZ_TO_SRGB = np.array(
     ]
 )
 SRGB_TO_XYZ = np.linalg.inv(XYZ_TO_SRGB)
-
-
-def lab(xyz, white):
-    def f(t):
-        return np.where(t > (6 / 29) ** 3, np.cbrt(t), t / (3 * (6 / 29) ** 2) + 4 / 29)
-
-    fx, fy, fz = f(np.asarray(xyz) / np.asarray(white))
-    return np.array([116 * fy - 16, 500 * (fx - fy), 200 * (fy - fz)])
-
-
-def delta_e2000(lab1, lab2):
-    """CIEDE2000 (Sharma, Wu, Dalal 2005), kL = kC = kH = 1."""
-    L1, a1, b1 = lab1
-    L2, a2, b2 = lab2
-    C1, C2 = np.hypot(a1, b1), np.hypot(a2, b2)
-    Cm = (C1 + C2) / 2
-    G = 0.5 * (1 - np.sqrt(Cm**7 / (Cm**7 + 25**7)))
-    a1p, a2p = (1 + G) * a1, (1 + G) * a2
-    C1p, C2p = np.hypot(a1p, b1), np.hypot(a2p, b2)
-    h1p = np.degrees(np.arctan2(b1, a1p)) % 360
-    h2p = np.degrees(np.arctan2(b2, a2p)) % 360
-    dLp = L2 - L1
-    dCp = C2p - C1p
-    if C1p * C2p == 0:
-        dhp = 0.0
-    elif abs(h2p - h1p) <= 180:
-        dhp = h2p - h1p
-    elif h2p - h1p > 180:
-        dhp = h2p - h1p - 360
-    else:
-        dhp = h2p - h1p + 360
-    dHp = 2 * np.sqrt(C1p * C2p) * np.sin(np.radians(dhp / 2))
-    Lpm = (L1 + L2) / 2
-    Cpm = (C1p + C2p) / 2
-    if C1p * C2p == 0:
-        hpm = h1p + h2p
-    elif abs(h1p - h2p) <= 180:
-        hpm = (h1p + h2p) / 2
-    elif h1p + h2p < 360:
-        hpm = (h1p + h2p + 360) / 2
-    else:
-        hpm = (h1p + h2p - 360) / 2
-    T = (
-        1
-        - 0.17 * np.cos(np.radians(hpm - 30))
-        + 0.24 * np.cos(np.radians(2 * hpm))
-        + 0.32 * np.cos(np.radians(3 * hpm + 6))
-        - 0.20 * np.cos(np.radians(4 * hpm - 63))
-    )
-    dtheta = 30 * np.exp(-(((hpm - 275) / 25) ** 2))
-    Rc = 2 * np.sqrt(Cpm**7 / (Cpm**7 + 25**7))
-    Sl = 1 + 0.015 * (Lpm - 50) ** 2 / np.sqrt(20 + (Lpm - 50) ** 2)
-    Sc = 1 + 0.045 * Cpm
-    Sh = 1 + 0.015 * Cpm * T
-    Rt = -np.sin(np.radians(2 * dtheta)) * Rc
-    return float(
-        np.sqrt(
-            (dLp / Sl) ** 2
-            + (dCp / Sc) ** 2
-            + (dHp / Sh) ** 2
-            + Rt * (dCp / Sc) * (dHp / Sh)
-        )
-    )
 
 
 def centre_mean(image, radius):

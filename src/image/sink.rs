@@ -44,6 +44,18 @@ pub struct Rect {
     pub height: usize,
 }
 
+impl Rect {
+    /// The pixels of an image block.
+    fn of_block(block: &exr::block::BlockIndex) -> Rect {
+        Rect {
+            x: block.pixel_position.x(),
+            y: block.pixel_position.y(),
+            width: block.pixel_size.x(),
+            height: block.pixel_size.y(),
+        }
+    }
+}
+
 /// What an image written by [`write_image`] holds.
 #[derive(Debug, Clone)]
 pub struct ImageSpec {
@@ -157,6 +169,28 @@ fn tile_bytes(values: &[f32], rect: Rect, spec: &ImageSpec, order: &[usize]) -> 
     let mut data = vec![0u8; values.len() * sample];
     fill_tile_bytes(values, rect, spec, order, &mut data)?;
     Ok(data)
+}
+
+/// A whole uncompressed tiled chunk of `rect` into `chunk` (exactly its size): the
+/// chunk's fields (tile x, tile y, level 0, 0, data size), then [`fill_tile_bytes`].
+fn fill_tile_chunk(
+    values: &[f32],
+    rect: Rect,
+    spec: &ImageSpec,
+    order: &[usize],
+    chunk: &mut [u8],
+) -> Result<()> {
+    let (head, data) = chunk.split_at_mut(CHUNK_HEAD);
+    let size = i32::try_from(data.len())
+        .map_err(|_| Error::invalid("image writer", "a tile larger than an OpenEXR chunk"))?;
+    let tile = |v: usize| (v / TILE) as i32;
+    for (field, value) in head
+        .chunks_exact_mut(4)
+        .zip([tile(rect.x), tile(rect.y), 0, 0, size])
+    {
+        field.copy_from_slice(&value.to_le_bytes());
+    }
+    fill_tile_bytes(values, rect, spec, order, data)
 }
 
 /// [`tile_bytes`] written into `data` (exactly the tile's size).
@@ -310,12 +344,7 @@ fn write_tiles_with_exr(
                 &blocks,
                 group,
                 |&(index, block)| {
-                    let rect = Rect {
-                        x: block.pixel_position.x(),
-                        y: block.pixel_position.y(),
-                        width: block.pixel_size.x(),
-                        height: block.pixel_size.y(),
-                    };
+                    let rect = Rect::of_block(&block);
                     let data = tile_bytes(&produce(rect)?, rect, spec, order)?;
                     let chunk = UncompressedBlock { index: block, data }
                         .compress_to_chunk(&meta.headers)
@@ -473,12 +502,7 @@ fn write_uncompressed_tiles(
         let work = scope.spawn(move || {
             blocks.par_iter().try_for_each(|(index, block)| {
                 crate::files::check_interrupted(tmp)?;
-                let rect = Rect {
-                    x: block.pixel_position.x(),
-                    y: block.pixel_position.y(),
-                    width: block.pixel_size.x(),
-                    height: block.pixel_size.y(),
-                };
+                let rect = Rect::of_block(block);
                 let values = produce(rect)?;
                 let offset = offsets[*index];
                 let start = offset - offset % page;
@@ -493,18 +517,7 @@ fn write_uncompressed_tiles(
                         .map_mut(&file)
                 }
                 .map_err(io)?;
-                let (chunk_head, data) = map[skip..].split_at_mut(CHUNK_HEAD);
-                let tile = |v: usize| (v / TILE) as i32;
-                for (field, value) in chunk_head.chunks_exact_mut(4).zip([
-                    tile(rect.x),
-                    tile(rect.y),
-                    0,
-                    0,
-                    data_size(block) as i32,
-                ]) {
-                    field.copy_from_slice(&value.to_le_bytes());
-                }
-                fill_tile_bytes(&values, rect, spec, order, data)?;
+                fill_tile_chunk(&values, rect, spec, order, &mut map[skip..])?;
                 let _ = sender.send(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
                 Ok(())
             })
@@ -588,26 +601,10 @@ fn write_direct(
         blocks,
         group,
         |(_, block)| {
-            let rect = Rect {
-                x: block.pixel_position.x(),
-                y: block.pixel_position.y(),
-                width: block.pixel_size.x(),
-                height: block.pixel_size.y(),
-            };
+            let rect = Rect::of_block(block);
             let values = produce(rect)?;
-            let size = data_size(block);
-            let mut bytes = vec![0u8; CHUNK_HEAD + size];
-            let tile = |v: usize| (v / TILE) as i32;
-            for (field, value) in bytes[..CHUNK_HEAD].chunks_exact_mut(4).zip([
-                tile(rect.x),
-                tile(rect.y),
-                0,
-                0,
-                size as i32,
-            ]) {
-                field.copy_from_slice(&value.to_le_bytes());
-            }
-            fill_tile_bytes(&values, rect, spec, order, &mut bytes[CHUNK_HEAD..])?;
+            let mut bytes = vec![0u8; CHUNK_HEAD + data_size(block)];
+            fill_tile_chunk(&values, rect, spec, order, &mut bytes)?;
             Ok(bytes)
         },
         |chunks| {
