@@ -122,16 +122,20 @@ def _project_task(plan: _Plan, basis: np.ndarray, records: str, pixels: Any, sta
     return written
 
 
-def _records_task(plan: _Plan, basis: np.ndarray, records: str, kernel: str, first: int, count: int) -> List[str]:
-    """A pass over the records of pixels first..first + count (whole chunks of
-    ``RECORD_CHUNK`` records but the image's last): one result per chunk, in order."""
-    stages = _stages(plan)
-    width = stages.width
+def _load_task(records: str, width: int, record_len: int, first: int, count: int) -> np.ndarray:
+    """The records of pixels first..first + count from the Zarr array ``records``:
+    (count, record_len) float32."""
     y0, y1 = first // width, (first + count - 1) // width + 1
-    band = _aligned(zarr.open_array(records, mode="r")[y0:y1], np.float32).reshape(-1, stages.record_len)
+    band = np.asarray(zarr.open_array(records, mode="r")[y0:y1], dtype=np.float32).reshape(-1, record_len)
     start = first - y0 * width
-    piece = np.ascontiguousarray(band[start : start + count])
-    return stages.run_records(_aligned(basis, np.float64), kernel, first, piece)
+    return np.ascontiguousarray(band[start : start + count])
+
+
+def _records_task(plan: _Plan, basis: np.ndarray, kernel: str, first: int, piece: np.ndarray) -> List[str]:
+    """A pass over the records ``piece`` of pixels first.. (whole chunks of
+    ``RECORD_CHUNK`` records but the image's last): one result per chunk, in order (the
+    judge's folded into the first)."""
+    return _stages(plan).run_records(_aligned(basis, np.float64), kernel, first, _aligned(piece, np.float32))
 
 
 def _maps_task(plan: _Plan, model: str, basis: np.ndarray, records: str, maps: str, y: int, rows: int) -> int:
@@ -143,6 +147,10 @@ def _maps_task(plan: _Plan, model: str, basis: np.ndarray, records: str, maps: s
     group["reflectance"][y : y + rows] = reflectance
     group["delta_e"][y : y + rows] = delta_e
     return rows
+
+
+#: ``fit_image`` has a ``zip`` option (the EXR compression) that hides the builtin.
+_pairs = zip
 
 
 class _Runner:
@@ -196,6 +204,7 @@ def fit_image(
     chunks: Optional[int] = None,
     records: Optional[PathLike] = None,
     record_chunks: Optional[int] = None,
+    keep_records: bool = True,
     maps: Union[PathLike, bool] = True,
     timeout: float = DEFAULT_TIMEOUT,
     progress: Optional[Callable[[str, int, int], None]] = None,
@@ -219,7 +228,11 @@ def fit_image(
     ``output/records.zarr``: ``output`` (or ``records``) must be on storage the workers
     and the client share. ``record_chunks`` is the work of one task of the shared fit's
     passes over the records, in chunks of ``RECORD_CHUNK`` (4096) records (default:
-    about 64 MB of records). ``maps`` is the Zarr group the workers write the maps into
+    about 64 MB of records). ``keep_records``: each task's records are read from Zarr
+    once and stay in the workers' memory for every pass of the shared fit (the records
+    divided among the workers: 79 floats per pixel on the BFC-450 grid; Dask spills them
+    to disk under memory pressure); False reads them from Zarr for every pass (about 40),
+    a worker then holding one task's records at a time. ``maps`` is the Zarr group the workers write the maps into
     from the records (default ``output/maps.zarr``; False: none): ``concentration``
     (height, width, K), ``reflectance`` (height, width, n) with its ``wavelengths_nm``
     attribute, ``delta_e`` (height, width, lights) with ``lights``, float32, NaN at masked
@@ -368,15 +381,23 @@ def fit_image(
     if record_chunks is not None and (not isinstance(record_chunks, int) or record_chunks < 1):
         raise FluoriteError(f"invalid record_chunks: {record_chunks!r}: give a positive number of chunks of {chunk} records")
     records_per_task = (record_chunks or max(1, DEFAULT_ARRAY_BYTES // (stages.record_len * 4 * chunk))) * chunk
+    firsts = list(range(0, pixels, records_per_task))
+    # Each task's records, read from Zarr once and kept in the workers' memory for every
+    # pass (Dask places each pass's task beside its records, recomputes them from Zarr
+    # if their worker is lost, and spills them to disk under memory pressure); or read
+    # again by every pass.
+    held = [
+        dask.delayed(_load_task, pure=True)(records_path, stages.width, stages.record_len, first, min(records_per_task, pixels - first))
+        for first in firsts
+    ]
+    if keep_records:
+        held = list(client.persist(held) if client is not None else dask.persist(*held))
     passes = 0
 
     def map_chunks(kernel: str, count: int) -> List[str]:
         nonlocal passes
         passes += 1
-        tasks = [
-            dask.delayed(_records_task, pure=True)(plan_d, basis_d, records_path, kernel, first, min(records_per_task, pixels - first))
-            for first in range(0, pixels, records_per_task)
-        ]
+        tasks = [dask.delayed(_records_task, pure=True)(plan_d, basis_d, kernel, first, piece) for first, piece in _pairs(firsts, held)]
         results: List[str] = []
         for part in runner.ordered(f"shared fit (pass {passes})", tasks):
             results.extend(part)
@@ -391,6 +412,7 @@ def fit_image(
         lambda y, n: np.asarray(stored[y : y + n], dtype=np.float32),
         map_chunks,
     )
+    del held  # the records leave the workers' memory
     resume.finish()
     if maps is False:
         return fit

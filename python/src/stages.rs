@@ -16,7 +16,7 @@ use std::sync::Mutex;
 use fluorite::image::fit::colour::CellColours;
 use fluorite::image::fit::passes::{Census, orthonormal};
 use fluorite::image::fit::records::{
-    ChunkMapper, ChunkResult, RECORD_CHUNK, RecordContext, RecordKernel,
+    ChunkMapper, ChunkResult, RECORD_CHUNK, RecordContext, RecordKernel, fold_exact,
 };
 use fluorite::image::fit::scratch::RecordLayout;
 use fluorite::image::fit::shared::Shared;
@@ -760,12 +760,17 @@ impl PyImageStages {
         detached(py, "fluorite.dask records", || {
             let context = RecordContext::new(&layout, &basis, record, options);
             let prepared = context.prepare(&kernel);
-            values
+            let mut results = values
                 .chunks(RECORD_CHUNK * len)
                 .enumerate()
-                .map(|(i, chunk)| {
-                    let result = context.run(&prepared, first + i * RECORD_CHUNK, chunk)?;
-                    serde_json::to_string(&result)
+                .map(|(i, chunk)| context.run(&prepared, first + i * RECORD_CHUNK, chunk))
+                .collect::<fluorite::Result<Vec<_>>>()?;
+            // One judge result for the task's chunks (exact), not one per chunk.
+            fold_exact(&mut results);
+            results
+                .iter()
+                .map(|result| {
+                    serde_json::to_string(result)
                         .map_err(|e| fluorite::Error::invalid("records", e.to_string()))
                 })
                 .collect()

@@ -158,22 +158,34 @@ def test_without_a_client_dask_s_threads_give_the_same_files(client, scan, tmp_p
 
     image, reference = scan
     with dask.config.set(scheduler="threads"):
-        fdask.fit_image(image, output=tmp_path / "threads", components=K, chunks=2, timeout=TIMEOUT)
+        # The records read from Zarr by every pass, not kept in memory.
+        fdask.fit_image(image, output=tmp_path / "threads", components=K, chunks=2, keep_records=False, timeout=TIMEOUT)
     assert_same_outputs(tmp_path / "threads", reference)
 
 
-def test_a_worker_killed_mid_run_changes_nothing(client, scan, tmp_path):
+@pytest.mark.parametrize("when", ["sketch", "shared fit (pass 3)"])
+def test_a_worker_killed_mid_run_changes_nothing(client, scan, tmp_path, when):
+    """Killed in the first pass over the image, or in the shared fit, when it holds
+    records in memory (Dask reads them again from Zarr on the other worker)."""
     image, reference = scan
+    client.wait_for_workers(2, timeout=TIMEOUT)
     pids = list(client.run(os.getpid, wait=True).values())
     killed = []
 
     def kill_one(stage, done, total):
-        if not killed and stage == "sketch" and done == 1:
+        if not killed and stage == when and done == 1:
             os.kill(pids[0], signal.SIGKILL)
             killed.append(pids[0])
 
     fdask.fit_image(
-        image, output=tmp_path / "killed", components=K, client=client, chunks=1, timeout=TIMEOUT, progress=kill_one
+        image,
+        output=tmp_path / "killed",
+        components=K,
+        client=client,
+        chunks=1,
+        record_chunks=1,
+        timeout=TIMEOUT,
+        progress=kill_one,
     )
     assert killed
     client.wait_for_workers(2, timeout=TIMEOUT)

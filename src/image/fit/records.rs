@@ -17,6 +17,7 @@ use super::colour::CellColours;
 use super::pixel::PixelModel;
 use super::scratch::{RecordLayout, Scratch};
 use super::shared::{Cells, Projected, Shared, Sums};
+use super::sketch::QuantileSketch;
 
 /// Records per chunk of a pass: the unit whose results are folded in order.
 pub const RECORD_CHUNK: usize = 4096;
@@ -53,13 +54,16 @@ pub enum RecordKernel {
 pub enum ChunkResult {
     /// Of [`RecordKernel::Scores`].
     Sums(Sums),
-    /// Of [`RecordKernel::Judge`]: per light, the ΔE2000 of each unmasked pixel in order;
-    /// per unmasked pixel, whether it meets its bound.
+    /// Of [`RecordKernel::Judge`]: per light, a sketch of the unmasked pixels' ΔE2000;
+    /// how many of them meet their bound. Its counts add exactly, so results of
+    /// consecutive chunks may come folded into the first ([`fold_exact`]).
     Judged {
-        /// ΔE2000 per light, then per unmasked pixel.
-        delta_e: Vec<Vec<f32>>,
-        /// Per unmasked pixel: within its bound under every light.
-        within: Vec<bool>,
+        /// Per light, the sketch of the pixels' ΔE2000.
+        delta_e: Vec<QuantileSketch>,
+        /// Unmasked pixels within their bound under every light.
+        within: usize,
+        /// Unmasked pixels judged.
+        judged: usize,
     },
     /// Of [`RecordKernel::Farthest`]: the farthest pixel's squared distance and image
     /// index, none when the chunk has no unmasked pixel.
@@ -181,7 +185,7 @@ impl<'a> RecordContext<'a> {
             Prepared::Judge(model) => {
                 let bound = self.options.max_delta_e;
                 let mut delta_e = vec![Vec::new(); self.options.lights.len()];
-                let mut within = Vec::new();
+                let (mut within, mut judged) = (0, 0);
                 for (_, r) in unmasked {
                     let fit = model.fit(r);
                     if fit.masked {
@@ -191,7 +195,8 @@ impl<'a> RecordContext<'a> {
                     for (l, d) in colours.delta_e.iter().enumerate() {
                         delta_e[l].push(*d as f32);
                     }
-                    within.push(
+                    judged += 1;
+                    within += usize::from(
                         colours
                             .delta_e
                             .iter()
@@ -199,7 +204,11 @@ impl<'a> RecordContext<'a> {
                             .all(|(d, n)| *d <= bound.max(crate::fit::assess::NOISE_COVERAGE * n)),
                     );
                 }
-                ChunkResult::Judged { delta_e, within }
+                ChunkResult::Judged {
+                    delta_e: delta_e.into_iter().map(QuantileSketch::of).collect(),
+                    within,
+                    judged,
+                }
             }
             Prepared::Farthest(directions) => {
                 let mut best: Option<(f64, usize)> = None;
@@ -327,22 +336,30 @@ impl Records<'_> {
         Ok(winner)
     }
 
-    /// ΔE2000 per light of every unmasked pixel (in pixel order) and how many meet their
-    /// bound, of the fit of `shared`.
-    pub fn judge(&self, shared: &Shared, sigma: f64) -> Result<(Vec<Vec<f64>>, usize, usize)> {
+    /// The fit of `shared` judged: per light, the sketch of the unmasked pixels' ΔE2000;
+    /// how many pixels meet their bound, and how many were judged.
+    pub fn judge(
+        &self,
+        shared: &Shared,
+        sigma: f64,
+    ) -> Result<(Vec<QuantileSketch>, usize, usize)> {
         let lights = self.context.options.lights.len();
-        let mut per_light: Vec<Vec<f64>> = vec![Vec::new(); lights];
+        let mut per_light = vec![QuantileSketch::default(); lights];
         let (mut inside, mut counted) = (0, 0);
         for result in self.map(&RecordKernel::Judge {
             shared: spectra(shared),
             sigma,
         })? {
             match result {
-                ChunkResult::Judged { delta_e, within } if delta_e.len() == lights => {
-                    counted += within.len();
-                    inside += within.iter().filter(|&&w| w).count();
-                    for (l, values) in delta_e.into_iter().enumerate() {
-                        per_light[l].extend(values.into_iter().map(f64::from));
+                ChunkResult::Judged {
+                    delta_e,
+                    within,
+                    judged,
+                } if delta_e.len() == lights => {
+                    counted += judged;
+                    inside += within;
+                    for (sketch, chunk) in per_light.iter_mut().zip(&delta_e) {
+                        sketch.merge(chunk);
                     }
                 }
                 _ => return Err(mismatch("Judge")),
@@ -370,6 +387,43 @@ impl Records<'_> {
         }
         let dimensions = (cells.saturating_sub(self.context.record.rank)).max(1) * pixels.max(1);
         Ok((outside / dimensions as f64).sqrt())
+    }
+}
+
+/// Folds into the first of `results` (consecutive chunks' results of one kernel) those
+/// whose fold is exact, leaving the others empty: the judge's counts and sketches. A
+/// worker sends one judge result for all its chunks instead of one per chunk, and the
+/// fit's figures are the same. Other kernels' results (sums of floating-point numbers,
+/// folded in chunk order) are left as they are.
+pub fn fold_exact(results: &mut [ChunkResult]) {
+    let Some((first, rest)) = results.split_first_mut() else {
+        return;
+    };
+    let ChunkResult::Judged {
+        delta_e,
+        within,
+        judged,
+    } = first
+    else {
+        return;
+    };
+    for result in rest {
+        if let ChunkResult::Judged {
+            delta_e: other,
+            within: w,
+            judged: j,
+        } = result
+            && other.len() == delta_e.len()
+        {
+            for (sketch, chunk) in delta_e.iter_mut().zip(other.iter()) {
+                sketch.merge(chunk);
+            }
+            *within += std::mem::take(w);
+            *judged += std::mem::take(j);
+            other
+                .iter_mut()
+                .for_each(|s| *s = QuantileSketch::default());
+        }
     }
 }
 
