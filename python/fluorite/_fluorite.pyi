@@ -6,7 +6,7 @@ Array orientation everywhere: a measurement's ``values`` is float64 of shape
 """
 
 import os
-from typing import Any, Callable, Dict, List, Literal, Optional, Protocol, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, Iterable, List, Literal, Optional, Protocol, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -564,16 +564,25 @@ class _ImageStages:
         non_finite_cells: int,
         read_rows: Callable[[int, int], npt.ArrayLike],
         map_chunks: Optional[Callable[[str, int], List[str]]] = None,
+        map_bands: Optional[Callable[[str], Iterable[Tuple[int, int, bytes]]]] = None,
     ) -> ImageFit:
         """The fit after the passes, from the records read_rows(y, rows) returns; with
         map_chunks(kernel, chunks), the passes over the records run through it (the
-        results of run_records on every chunk of RECORD_CHUNK records, in order)."""
+        results of run_records on every chunk of RECORD_CHUNK records, in order); with
+        map_bands(job) (uncompressed outputs), the EXR outputs' tiles are written by it:
+        (y, clamped, png) of write_band on bands of whole rows of 64-pixel tiles, in row
+        order; the PNGs are encoded here from their rows."""
     RECORD_CHUNK: int
     """Records per chunk of a pass over the records."""
     def run_records(
         self, basis: FloatArray, kernel: str, first: int, records: npt.NDArray[np.float32]
     ) -> List[str]:
         """A pass's results on records (n, record_len) of pixels first..first + n, one per chunk."""
+    def write_band(
+        self, job: str, basis: FloatArray, y: int, records: npt.NDArray[np.float32]
+    ) -> Tuple[int, bytes]:
+        """Writes rows y..y + rows (records (rows, width, record_len), whole rows of tiles)
+        of every EXR output of job into its staged files; returns (clamped pixels, PNG rows)."""
     def model_of(self, fit: ImageFit) -> str:
         """The model of a finished fit's pixels (JSON) for evaluate."""
     def evaluate(

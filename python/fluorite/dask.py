@@ -8,8 +8,11 @@ blocks' small contributions in block order, exactly as the command does, so the 
 does not depend on the number of workers or the chunking. The projection's per-pixel
 records are written to a Zarr array by the workers; every pass of the shared fit over
 those records (its iterations, the start and the judge of every K) runs on the workers
-too, the client folding each chunk's small result in chunk order; the client writes the
-command's files from the records through the same library code.
+too, on records they keep in memory, the client folding each chunk's small result in
+chunk order. The workers then write the uncompressed EXR outputs' tiles into files the
+client laid out (a row of tiles per task), and return the PNG rows, which the client
+encodes; with ``zip=True`` (compressed tiles have no place before they are compressed)
+the client writes every output from its copy of the records.
 
 ``fit_files`` fits many files as a Dask bag (``fluorite.fit_many`` on each partition)
 and gathers the fits, their materials and a summary table.
@@ -136,6 +139,14 @@ def _records_task(plan: _Plan, basis: np.ndarray, kernel: str, first: int, piece
     ``RECORD_CHUNK`` records but the image's last): one result per chunk, in order (the
     judge's folded into the first)."""
     return _stages(plan).run_records(_aligned(basis, np.float64), kernel, first, _aligned(piece, np.float32))
+
+
+def _band_task(plan: _Plan, job: str, basis: np.ndarray, records: str, y: int, rows: int) -> Tuple[int, bytes]:
+    """Rows y..y + rows (whole rows of tiles) of every EXR output, written by this worker
+    into the files the client laid out, from their records; returns the band's clamped
+    pixels and PNG rows."""
+    band = _aligned(zarr.open_array(records, mode="r")[y : y + rows], np.float32)
+    return _stages(plan).write_band(job, _aligned(basis, np.float64), y, band)
 
 
 def _maps_task(plan: _Plan, model: str, basis: np.ndarray, records: str, maps: str, y: int, rows: int) -> int:
@@ -403,6 +414,19 @@ def fit_image(
             results.extend(part)
         return results
 
+    # The EXR outputs (uncompressed: every tile's place is known) are written by the
+    # workers, a row of tiles per task, into files the client lays out; the client
+    # encodes the PNGs from the rows the tasks return, in order.
+    tile = 64
+
+    def map_bands(job: str) -> Iterable[Tuple[int, int, bytes]]:
+        starts = list(range(0, stages.height, tile))
+        tasks = [
+            dask.delayed(_band_task, pure=True)(plan_d, job, basis_d, records_path, y, min(tile, stages.height - y)) for y in starts
+        ]
+        for y, (clamped, png) in _pairs(starts, runner.ordered("outputs", tasks)):
+            yield y, clamped, png
+
     stored = zarr.open_array(records_path, mode="r")
     fit = stages.fit_records(
         output,
@@ -411,6 +435,7 @@ def fit_image(
         non_finite,
         lambda y, n: np.asarray(stored[y : y + n], dtype=np.float32),
         map_chunks,
+        map_bands,
     )
     del held  # the records leave the workers' memory
     resume.finish()

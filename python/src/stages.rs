@@ -13,7 +13,9 @@
 
 use std::sync::Mutex;
 
+use fluorite::image::fit::band::{BandOutputs, OutputJob, PngStyle, write_band};
 use fluorite::image::fit::colour::CellColours;
+use fluorite::image::fit::outputs::BandMapper;
 use fluorite::image::fit::passes::{Census, orthonormal};
 use fluorite::image::fit::records::{
     ChunkMapper, ChunkResult, RECORD_CHUNK, RecordContext, RecordKernel, fold_exact,
@@ -29,6 +31,7 @@ use numpy::{
     PyReadonlyArray2, PyReadonlyArray3, PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyIterator};
 
 use crate::convert::is_path;
 use crate::image::{PyImageFit, cell_indices, gather, grid, image_options};
@@ -623,8 +626,12 @@ impl PyImageStages {
     /// records of the shared fit run through it: `map_chunks(kernel, chunks)` returns, in
     /// order, the `chunks` results of `run_records(basis, kernel, first, records)` on
     /// every chunk of ``RECORD_CHUNK`` records (pixel order, the last shorter), as text.
+    /// With `map_bands` (and uncompressed outputs), the EXR outputs' tiles are written by
+    /// it: `map_bands(job)` returns an iterable of ``(y, clamped, png)``, the results of
+    /// ``write_band(job, y, records)`` on bands of whole rows of 64-pixel tiles covering
+    /// the image, in row order; the PNGs are encoded here from their rows.
     /// Returns an ``ImageFit``.
-    #[pyo3(signature = (output, basis, masked_pixels, non_finite_cells, read_rows, map_chunks = None))]
+    #[pyo3(signature = (output, basis, masked_pixels, non_finite_cells, read_rows, map_chunks = None, map_bands = None))]
     #[allow(clippy::too_many_arguments)]
     fn fit_records(
         &self,
@@ -635,6 +642,7 @@ impl PyImageStages {
         non_finite_cells: usize,
         read_rows: Py<PyAny>,
         map_chunks: Option<Py<PyAny>>,
+        map_bands: Option<Py<PyAny>>,
     ) -> PyResult<PyImageFit> {
         let out = crate::convert::path(output, "output")?;
         let basis = basis_of(basis, self.m, self.record.rank)?;
@@ -657,6 +665,11 @@ impl PyImageStages {
             raised: &raised,
         });
         let mapper = mapper.as_ref().map(|m| m as &dyn ChunkMapper);
+        let bands = map_bands.map(|call| PythonMapper {
+            call,
+            raised: &raised,
+        });
+        let bands = bands.as_ref().map(|m| m as &dyn BandMapper);
         let result = detached(py, "fluorite.dask fit", || {
             fit_image_from_records(
                 image,
@@ -704,6 +717,7 @@ impl PyImageStages {
                     Ok(())
                 },
                 mapper,
+                bands,
                 &|_| {},
             )
         });
@@ -775,6 +789,65 @@ impl PyImageStages {
                 })
                 .collect()
         })
+    }
+
+    /// A worker's part of ``fit_records``' `map_bands`: writes rows y..y + rows (whole
+    /// rows of 64-pixel tiles; `records` (rows, width, record_len) float32, their
+    /// records; basis (m, rank) the fit's) of every EXR output of `job` (text, as `map_bands` got it) into its
+    /// staged files, and returns ``(clamped, png)``: the band's pixels whose material
+    /// needed clamping and its rows of every PNG (bytes). GIL released.
+    fn write_band<'py>(
+        &self,
+        py: Python<'py>,
+        job: &str,
+        basis: PyReadonlyArray2<'py, f64>,
+        y: usize,
+        records: PyReadonlyArray3<'py, f32>,
+    ) -> PyResult<(usize, Bound<'py, PyBytes>)> {
+        let job: OutputJob = serde_json::from_str(job)
+            .map_err(|e| invalid("job", format!("not a job of fit_records' map_bands ({e})")))?;
+        let basis_values = basis_of(basis, self.m, self.record.rank)?;
+        let shape = records.shape().to_vec();
+        let (width, height) = (self.image().width(), self.image().height());
+        let len = self.record.len();
+        if shape.len() != 3 || shape[1] != width || shape[2] != len {
+            return Err(invalid(
+                "records",
+                format!("shape {shape:?}: expected (rows, {width}, {len})"),
+            ));
+        }
+        let rows = shape[0];
+        let values: Vec<f32> = records.as_array().iter().copied().collect();
+        let layout = self.image().layout().clone();
+        let (options, record) = (&self.options, self.record);
+        let band = detached(py, "fluorite.dask outputs", || {
+            let model = stages::pixel_model(
+                &layout,
+                options,
+                &job.shared,
+                &basis_values,
+                record,
+                job.sigma,
+            );
+            let cells = fluorite::image::fit::cells_of(&layout);
+            let vectors: Vec<Vec<f64>> = (0..job.shared.k)
+                .map(|c| job.shared.cell_vector(&cells, c))
+                .collect();
+            let style = PngStyle::new(&model, options.max_delta_e);
+            write_band(
+                &job,
+                &model,
+                &layout,
+                &vectors,
+                &style,
+                (width, height),
+                y,
+                rows,
+                &values,
+                len,
+            )
+        })?;
+        Ok((band.clamped, PyBytes::new(py, &band.png)))
     }
 
     /// The model of a finished fit's pixels, as text for `evaluate` (the chosen K's
@@ -878,6 +951,46 @@ fn floats_len(value: Option<&Bound<'_, PyAny>>, what: &str) -> PyResult<usize> {
             what,
             "is required for an image given as arrays (nm, 1-D)",
         )),
+    }
+}
+
+impl BandMapper for PythonMapper<'_> {
+    fn write_bands(
+        &self,
+        job: &OutputJob,
+        each: &mut dyn FnMut(usize, BandOutputs) -> fluorite::Result<()>,
+    ) -> fluorite::Result<bool> {
+        let text = serde_json::to_string(job)
+            .map_err(|e| fluorite::Error::invalid("job", e.to_string()))?;
+        let fail = |e: PyErr| {
+            *self.raised.lock().expect("not poisoned") = Some(e);
+            fluorite::Error::invalid("map_bands", "raised an exception")
+        };
+        let bands = Python::attach(|py| -> PyResult<Py<PyAny>> {
+            Ok(self
+                .call
+                .call1(py, (text,))?
+                .bind(py)
+                .try_iter()?
+                .into_any()
+                .unbind())
+        })
+        .map_err(fail)?;
+        loop {
+            // The GIL is held only to take the next band: the client's own threads
+            // (Dask's event loop) need it while this thread encodes the PNGs.
+            let next = Python::attach(|py| -> PyResult<Option<(usize, usize, Vec<u8>)>> {
+                match bands.bind(py).cast::<PyIterator>()?.clone().next() {
+                    None => Ok(None),
+                    Some(item) => Ok(Some(item?.extract()?)),
+                }
+            })
+            .map_err(fail)?;
+            let Some((y, clamped, png)) = next else {
+                return Ok(true);
+            };
+            each(y, BandOutputs { clamped, png })?;
+        }
     }
 }
 

@@ -119,6 +119,8 @@ def test_fit_image_writes_the_files_fit_image_writes_on_an_exr(client, scan, tmp
     )
     assert fitted.components == K
     assert ("sketch", 6, 6) in seen and ("projection", 6, 6) in seen and ("maps", 2, 2) in seen
+    # The EXR outputs' tiles were written by the workers: 96 rows are two rows of tiles.
+    assert ("outputs", 2, 2) in seen
     # The shared fit's passes over the records ran on the workers: 96 × 160 pixels are
     # four chunks of 4096 records, one task each (the noise, the start's extreme pixels,
     # every iteration and the judge).

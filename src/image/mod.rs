@@ -2,7 +2,7 @@
 //! fluorophores, a concentration per fluorophore and pixel, a reflectance per pixel).
 //!
 //! [`source`] streams an image's pixels block by block, [`sink`] writes images tile by
-//! tile, [`layout`] names the cells of a pixel, [`map`] is the material map every
+//! tile ([`tiles`]: the bytes and places of their tiles), [`layout`] names the cells of a pixel, [`map`] is the material map every
 //! downstream step reads, [`synth`] writes synthetic images with their truth. [`diff`]
 //! compares two images (a fit against its truth); [`per_pixel`] is the baseline that
 //! fits every pixel on its own.
@@ -15,6 +15,7 @@ pub mod per_pixel;
 pub mod sink;
 pub mod source;
 pub mod synth;
+pub mod tiles;
 
 pub use array::{ArrayImage, PixelSource};
 pub use layout::{Cell, Layout};

@@ -2,86 +2,22 @@
 //! tile is written, so an image of any size is written with a few tiles in memory. The
 //! file is written beside its target and renamed into place when complete.
 
-use std::collections::HashMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::Path;
 
 use exr::block::UncompressedBlock;
 use exr::block::writer::ChunksWriter;
-use exr::compression::Compression;
-use exr::math::{RoundingMode, Vec2};
-use exr::meta::BlockDescription;
-use exr::meta::attribute::{
-    AttributeValue, ChannelDescription, LevelMode, LineOrder, SampleType, Text, TileDescription,
-};
 use exr::meta::header::Header;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 
-/// Tile edge of every image fluorite writes: a 64 × 64 tile of a 49 × 41 bispectral
-/// image is 19 MB as 32-bit floats, whatever the image's width.
-pub const TILE: usize = 64;
-
-/// The fields before a tiled chunk's data: tile x, tile y, level x, level y, data size
-/// (an i32 each).
-const CHUNK_HEAD: usize = 5 * 4;
+use super::tiles::{CHUNK_HEAD, UncompressedLayout, fill_tile_chunk, header_of, tile_bytes};
+pub use super::tiles::{ImageSpec, Rect, TILE, TiledFile};
 
 /// Tiles produced and compressed together per thread.
 const TILES_PER_THREAD: usize = 1;
-
-/// A pixel rectangle of an image being written.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Rect {
-    /// First column.
-    pub x: usize,
-    /// First row.
-    pub y: usize,
-    /// Columns.
-    pub width: usize,
-    /// Rows.
-    pub height: usize,
-}
-
-impl Rect {
-    /// The pixels of an image block.
-    fn of_block(block: &exr::block::BlockIndex) -> Rect {
-        Rect {
-            x: block.pixel_position.x(),
-            y: block.pixel_position.y(),
-            width: block.pixel_size.x(),
-            height: block.pixel_size.y(),
-        }
-    }
-}
-
-/// What an image written by [`write_image`] holds.
-#[derive(Debug, Clone)]
-pub struct ImageSpec {
-    /// Pixels per row.
-    pub width: usize,
-    /// Rows.
-    pub height: usize,
-    /// Channel names, in the order the producer gives each pixel's values.
-    pub channels: Vec<String>,
-    /// 16-bit floats instead of 32-bit.
-    pub half: bool,
-    /// Lossless ZIP compression (smaller files, slower) instead of none.
-    pub zip: bool,
-    /// Text attributes of the header (name, value). `spectralLayoutVersion` is written as
-    /// its own attribute; the others are joined into the standard `comments` attribute.
-    pub attributes: Vec<(String, String)>,
-}
-
-/// OpenEXR text: Latin-1, other characters become `?`.
-fn text(s: &str) -> Text {
-    let latin1: String = s
-        .chars()
-        .map(|c| if (c as u32) < 256 { c } else { '?' })
-        .collect();
-    Text::new_or_none(latin1).unwrap_or_else(|| Text::from("?"))
-}
 
 /// Writes `path` tile by tile: `produce(rect)` returns the rectangle's pixels, row by row,
 /// each pixel's values in `spec.channels`' order. Tiles are produced in parallel, a few at
@@ -92,65 +28,7 @@ pub fn write_image(
     produce: impl Fn(Rect) -> Result<Vec<f32>> + Sync,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<()> {
-    let fail = |message: String| Error::invalid(path.display().to_string(), message);
-    if spec.width == 0 || spec.height == 0 || spec.channels.is_empty() {
-        return Err(fail("an image needs pixels and channels".into()));
-    }
-    // The file lists its channels sorted by name; `order[k]` is the producer's index of
-    // the file's k-th channel.
-    let mut order: Vec<usize> = (0..spec.channels.len()).collect();
-    order.sort_by(|&a, &b| spec.channels[a].cmp(&spec.channels[b]));
-    if let Some(w) = order
-        .windows(2)
-        .find(|w| spec.channels[w[0]] == spec.channels[w[1]])
-    {
-        return Err(fail(format!(
-            "channel {} is named twice",
-            spec.channels[w[0]]
-        )));
-    }
-    let sample_type = if spec.half {
-        SampleType::F16
-    } else {
-        SampleType::F32
-    };
-    let channels = order
-        .iter()
-        .map(|&k| ChannelDescription::new(text(&spec.channels[k]), sample_type, true))
-        .collect();
-    let mut header = Header::new(text("bispectral"), (spec.width, spec.height), channels)
-        .with_encoding(
-            if spec.zip {
-                Compression::ZIP16
-            } else {
-                Compression::Uncompressed
-            },
-            BlockDescription::Tiles(TileDescription {
-                tile_size: Vec2(TILE, TILE),
-                level_mode: LevelMode::Singular,
-                rounding_mode: RoundingMode::Down,
-            }),
-            LineOrder::Increasing,
-        );
-    header.own_attributes.layer_name = None;
-    // The exr crate keeps custom attributes in a hash map and writes them in random
-    // order: one custom attribute (the layout's version) keeps files byte-reproducible;
-    // every other attribute goes into the standard `comments` text.
-    let mut other: HashMap<Text, AttributeValue> = HashMap::new();
-    let mut comments = Vec::new();
-    for (name, value) in &spec.attributes {
-        if name == crate::formats::exr::VERSION_ATTRIBUTE {
-            other.insert(text(name), AttributeValue::Text(text(value)));
-        } else {
-            comments.push(format!("{name}: {value}"));
-        }
-    }
-    header.own_attributes.other = other;
-    if !comments.is_empty() {
-        header.own_attributes.comments = Some(text(&comments.join("; ")));
-    }
-    header.own_attributes.software_name =
-        Some(text(&format!("fluorite {}", env!("CARGO_PKG_VERSION"))));
+    let (header, order) = header_of(path, spec)?;
     let tmp = crate::files::stage_beside(path)?;
     let written = write_tiles(&tmp, header, spec, &order, &produce, &mut progress);
     match written {
@@ -160,96 +38,6 @@ pub fn write_image(
             Err(e)
         }
     }
-}
-
-/// A tile's values (pixel by pixel, channels in the producer's order) as the bytes of an
-/// uncompressed OpenEXR tile: row by row, each row channel by channel in the file's order.
-fn tile_bytes(values: &[f32], rect: Rect, spec: &ImageSpec, order: &[usize]) -> Result<Vec<u8>> {
-    let sample = if spec.half { 2 } else { 4 };
-    let mut data = vec![0u8; values.len() * sample];
-    fill_tile_bytes(values, rect, spec, order, &mut data)?;
-    Ok(data)
-}
-
-/// A whole uncompressed tiled chunk of `rect` into `chunk` (exactly its size): the
-/// chunk's fields (tile x, tile y, level 0, 0, data size), then [`fill_tile_bytes`].
-fn fill_tile_chunk(
-    values: &[f32],
-    rect: Rect,
-    spec: &ImageSpec,
-    order: &[usize],
-    chunk: &mut [u8],
-) -> Result<()> {
-    let (head, data) = chunk.split_at_mut(CHUNK_HEAD);
-    let size = i32::try_from(data.len())
-        .map_err(|_| Error::invalid("image writer", "a tile larger than an OpenEXR chunk"))?;
-    let tile = |v: usize| (v / TILE) as i32;
-    for (field, value) in head
-        .chunks_exact_mut(4)
-        .zip([tile(rect.x), tile(rect.y), 0, 0, size])
-    {
-        field.copy_from_slice(&value.to_le_bytes());
-    }
-    fill_tile_bytes(values, rect, spec, order, data)
-}
-
-/// [`tile_bytes`] written into `data` (exactly the tile's size).
-fn fill_tile_bytes(
-    values: &[f32],
-    rect: Rect,
-    spec: &ImageSpec,
-    order: &[usize],
-    data: &mut [u8],
-) -> Result<()> {
-    let channel_count = spec.channels.len();
-    let sample = if spec.half { 2 } else { 4 };
-    if values.len() != rect.width * rect.height * channel_count
-        || data.len() != values.len() * sample
-    {
-        return Err(Error::invalid(
-            "image writer",
-            format!(
-                "a tile of {}×{} pixels got {} values for {channel_count} channels",
-                rect.width,
-                rect.height,
-                values.len()
-            ),
-        ));
-    }
-    let width = rect.width;
-    // Each row is transposed to channel-major in cache-sized blocks first: gathering a
-    // channel straight from the pixel-major values reads one value per cache line.
-    const BLOCK: usize = 16;
-    let mut planar = vec![0f32; width * channel_count];
-    let mut out = data.chunks_exact_mut(width * sample);
-    for row in values.chunks_exact(width * channel_count) {
-        for x0 in (0..width).step_by(BLOCK) {
-            for c0 in (0..channel_count).step_by(BLOCK) {
-                let c1 = (c0 + BLOCK).min(channel_count);
-                for x in x0..(x0 + BLOCK).min(width) {
-                    for (c, &v) in
-                        (c0..c1).zip(&row[x * channel_count + c0..x * channel_count + c1])
-                    {
-                        planar[c * width + x] = v;
-                    }
-                }
-            }
-        }
-        for &c in order {
-            let samples = &planar[c * width..(c + 1) * width];
-            let line = out.next().expect("the data holds every row's channels");
-            if spec.half {
-                for (o, &v) in line.chunks_exact_mut(2).zip(samples) {
-                    o.copy_from_slice(&exr::prelude::f16::from_f32(v).to_le_bytes());
-                }
-            } else {
-                for (o, &v) in line.chunks_exact_mut(4).zip(samples) {
-                    o.copy_from_slice(&v.to_le_bytes());
-                }
-            }
-        }
-    }
-    Ok(())
 }
 
 fn write_tiles(
@@ -410,55 +198,18 @@ fn write_uncompressed_tiles(
     direct: Direct,
 ) -> Result<()> {
     let io = |e: std::io::Error| Error::io(tmp, e);
-    let encode_failure = |e: exr::error::Error| {
-        Error::io(
-            tmp,
-            std::io::Error::other(format!("OpenEXR writing failed: {e}")),
-        )
-    };
-    let headers = [header];
-    let requirements = exr::meta::MetaData::validate(&headers, true).map_err(encode_failure)?;
-    let mut head = Vec::new();
-    exr::meta::magic_number::write(&mut head).map_err(encode_failure)?;
-    requirements.write(&mut head).map_err(encode_failure)?;
-    exr::meta::header::Header::write_all(&headers, &mut head, requirements.has_multiple_layers)
-        .map_err(encode_failure)?;
-    let blocks: Vec<(usize, exr::block::BlockIndex)> =
-        exr::block::enumerate_ordered_header_block_indices(&headers).collect();
+    let UncompressedLayout {
+        headers,
+        head,
+        blocks,
+        offsets,
+        length: next,
+    } = UncompressedLayout::of(tmp, header, spec)?;
     let total = blocks.len();
     let sample_bytes = if spec.half { 2 } else { 4 };
     let data_size = |b: &exr::block::BlockIndex| {
         b.pixel_size.x() * b.pixel_size.y() * spec.channels.len() * sample_bytes
     };
-    if let Some(block) = blocks
-        .iter()
-        .find(|(_, b)| i32::try_from(data_size(b)).is_err())
-    {
-        return Err(Error::invalid(
-            tmp.display().to_string(),
-            format!(
-                "a tile of {} channels is {} bytes, more than an OpenEXR chunk holds; write fewer channels",
-                spec.channels.len(),
-                data_size(&block.1)
-            ),
-        ));
-    }
-    // The chunks follow the offset table in the order of `blocks`.
-    let mut offsets = vec![0u64; total];
-    let mut next = (head.len() + 8 * total) as u64;
-    for (index, block) in &blocks {
-        offsets[*index] = next;
-        next += (CHUNK_HEAD + data_size(block)) as u64;
-    }
-    for offset in &offsets {
-        head.extend_from_slice(&offset.to_le_bytes());
-    }
-    if usize::try_from(next).is_err() {
-        return Err(Error::invalid(
-            tmp.display().to_string(),
-            "the image is larger than this machine's address space",
-        ));
-    }
     if direct == Direct::Large && next < DIRECT_MIN_BYTES {
         // Small: the page cache takes it cheaply (measured: the 64² criterion bench
         // 0.20 s through per-tile maps, 0.16 s through the exr crate's buffered writer).
@@ -710,6 +461,14 @@ mod tests {
         let mut progress = |_, _| {};
         match how {
             "exr" => write_tiles_with_exr(&path, header, spec, &order, &produce, &mut progress),
+            "shared" => {
+                // Two writers, each its own tiles, the second first.
+                let file = TiledFile::plan(&path, spec).unwrap();
+                file.create(&path).unwrap();
+                let half = file.tiles() / 2;
+                file.write_tiles(&path, half..file.tiles(), &produce)
+                    .and_then(|()| file.write_tiles(&path, 0..half, &produce))
+            }
             "map" => write_uncompressed_tiles(
                 &path,
                 header,
@@ -745,6 +504,7 @@ mod tests {
             let map = written(dir.path(), "b.exr", &spec, "map");
             let direct = written(dir.path(), "d.exr", &spec, "direct");
             let crate_bytes = written(dir.path(), "c.exr", &spec, "exr");
+            let shared = written(dir.path(), "s.exr", &spec, "shared");
             assert!(half || ours.len() > 8 << 20, "{}", ours.len());
             assert!(
                 ours == crate_bytes,
@@ -757,6 +517,10 @@ mod tests {
             assert!(
                 map == crate_bytes,
                 "the mapped writer (half {half}) differs from the exr crate's writer"
+            );
+            assert!(
+                shared == crate_bytes,
+                "the shared file's writers (half {half}) differ from the exr crate's writer"
             );
             // And the exr crate reads back every value.
             let image =

@@ -12,6 +12,7 @@
 // iterator chains over four zipped slices would hide the algebra they follow.
 #![allow(clippy::needless_range_loop)]
 
+pub mod band;
 pub mod colour;
 pub mod gauge;
 pub mod gemm;
@@ -384,7 +385,7 @@ fn run(
         scratch
     };
     let fit = conclude(
-        image, out, options, report, &mut state, &basis, &census, &scratch, None, resumed,
+        image, out, options, report, &mut state, &basis, &census, &scratch, None, None, resumed,
     )?;
     state.finish()?;
     Ok(fit)
@@ -397,7 +398,9 @@ fn run(
 /// for K = 1, 2, …, the gauge and the outputs, written into `out` from the scratch file
 /// (kept in `out`'s work folder while it runs). With `mapper`, the passes over the records
 /// of the shared fit (its iterations, start and judge of every K, the noise) run there,
-/// on the cluster's copy of the same records, with the same results. Only `image`'s size,
+/// on the cluster's copy of the same records, with the same results; with `bands` (and
+/// uncompressed outputs), the EXR outputs' tiles are written there too
+/// ([`band::write_band`]), the PNGs encoded here from the rows it returns. Only `image`'s size,
 /// layout and names are used, never its pixels. An earlier run's work folder in `out` is replaced: this run
 /// resumes nothing.
 #[allow(clippy::too_many_arguments)]
@@ -409,6 +412,7 @@ pub fn fit_image_from_records(
     census: &passes::Census,
     fill: impl FnOnce(&Scratch) -> Result<()>,
     mapper: Option<&dyn records::ChunkMapper>,
+    bands: Option<&dyn outputs::BandMapper>,
     report: &(dyn Fn(Step) + Sync),
 ) -> Result<ImageFit> {
     options.validate()?;
@@ -452,6 +456,7 @@ pub fn fit_image_from_records(
         census,
         &scratch,
         mapper,
+        bands,
         Vec::new(),
     )?;
     state.finish()?;
@@ -471,6 +476,7 @@ fn conclude(
     census: &passes::Census,
     scratch: &Scratch,
     mapper: Option<&dyn records::ChunkMapper>,
+    bands: Option<&dyn outputs::BandMapper>,
     mut resumed: Vec<String>,
 ) -> Result<ImageFit> {
     let layout = &image.layout();
@@ -589,7 +595,7 @@ fn conclude(
     );
     let written = outputs::write_all(
         out, image, scratch, &model, &gauge, &trial, &trials, census, options, state, report,
-        &notes,
+        &notes, bands,
     )?;
     if census.masked_pixels > 0 {
         notes.push(format!(

@@ -10,13 +10,17 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
-use crate::colour::{D65_WHITE, adapt_bradford, xyz_to_srgb8};
 use crate::error::{Error, Result};
 use crate::files::write_atomic;
 use crate::image::array::PixelSource;
 use crate::image::map::{MaterialMap, SCHEMA, Textures, concentration_channel};
-use crate::image::sink::{ImageSpec, Rect, write_image};
+use crate::image::sink::{Rect, TiledFile, write_image};
 
+pub use super::band::file_part;
+use super::band::{
+    BandOutputs, EXR_OUTPUTS, GAP, OutputJob, PngStyle, concentration_values, delta_e_values,
+    exr_specs, fitted_values, reflectance_values,
+};
 use super::gauge::Gauge;
 use super::passes::Census;
 use super::pixel::{PixelColours, PixelFit, PixelModel};
@@ -24,10 +28,6 @@ use super::scratch::Scratch;
 use super::state::State;
 use super::{ImageFitOptions, Step, Trial};
 
-/// The top of the ΔE2000 false-colour scale, in multiples of the bound.
-const DELTA_E_SCALE: f64 = 2.0;
-/// Columns between the measured and the fitted image in the light PNGs.
-const GAP: usize = 8;
 /// PNG rows computed together per thread.
 const ROWS_PER_THREAD: usize = 16;
 
@@ -72,17 +72,17 @@ fn fits_with_colours(
     Ok(out)
 }
 
-/// A light's name as a file-name part (the channels of `delta-e.exr`, the PNGs' names).
-pub fn file_part(name: &str) -> String {
-    name.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' {
-                c.to_ascii_lowercase()
-            } else {
-                '_'
-            }
-        })
-        .collect()
+/// Writes the bands of a fit's uncompressed EXR outputs elsewhere: the workers of a
+/// cluster, each running [`super::band::write_band`] on its rows' records.
+pub trait BandMapper: Sync {
+    /// Runs `write_band` of `job` on bands of whole rows of tiles covering the image
+    /// and hands each band's first row and result to `each`, in row order. Returns false
+    /// when it writes nothing (the outputs are then written here).
+    fn write_bands(
+        &self,
+        job: &OutputJob,
+        each: &mut dyn FnMut(usize, BandOutputs) -> Result<()>,
+    ) -> Result<bool>;
 }
 
 /// Removes what an earlier run killed while writing this folder's outputs left of them:
@@ -115,7 +115,8 @@ fn remove_leftovers(out: &Path) {
     }
 }
 
-/// Writes every output of the fit into `out`.
+/// Writes every output of the fit into `out`; with `bands` (and uncompressed outputs),
+/// the EXR outputs' tiles are written by its workers.
 #[allow(clippy::too_many_arguments)]
 pub fn write_all(
     out: &Path,
@@ -130,6 +131,7 @@ pub fn write_all(
     state: &mut State,
     report: &(dyn Fn(Step) + Sync),
     notes: &[String],
+    bands: Option<&dyn BandMapper>,
 ) -> Result<Written> {
     remove_leftovers(out);
     let (width, height) = (image.width(), image.height());
@@ -151,157 +153,155 @@ pub fn write_all(
             total,
         })
     };
-
-    // concentration.exr: counts the clamped pixels on the way.
-    let concentration_path = out.join("concentration.exr");
-    step("writing concentration.exr", tiles);
-    write_image(
-        &concentration_path,
-        &ImageSpec {
-            width,
-            height,
-            channels: (0..k).map(concentration_channel).collect(),
-            half: false,
-            zip: options.zip,
-            attributes: attributes.clone(),
-        },
-        |rect| {
-            let mut v = Vec::with_capacity(rect.width * rect.height * k);
-            for f in fits(scratch, model, width, rect)? {
-                if f.clamped {
-                    clamped.fetch_add(1, Ordering::Relaxed);
-                }
-                v.extend(f.concentration[..k].iter().map(|&c| c as f32));
-            }
-            Ok(v)
-        },
-        |d, _| report(Step::Done(d)),
-    )?;
-    files.push(concentration_path);
-
-    // reflectance.exr: the reflective spectral layout.
-    let reflectance_path = out.join("reflectance.exr");
-    let diagonal_names: Vec<String> = layout.channel_names()[..nd].to_vec();
-    step("writing reflectance.exr", tiles);
-    write_image(
-        &reflectance_path,
-        &ImageSpec {
-            width,
-            height,
-            channels: diagonal_names,
-            half: false,
-            zip: options.zip,
-            attributes: attributes.clone(),
-        },
-        |rect| {
-            let mut v = Vec::with_capacity(rect.width * rect.height * nd);
-            for f in fits(scratch, model, width, rect)? {
-                v.extend(f.reflectance.iter().map(|&r| r as f32));
-            }
-            Ok(v)
-        },
-        |d, _| report(Step::Done(d)),
-    )?;
-    files.push(reflectance_path);
-
-    // fitted.exr, delta-e.exr and the PNGs are written at the same time: fitted.exr is
-    // as large as the input, and copying it into the file is one thread's work (about
-    // 1 GB/s here) that would otherwise leave the other threads idle. One progress bar
-    // counts the tiles and rows of all three.
-    let fitted_path = out.join("fitted.exr");
-    let delta_path = out.join("delta-e.exr");
     let lights = model.lights().to_vec();
+    let specs = exr_specs(
+        (width, height),
+        layout,
+        k,
+        &lights,
+        image.half(),
+        options.zip,
+        &attributes,
+    );
+    let [
+        concentration_path,
+        reflectance_path,
+        fitted_path,
+        delta_path,
+    ] = EXR_OUTPUTS.map(|name| out.join(name));
     let vectors: Vec<Vec<f64>> = (0..k)
         .map(|c| trial.shared.cell_vector(&super::cells_of(layout), c))
         .collect();
-    step(
-        "writing fitted.exr, delta-e.exr and the PNG images",
-        2 * tiles + height,
-    );
-    let done = AtomicUsize::new(0);
-    let advance =
-        |units: usize| report(Step::Done(done.fetch_add(units, Ordering::Relaxed) + units));
-    let write_fitted = || {
-        let mut last = 0;
-        write_image(
+    let style = PngStyle::new(model, options.max_delta_e);
+
+    // Uncompressed outputs with a mapper: written by the workers, band by band.
+    let mut elsewhere = false;
+    if let (Some(mapper), false) = (bands, options.zip) {
+        let job_paths = [
+            &concentration_path,
+            &reflectance_path,
             &fitted_path,
-            &ImageSpec {
-                width,
-                height,
-                channels: layout.channel_names(),
-                half: image.half(),
-                zip: options.zip,
-                attributes: attributes.clone(),
-            },
-            |rect| {
-                let mut v = Vec::with_capacity(rect.width * rect.height * layout.len());
-                for f in fits(scratch, model, width, rect)? {
-                    v.extend(f.fitted_diagonal.iter().map(|&d| d as f32));
-                    for j in 0..layout.len() - nd {
-                        let value: f64 = if f.masked {
-                            f64::NAN
-                        } else {
-                            (0..k).map(|c| f.scores[c] * vectors[c][j]).sum()
-                        };
-                        v.push(value as f32);
-                    }
-                }
-                Ok(v)
-            },
-            |d, _| {
-                advance(d - last);
-                last = d;
-            },
-        )
-    };
-    let write_rest = || -> Result<Vec<PathBuf>> {
-        let mut last = 0;
-        write_image(
             &delta_path,
-            &ImageSpec {
-                width,
-                height,
-                channels: lights.iter().map(|l| file_part(l)).collect(),
-                half: false,
-                zip: options.zip,
-                attributes: attributes.clone(),
-            },
+        ];
+        if let Some((pngs, band_clamped)) = write_elsewhere(
+            out,
+            mapper,
+            &specs,
+            job_paths,
+            model,
+            trial,
+            image.half(),
+            &attributes,
+            &style,
+            (width, height),
+            report,
+        )? {
+            clamped.store(band_clamped, Ordering::Relaxed);
+            files.extend(job_paths.iter().map(|p| p.to_path_buf()));
+            files.extend(pngs);
+            elsewhere = true;
+        }
+    }
+
+    if !elsewhere {
+        // concentration.exr: counts the clamped pixels on the way.
+        step("writing concentration.exr", tiles);
+        write_image(
+            &concentration_path,
+            &specs[0],
             |rect| {
-                let mut v = Vec::with_capacity(rect.width * rect.height * lights.len());
-                for (_, colours) in fits_with_colours(scratch, model, width, rect)? {
-                    v.extend(colours.delta_e.iter().map(|&d| d as f32));
+                let mut v = Vec::with_capacity(rect.width * rect.height * k);
+                for f in fits(scratch, model, width, rect)? {
+                    if f.clamped {
+                        clamped.fetch_add(1, Ordering::Relaxed);
+                    }
+                    concentration_values(&f, k, &mut v);
                 }
                 Ok(v)
             },
-            |d, _| {
-                advance(d - last);
-                last = d;
-            },
+            |d, _| report(Step::Done(d)),
         )?;
-        // ΔE false colour and measured | fitted under each light, row by row.
-        write_pngs(
-            out,
-            scratch,
-            model,
-            width,
-            height,
-            options.max_delta_e,
-            &advance,
-        )
-    };
-    let (fitted, rest) = std::thread::scope(|scope| {
-        let fitted = scope.spawn(write_fitted);
-        let rest = write_rest();
-        (fitted.join(), rest)
-    });
-    let fitted = fitted.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-    match (fitted, rest) {
-        (Ok(()), Ok(pngs)) => {
-            files.push(fitted_path);
-            files.push(delta_path);
-            files.extend(pngs);
+        files.push(concentration_path);
+
+        // reflectance.exr: the reflective spectral layout.
+        step("writing reflectance.exr", tiles);
+        write_image(
+            &reflectance_path,
+            &specs[1],
+            |rect| {
+                let mut v = Vec::with_capacity(rect.width * rect.height * nd);
+                for f in fits(scratch, model, width, rect)? {
+                    reflectance_values(&f, &mut v);
+                }
+                Ok(v)
+            },
+            |d, _| report(Step::Done(d)),
+        )?;
+        files.push(reflectance_path);
+
+        // fitted.exr, delta-e.exr and the PNGs are written at the same time: fitted.exr is
+        // as large as the input, and copying it into the file is one thread's work (about
+        // 1 GB/s here) that would otherwise leave the other threads idle. One progress bar
+        // counts the tiles and rows of all three.
+        step(
+            "writing fitted.exr, delta-e.exr and the PNG images",
+            2 * tiles + height,
+        );
+        let done = AtomicUsize::new(0);
+        let advance =
+            |units: usize| report(Step::Done(done.fetch_add(units, Ordering::Relaxed) + units));
+        let write_fitted = || {
+            let mut last = 0;
+            write_image(
+                &fitted_path,
+                &specs[2],
+                |rect| {
+                    let mut v = Vec::with_capacity(rect.width * rect.height * layout.len());
+                    for f in fits(scratch, model, width, rect)? {
+                        fitted_values(&f, &vectors, &mut v);
+                    }
+                    Ok(v)
+                },
+                |d, _| {
+                    advance(d - last);
+                    last = d;
+                },
+            )
+        };
+        let write_rest = || -> Result<Vec<PathBuf>> {
+            let mut last = 0;
+            write_image(
+                &delta_path,
+                &specs[3],
+                |rect| {
+                    let mut v = Vec::with_capacity(rect.width * rect.height * lights.len());
+                    for (_, colours) in fits_with_colours(scratch, model, width, rect)? {
+                        delta_e_values(&colours, &mut v);
+                    }
+                    Ok(v)
+                },
+                |d, _| {
+                    advance(d - last);
+                    last = d;
+                },
+            )?;
+            // ΔE false colour and measured | fitted under each light, row by row.
+            write_pngs(out, scratch, model, &style, width, height, &advance)
+        };
+        let (fitted, rest) = std::thread::scope(|scope| {
+            let fitted = scope.spawn(write_fitted);
+            let rest = write_rest();
+            (fitted.join(), rest)
+        });
+        let fitted = fitted.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        match (fitted, rest) {
+            (Ok(()), Ok(pngs)) => {
+                files.push(fitted_path);
+                files.push(delta_path);
+                files.extend(pngs);
+            }
+            (Err(e), _) | (_, Err(e)) => return Err(e),
         }
-        (Err(e), _) | (_, Err(e)) => return Err(e),
     }
 
     // The material map, last: its presence means the textures are complete. Nothing in
@@ -363,45 +363,100 @@ pub fn write_all(
     })
 }
 
+/// The PNGs of a fit (per light, the ΔE2000 map and the image measured | fitted), being
+/// written row by row in order: each staged beside its target until [`PngFiles::finish`].
+struct PngFiles {
+    targets: Vec<(PathBuf, PathBuf)>,
+    writers: Vec<png::StreamWriter<'static, BufWriter<File>>>,
+    width: usize,
+}
+
+impl PngFiles {
+    fn create(out: &Path, lights: &[String], width: usize, height: usize) -> Result<PngFiles> {
+        let mut targets = Vec::new();
+        let mut writers = Vec::new();
+        for light in lights {
+            for (name, w) in [
+                (format!("delta-e-{}.png", file_part(light)), width),
+                (format!("under-{}.png", file_part(light)), 2 * width + GAP),
+            ] {
+                let path = out.join(name);
+                let tmp = crate::files::stage_beside(&path)?;
+                let file = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+                let mut encoder = png::Encoder::new(BufWriter::new(file), w as u32, height as u32);
+                encoder.set_color(png::ColorType::Rgb);
+                encoder.set_depth(png::BitDepth::Eight);
+                let writer = encoder
+                    .write_header()
+                    .and_then(|w| w.into_stream_writer())
+                    .map_err(|e| Error::io(&tmp, std::io::Error::other(e.to_string())))?;
+                targets.push((path, tmp));
+                writers.push(writer);
+            }
+        }
+        Ok(PngFiles {
+            targets,
+            writers,
+            width,
+        })
+    }
+
+    /// The next `rows` (each [`PngStyle::row_bytes`] long, laid out as it says) into
+    /// every PNG; each PNG is encoded by its own thread (deflate is most of the writing).
+    fn write_rows(&mut self, style: &PngStyle, rows: &[u8]) -> Result<()> {
+        let width = self.width;
+        let row_bytes = style.row_bytes(width);
+        let targets = &self.targets;
+        self.writers
+            .par_iter_mut()
+            .enumerate()
+            .try_for_each(|(i, writer)| {
+                let (l, under) = (i / 2, i % 2 == 1);
+                rows.chunks_exact(row_bytes).try_for_each(|row| {
+                    let (delta_row, under_row) = style.split(row, width, l);
+                    writer
+                        .write_all(if under { under_row } else { delta_row })
+                        .map_err(|e| Error::io(&targets[i].1, e))
+                })
+            })
+    }
+
+    /// Ends every PNG and moves it into place.
+    fn finish(self) -> Result<Vec<PathBuf>> {
+        let mut files = Vec::new();
+        for (writer, (path, tmp)) in self.writers.into_iter().zip(self.targets) {
+            writer
+                .finish()
+                .map_err(|e| Error::io(&tmp, std::io::Error::other(e.to_string())))?;
+            crate::files::persist_staged(&tmp, &path)?;
+            files.push(path);
+        }
+        Ok(files)
+    }
+
+    /// Removes the staged files (after a failure).
+    fn discard(self) {
+        for (_, tmp) in &self.targets {
+            crate::files::discard_staged(tmp);
+        }
+    }
+}
+
 /// The ΔE2000 maps and the images under each light, row by row; `advance` gets the rows
 /// written since its last call.
 fn write_pngs(
     out: &Path,
     scratch: &Scratch,
     model: &PixelModel,
+    style: &PngStyle,
     width: usize,
     height: usize,
-    bound: f64,
     advance: &(dyn Fn(usize) + Sync),
 ) -> Result<Vec<PathBuf>> {
-    let lights = model.lights().to_vec();
-    let mut targets = Vec::new();
-    let mut writers = Vec::new();
-    for light in &lights {
-        for (name, w) in [
-            (format!("delta-e-{}.png", file_part(light)), width),
-            (format!("under-{}.png", file_part(light)), 2 * width + GAP),
-        ] {
-            let path = out.join(name);
-            let tmp = crate::files::stage_beside(&path)?;
-            let file = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
-            let mut encoder = png::Encoder::new(BufWriter::new(file), w as u32, height as u32);
-            encoder.set_color(png::ColorType::Rgb);
-            encoder.set_depth(png::BitDepth::Eight);
-            let writer = encoder
-                .write_header()
-                .and_then(|w| w.into_stream_writer())
-                .map_err(|e| Error::io(&tmp, std::io::Error::other(e.to_string())))?;
-            targets.push((path, tmp));
-            writers.push(writer);
-        }
-    }
-    let png_error =
-        |path: &Path, e: png::EncodingError| Error::io(path, std::io::Error::other(e.to_string()));
-    let whites: Vec<[f64; 3]> = (0..lights.len()).map(|l| model.white(l)).collect();
-    // One row's pixels of every PNG: per light, the ΔE map's row and the light image's.
-    let row_pixels = |y: usize| -> Result<Vec<(Vec<u8>, Vec<u8>)>> {
-        let row = fits_with_colours(
+    let mut pngs = PngFiles::create(out, model.lights(), width, height)?;
+    // One row of every PNG.
+    let row_pixels = |y: usize| -> Result<Vec<u8>> {
+        let fits = fits_with_colours(
             scratch,
             model,
             width,
@@ -412,61 +467,122 @@ fn write_pngs(
                 height: 1,
             },
         )?;
-        Ok((0..lights.len())
-            .map(|l| {
-                let mut delta = Vec::with_capacity(width * 3);
-                let mut under = vec![255u8; (2 * width + GAP) * 3];
-                for (x, (f, colours)) in row.iter().enumerate() {
-                    let o = (width + GAP + x) * 3;
-                    if f.masked {
-                        delta.extend([128, 128, 128]);
-                        under[x * 3..x * 3 + 3].copy_from_slice(&[128, 128, 128]);
-                        under[o..o + 3].copy_from_slice(&[128, 128, 128]);
-                        continue;
-                    }
-                    let c = crate::plot::colormap::viridis(
-                        colours.delta_e[l] / (DELTA_E_SCALE * bound),
-                    );
-                    delta.extend([c.0, c.1, c.2]);
-                    let show = |xyz: [f64; 3]| {
-                        let adapted = adapt_bradford(xyz, whites[l], D65_WHITE.map(|v| v * 100.0));
-                        xyz_to_srgb8(adapted.map(|v| v / 100.0))
-                    };
-                    under[x * 3..x * 3 + 3].copy_from_slice(&show(colours.measured_xyz[l]));
-                    under[o..o + 3].copy_from_slice(&show(colours.fitted_xyz[l]));
-                }
-                (delta, under)
-            })
-            .collect())
+        let mut row = style.blank_row(width);
+        for (x, (f, colours)) in fits.iter().enumerate() {
+            style.fill(&mut row, width, x, f, colours);
+        }
+        Ok(row)
     };
     // Rows are computed in parallel a band at a time and written in order.
     let band = ROWS_PER_THREAD * rayon::current_num_threads().max(1);
-    for first in (0..height).step_by(band) {
-        crate::files::check_interrupted(out)?;
-        let rows = (first..(first + band).min(height))
-            .into_par_iter()
-            .map(row_pixels)
-            .collect::<Result<Vec<_>>>()?;
-        // Each PNG is encoded by its own thread (deflate is most of the writing).
-        writers
-            .par_iter_mut()
-            .enumerate()
-            .try_for_each(|(i, writer)| {
-                let (l, under) = (i / 2, i % 2 == 1);
-                rows.iter().try_for_each(|row| {
-                    let (delta_row, under_row) = &row[l];
-                    writer
-                        .write_all(if under { under_row } else { delta_row })
-                        .map_err(|e| Error::io(&targets[i].1, e))
-                })
-            })?;
-        advance((first + band).min(height) - first);
+    let written = (|| -> Result<()> {
+        for first in (0..height).step_by(band) {
+            crate::files::check_interrupted(out)?;
+            let rows = (first..(first + band).min(height))
+                .into_par_iter()
+                .map(row_pixels)
+                .collect::<Result<Vec<_>>>()?;
+            pngs.write_rows(style, &rows.concat())?;
+            advance((first + band).min(height) - first);
+        }
+        Ok(())
+    })();
+    match written {
+        Ok(()) => pngs.finish(),
+        Err(e) => {
+            pngs.discard();
+            Err(e)
+        }
     }
-    let mut files = Vec::new();
-    for (writer, (path, tmp)) in writers.into_iter().zip(targets) {
-        writer.finish().map_err(|e| png_error(&tmp, e))?;
-        crate::files::persist_staged(&tmp, &path)?;
-        files.push(path);
+}
+
+/// The EXR outputs written by `mapper`'s workers into files laid out here (each staged
+/// beside its target, moved into place when every band is written), and the PNGs encoded
+/// here from the bands' rows, in order. None when the mapper writes nothing.
+#[allow(clippy::too_many_arguments)]
+fn write_elsewhere(
+    out: &Path,
+    mapper: &dyn BandMapper,
+    specs: &[crate::image::sink::ImageSpec; 4],
+    paths: [&PathBuf; 4],
+    model: &PixelModel,
+    trial: &Trial,
+    half: bool,
+    attributes: &[(String, String)],
+    style: &PngStyle,
+    (width, height): (usize, usize),
+    report: &(dyn Fn(Step) + Sync),
+) -> Result<Option<(Vec<PathBuf>, usize)>> {
+    let mut staged = Vec::new();
+    let result = (|| -> Result<Option<(Vec<PathBuf>, usize)>> {
+        for (spec, path) in specs.iter().zip(paths) {
+            let tmp = crate::files::stage_beside(path)?;
+            staged.push(tmp.clone());
+            TiledFile::plan(&tmp, spec)?.create(&tmp)?;
+        }
+        let job = OutputJob {
+            shared: trial.shared.clone(),
+            sigma: model.sigma(),
+            staged: staged.clone(),
+            attributes: attributes.to_vec(),
+            half,
+        };
+        report(Step::Stage {
+            what: "writing the outputs (workers: the EXR tiles; here: the PNG images)".into(),
+            total: height,
+        });
+        let mut pngs = PngFiles::create(out, model.lights(), width, height)?;
+        let (mut next, mut clamped) = (0usize, 0usize);
+        let row_bytes = style.row_bytes(width);
+        let mut each = |y: usize, band: BandOutputs| -> Result<()> {
+            let rows = band.png.len() / row_bytes;
+            if y != next || rows == 0 || rows * row_bytes != band.png.len() || y + rows > height {
+                return Err(Error::invalid(
+                    "outputs",
+                    format!(
+                        "a band of rows {y}..{} came where row {next} was due",
+                        y + rows
+                    ),
+                ));
+            }
+            pngs.write_rows(style, &band.png)?;
+            clamped += band.clamped;
+            next += rows;
+            report(Step::Done(next));
+            Ok(())
+        };
+        let ran = mapper.write_bands(&job, &mut each);
+        let complete = match ran {
+            Ok(true) if next == height => Ok(true),
+            Ok(true) => Err(Error::invalid(
+                "outputs",
+                format!("the bands ended at row {next} of {height}"),
+            )),
+            Ok(false) => Ok(false),
+            Err(e) => Err(e),
+        };
+        match complete {
+            Ok(true) => {
+                let files = pngs.finish()?;
+                for (tmp, path) in staged.iter().zip(paths) {
+                    crate::files::persist_staged(tmp, path)?;
+                }
+                Ok(Some((files, clamped)))
+            }
+            Ok(false) => {
+                pngs.discard();
+                Ok(None)
+            }
+            Err(e) => {
+                pngs.discard();
+                Err(e)
+            }
+        }
+    })();
+    if !matches!(result, Ok(Some(_))) {
+        for tmp in &staged {
+            crate::files::discard_staged(tmp);
+        }
     }
-    Ok(files)
+    result
 }

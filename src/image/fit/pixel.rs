@@ -145,6 +145,11 @@ impl PixelModel {
         self.k
     }
 
+    /// The cell noise σ the colours are judged at.
+    pub fn sigma(&self) -> f64 {
+        self.sigma
+    }
+
     /// The material of the pixel whose scratch record is `r`.
     pub fn fit(&self, r: &[f32]) -> PixelFit {
         let (k, nd) = (self.k, self.diagonal);
