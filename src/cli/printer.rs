@@ -513,6 +513,9 @@ pub fn joint_summary(fit: &JointFit, dir: &Path, matches: Option<&[AnalyteMatch]
             comp.peak_emission_nm,
             100.0 * comp.share
         ));
+        if let Some(o) = &comp.scatter {
+            out.push_str(&format!("    {}\n", scatter_text(c + 1, o)));
+        }
     }
     if let Some((worst, r)) = fit
         .samples
@@ -533,6 +536,43 @@ pub fn joint_summary(fit: &JointFit, dir: &Path, matches: Option<&[AnalyteMatch]
         ));
     }
     out
+}
+
+/// The scatter check of component `k` (1-based): its emission's share inside the
+/// Rayleigh bands at its excitation maximum, each band, and the Raman bands' share.
+fn scatter_text(k: usize, o: &fluorite::fit::joint::scatter::ScatterOverlap) -> String {
+    use fluorite::eem::scatter::ScatterLine;
+    let bands = |raman: bool| {
+        o.lines
+            .iter()
+            .filter(|l| matches!(l.line, ScatterLine::Raman1 | ScatterLine::Raman2) == raman)
+            .map(|l| {
+                format!(
+                    "{} {:.0}–{:.0} nm {:.1} %",
+                    l.line.name(),
+                    l.from_nm,
+                    l.to_nm,
+                    100.0 * l.share
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut text = format!(
+        "component {k}: {:.1} % of its emission inside a scatter band at its excitation maximum ({} nm: {}; water Raman, where Stokes emission may lie, {:.1} %: {})",
+        100.0 * o.rayleigh_share,
+        o.excitation_nm,
+        bands(false),
+        100.0 * o.raman_share,
+        bands(true)
+    );
+    if o.on_scatter_line {
+        text.push_str(&format!(
+            "; ON A SCATTER LINE (over {:.0} %): it may hold scatter, or the second-order image (λo = 2λ) of its own emission near the excitation; widen the band (--scatter-width rayleigh1=NM or rayleigh2=NM) to tell",
+            100.0 * fluorite::fit::joint::scatter::MAX_RAYLEIGH_SHARE
+        ));
+    }
+    text
 }
 
 /// One row of the joint fit's sweep table ([`joint_sweep_table`]).

@@ -179,6 +179,10 @@ impl Preprocessing {
                                 format!("measured in {} rows", b.rows_measured),
                             scatter::WidthSource::Bandwidth => "from --bandwidth".to_string(),
                             scatter::WidthSource::Default => "default".to_string(),
+                            scatter::WidthSource::Bounded => format!(
+                                "measured in {} rows, held to the line's physics bounds from rayleigh1",
+                                b.rows_measured
+                            ),
                         },
                         "",
                         b.cells,

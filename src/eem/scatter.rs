@@ -13,6 +13,18 @@
 //! decides (the band's edge where the excitation and emission slit functions, triangles
 //! of that full width at half maximum, stop overlapping: twice the bandwidth), else
 //! [`DEFAULT_HALF_WIDTH_NM`] (eemR's and staRdom's default width).
+//!
+//! A measured width is then held to what the lines' physics allows ([`bound`]): the
+//! first-order Rayleigh line is the instrument's own profile (the excitation slit function
+//! convolved with the emission one), and the other lines are that profile widened.
+//! Water's Raman line is the same profile convolved with the O–H stretch band
+//! ([`WATER_RAMAN_FWHM_CM`] wide), so it is at least as wide as first-order Rayleigh and at
+//! most that plus the band's own edge; a wider "Raman line" is fluorescence peaking near
+//! it (phenylalanine at 255 nm excitation emits at 282 nm, on the 279 nm Raman line), and
+//! masking it would cut that fluorescence out. Second-order lines pass the excitation
+//! band at twice its width (λo = 2λi) through the same emission slit, so they are taken
+//! at least twice as wide as first-order Rayleigh, and second-order Raman at most twice
+//! first-order Raman's bound.
 
 use serde::{Deserialize, Serialize};
 
@@ -27,6 +39,10 @@ pub const DEFAULT_HALF_WIDTH_NM: f64 = 10.0;
 pub const HALF_MAX_TO_EDGE: f64 = 2.5;
 /// Rows in which a line must stand out before its width counts as measured.
 pub const MIN_ROWS_MEASURED: usize = 3;
+/// Full width at half maximum of liquid water's O–H stretch Raman band (cm⁻¹; the band
+/// spans about 3000–3700 cm⁻¹, Walrafen): what widens the Raman line beyond the
+/// instrument's profile.
+pub const WATER_RAMAN_FWHM_CM: f64 = 400.0;
 
 /// The four scatter lines of a water sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -90,6 +106,9 @@ pub enum WidthSource {
     Bandwidth,
     /// The eemR/staRdom default.
     Default,
+    /// Measured (or too faint to measure), then held within the bounds the first-order
+    /// Rayleigh line and the lines' physics set (see [`bound`]).
+    Bounded,
 }
 
 /// One masked band and what it took away.
@@ -269,7 +288,69 @@ pub fn plan(m: &Measurement, options: &ScatterOptions) -> Vec<MaskedBand> {
             signal_share: 0.0,
         });
     }
+    bound(&mut bands, raman_edge_nm(m, shift));
     bands
+}
+
+/// The edge (nm, [`HALF_MAX_TO_EDGE`] half-widths) that water's Raman band adds to the
+/// instrument's profile on the first-order Raman line of `m`'s longest excitation (the
+/// band is constant in wavenumber, so it is widest in nm there): λ²·Γ/2 with Γ =
+/// [`WATER_RAMAN_FWHM_CM`]. The line is taken no farther out than the emission grid.
+pub fn raman_edge_nm(m: &Measurement, shift_cm: f64) -> f64 {
+    let last_em = m.emission_nm.last().copied().unwrap_or(0.0);
+    let longest = m
+        .excitation_nm
+        .iter()
+        .filter_map(|&ex| ScatterLine::Raman1.centre_nm(ex, shift_cm))
+        .map(|l| l.min(last_em))
+        .fold(0.0, f64::max);
+    HALF_MAX_TO_EDGE * longest * longest * 1e-7 * WATER_RAMAN_FWHM_CM / 2.0
+}
+
+/// Holds measured widths within physics, once first-order Rayleigh (the instrument's
+/// profile) is measured; widths set or from `--bandwidth` are left alone. Per side, with
+/// R1 the first-order Rayleigh edge and `raman_edge` the Raman band's own
+/// ([`raman_edge_nm`]): first-order Raman within [R1, R1 + raman_edge], second-order
+/// Rayleigh at least 2·R1, second-order Raman within [2·R1, 2·(R1 + raman_edge)]. A line
+/// too faint to measure (its band defaulted) takes the upper bound (second-order
+/// Rayleigh: 2·R1). A band that moved says [`WidthSource::Bounded`].
+pub fn bound(bands: &mut [MaskedBand], raman_edge: f64) {
+    let Some(first) = bands
+        .iter()
+        .find(|b| b.line == ScatterLine::Rayleigh1 && b.source == WidthSource::Measured)
+    else {
+        return;
+    };
+    let (r_below, r_above) = (first.below_nm, first.above_nm);
+    for band in bands
+        .iter_mut()
+        .filter(|b| matches!(b.source, WidthSource::Measured | WidthSource::Default))
+    {
+        let (order, upper) = match band.line {
+            ScatterLine::Rayleigh1 => continue,
+            ScatterLine::Raman1 => (1.0, Some(raman_edge)),
+            ScatterLine::Rayleigh2 => (2.0, None),
+            ScatterLine::Raman2 => (2.0, Some(raman_edge)),
+        };
+        let clamp = |w: f64, r: f64| {
+            let lo = order * r;
+            let hi = upper.map_or(f64::INFINITY, |e| order * (r + e));
+            w.clamp(lo, hi)
+        };
+        // A line too faint to measure gets the widest band its physics allows (the
+        // default width knows nothing of the instrument).
+        let (below, above) = if band.source == WidthSource::Default {
+            let widest = |r: f64| order * (r + upper.unwrap_or(0.0));
+            (widest(r_below), widest(r_above))
+        } else {
+            (clamp(band.below_nm, r_below), clamp(band.above_nm, r_above))
+        };
+        if below != band.below_nm || above != band.above_nm {
+            band.below_nm = below;
+            band.above_nm = above;
+            band.source = WidthSource::Bounded;
+        }
+    }
 }
 
 /// Sets the cells of `bands` to missing in `m` and counts what each took away.

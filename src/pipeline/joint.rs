@@ -5,11 +5,14 @@
 use std::path::{Path, PathBuf};
 
 use crate::colour::Light;
+use crate::eem::Preprocessing;
+use crate::eem::scatter::{MaskedBand, ScatterOptions, plan};
 use crate::error::{Error, Result};
 use crate::files::write_files;
 use crate::fit::YieldChoice;
 use crate::fit::joint::parafac::ParafacOptions;
 use crate::fit::joint::reference::{AnalyteMatch, Reference};
+use crate::fit::joint::scatter::set_bands;
 use crate::fit::joint::{JointFit, JointOptions, fit_joint};
 use crate::fit::series::{SeriesFit, SeriesOptions, fit_concentration_series};
 use crate::plot::ImageFormat;
@@ -177,6 +180,7 @@ fn fit_series(samples: &[Prepared], request: &JointRequest) -> Result<SeriesFit>
 fn fit_eem_set(samples: &[Prepared], request: &JointRequest) -> Result<Vec<EemFit>> {
     let eems: Vec<_> = samples.iter().map(|s| s.measurement.clone()).collect();
     let max_iterations = usize::try_from(request.max_iterations.max(1)).unwrap_or(usize::MAX);
+    let (bands, shift) = set_scatter_bands(samples);
     request
         .component_counts()
         .into_iter()
@@ -203,10 +207,31 @@ fn fit_eem_set(samples: &[Prepared], request: &JointRequest) -> Result<Vec<EemFi
                 }
                 fit.seconds = crate::numeric::median(&times);
             }
+            fit.check_scatter(&bands, shift);
             let matches = request.reference.as_ref().map(|r| r.best_matches(&fit));
             Ok(EemFit { fit, matches })
         })
         .collect()
+}
+
+/// The set's scatter bands (per line the widest any sample was masked with) and Raman
+/// shift, to check the components against. With scatter kept, the bands a default
+/// masking would have planned on each sample.
+fn set_scatter_bands(samples: &[Prepared]) -> (Vec<MaskedBand>, Option<f64>) {
+    let reports: Vec<&Preprocessing> = samples
+        .iter()
+        .filter_map(|s| s.preprocessing.as_ref())
+        .collect();
+    let shift = reports.iter().find_map(|p| p.raman_shift_cm);
+    let masked = set_bands(reports.iter().map(|p| p.scatter.as_slice()));
+    if !masked.is_empty() {
+        return (masked, shift);
+    }
+    let planned: Vec<Vec<MaskedBand>> = samples
+        .iter()
+        .map(|s| plan(&s.measurement, &ScatterOptions::default()))
+        .collect();
+    (set_bands(planned.iter().map(Vec::as_slice)), shift)
 }
 
 impl JointOutcome {

@@ -19,6 +19,7 @@ mod doc_examples;
 mod eem_instrument;
 mod eem_joint;
 mod eem_options;
+mod eem_scatter_leak;
 mod export;
 mod export_exr_rgb;
 mod export_options;

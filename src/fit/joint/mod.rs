@@ -7,6 +7,7 @@
 pub mod diagnostics;
 pub mod parafac;
 pub mod reference;
+pub mod scatter;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -49,6 +50,10 @@ pub struct JointComponent {
     pub peak_emission_nm: f64,
     /// Share of the model's sum of squares this component carries.
     pub share: f64,
+    /// How much of the emission lies inside the set's scatter bands at the excitation
+    /// maximum ([`JointFit::check_scatter`]); absent until checked.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scatter: Option<scatter::ScatterOverlap>,
 }
 
 /// A joint fit of a sample set and how good it is.
@@ -240,6 +245,7 @@ pub fn fit_joint(measurements: &[Measurement], options: &JointOptions) -> Result
                     value: emission,
                 },
                 share: shares[c],
+                scatter: None,
             }
         })
         .collect();
@@ -318,6 +324,19 @@ fn ordered(f: &Factors, t: &Tensor) -> Factors {
 }
 
 impl JointFit {
+    /// Measures, per component, the share of its emission inside `bands` (the set's scatter
+    /// bands, [`scatter::set_bands`]) at its excitation maximum, with the Raman shift
+    /// `raman_shift_cm` (`None`: water's), into [`JointComponent::scatter`].
+    pub fn check_scatter(
+        &mut self,
+        bands: &[crate::eem::scatter::MaskedBand],
+        raman_shift_cm: Option<f64>,
+    ) {
+        for c in &mut self.components {
+            c.scatter = Some(scatter::overlap(c, bands, raman_shift_cm));
+        }
+    }
+
     /// Pretty JSON of the whole model.
     pub fn to_json(&self) -> String {
         let mut s = serde_json::to_string_pretty(self).expect("joint fit serialises");
