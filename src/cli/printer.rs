@@ -514,7 +514,7 @@ pub fn joint_summary(fit: &JointFit, dir: &Path, matches: Option<&[AnalyteMatch]
             100.0 * comp.share
         ));
         if let Some(o) = &comp.scatter {
-            out.push_str(&format!("    {}\n", scatter_text(c + 1, o)));
+            out.push_str(&format!("    {}\n", scatter_text(o)));
         }
     }
     if let Some((worst, r)) = fit
@@ -538,9 +538,9 @@ pub fn joint_summary(fit: &JointFit, dir: &Path, matches: Option<&[AnalyteMatch]
     out
 }
 
-/// The scatter check of component `k` (1-based): its emission's share inside the
-/// Rayleigh bands at its excitation maximum, each band, and the Raman bands' share.
-fn scatter_text(k: usize, o: &fluorite::fit::joint::scatter::ScatterOverlap) -> String {
+/// The scatter check of a component: its emission's share inside the Rayleigh bands at
+/// its excitation maximum, each band, and the Raman bands' share.
+fn scatter_text(o: &fluorite::fit::joint::scatter::ScatterOverlap) -> String {
     use fluorite::eem::scatter::ScatterLine;
     let bands = |raman: bool| {
         o.lines
@@ -559,7 +559,7 @@ fn scatter_text(k: usize, o: &fluorite::fit::joint::scatter::ScatterOverlap) -> 
             .join(", ")
     };
     let mut text = format!(
-        "component {k}: {:.1} % of its emission inside a scatter band at its excitation maximum ({} nm: {}; water Raman, where Stokes emission may lie, {:.1} %: {})",
+        "scatter: {:.1} % of its emission inside a scatter band at its excitation maximum ({} nm: {}; water Raman, where Stokes emission may lie, {:.1} %: {})",
         100.0 * o.rayleigh_share,
         o.excitation_nm,
         bands(false),
