@@ -99,33 +99,30 @@ pub(super) fn exr(material: &Material, grid: &[f64]) -> Result<(Vec<u8>, f64)> {
              T.<l>nm: diagonal, reflectance factor (1 - sum c*a)*r plus the fluorescence emitted at l (dimensionless). \
              T.<li>nm.<lo>nm: reradiation from li to lo > li per emission bin (dimensionless, trapezoid bin widths). \
              The layout has no anti-Stokes channel (lo < li): {:.4} % of this matrix's off-diagonal energy is not stored. \
-             R, G, B: linear sRGB of the patch under D65 (perfect white = 1).",
+             R, G, B: linear sRGB of the patch under D65 (perfect white = 1). \
+             fluoriteAntiStokesShareDropped: {}",
             one_line(&material.name),
-            100.0 * share
+            100.0 * share,
+            share as f32
         ))),
         ..LayerAttributes::default()
     };
-    let mut other: HashMap<Text, AttributeValue> = HashMap::new();
-    other.insert(text(VERSION_ATTRIBUTE), AttributeValue::Text(text(VERSION)));
-    // The reference writer always stores an exposure compensation (`EV`, float).
-    other.insert(text("EV"), AttributeValue::F32(0.0));
-    other.insert(
-        text("fluoriteMaterial"),
-        AttributeValue::Text(text(&one_line(&material.name))),
-    );
-    other.insert(
-        text("fluoriteAntiStokesShareDropped"),
-        AttributeValue::F32(share as f32),
-    );
-    attributes.other = other;
+    // The exr crate keeps custom attributes in hash maps and writes each map in random
+    // order: one custom attribute per map (the layer's and the image's) keeps the file
+    // byte-reproducible; the rest is in `comments`.
+    attributes.other =
+        HashMap::from([(text(VERSION_ATTRIBUTE), AttributeValue::Text(text(VERSION)))]);
     let layer = Layer::new(
         (SIDE, SIDE),
         attributes,
         Encoding::SMALL_LOSSLESS,
         AnyChannels::sort(channels.into()),
     );
+    let mut image = Image::from_layer(layer);
+    // The reference writer always stores an exposure compensation (`EV`, float).
+    image.attributes.other = HashMap::from([(text("EV"), AttributeValue::F32(0.0))]);
     let mut cursor = std::io::Cursor::new(Vec::new());
-    Image::from_layer(layer)
+    image
         .write()
         .to_buffered(&mut cursor)
         .map_err(|e| Error::invalid("exr", format!("could not encode the image: {e}")))?;
