@@ -134,7 +134,7 @@ PEARRAY_SCENE = """(scene
 \t:render_height {size}
 \t:camera 'camera'
 \t:spectral_domain [360, 830]
-\t(integrator :type 'direct' :max_ray_depth 2 :max_camera_ray_depth 2 :max_light_ray_depth 2)
+\t(integrator :type 'direct' :max_ray_depth 2 :nee false)
 \t(sampler :slot 'aa' :type 'mjitt' :sample_count {spp})
 \t(output :name 'image' (channel :type 'color' :color 'xyz'))
 \t(camera :name 'camera' :type 'standard' :width 0.5359 :height 0.5359
