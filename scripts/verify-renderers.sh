@@ -9,7 +9,8 @@
 # MITSUBA_FORK: the `mitsuba` binary of the fluorescence fork as released (blzq/mitsuba3,
 # branch fluorescence, 61931a78, variant scalar_spectral); MITSUBA_FORK_PATCHED: the same
 # fork with the lobe-weighting change of docs/renderers.md; PEARRAY: PearRay's `pearray`
-# (95f065ad). The project does not build them (docs/renderers.md says how they were built).
+# (95f065ad) built with -DPR_USE_CIE_1931 (its default film uses the CIE 2006 observer,
+# docs/renderers.md). The project does not build them (docs/renderers.md says how they were built).
 # Each one that is unset or not executable is skipped with the reason; with none, or
 # without python3/numpy/OpenEXR, the script says so and exits 0. The exact colour comes
 # from scripts/furnace_exact.py (the material JSON and ../shared/data/cie, no fluorite code).

@@ -14,7 +14,9 @@ For every material and light this script
 
 Renderers (each optional): the Mitsuba 3 fluorescence fork as released (`--fork`), the
 same fork with the lobe-weighting patch (`--fork-patched`, see docs/renderers.md) and
-PearRay (`--pearray`). The fork and PearRay hold one fluorophore: for a material with
+PearRay (`--pearray`: a build with -DPR_USE_CIE_1931, so that its film sees the CIE 1931
+observer the exact colour uses; its scene is the `direct` integrator with `:nee false`, the
+one the export is written for, docs/renderers.md). The fork and PearRay hold one fluorophore: for a material with
 several, the renderers are graded against the exact colour of the fluorophore their
 export keeps, and the cost of the others (ΔE2000 between the two exact colours) is
 printed. Exit 1 when a ΔE2000 of the fluorite render or of a renderer marked as required
@@ -132,7 +134,7 @@ PEARRAY_SCENE = """(scene
 \t:render_height {size}
 \t:camera 'camera'
 \t:spectral_domain [360, 830]
-\t(integrator :type 'direct' :max_ray_depth 2 :max_camera_ray_depth 2 :max_light_ray_depth 2)
+\t(integrator :type 'direct' :max_ray_depth 2 :nee false)
 \t(sampler :slot 'aa' :type 'mjitt' :sample_count {spp})
 \t(output :name 'image' (channel :type 'color' :color 'xyz'))
 \t(camera :name 'camera' :type 'standard' :width 0.5359 :height 0.5359
@@ -170,7 +172,7 @@ def main():
     p.add_argument("--fluorite-spp", type=int, default=256)
     p.add_argument("--pearray-spp", type=int, default=1024)
     p.add_argument("--bound", type=float, default=1.0)
-    p.add_argument("--require", default="fork-patched",
+    p.add_argument("--require", default="fork-patched,pearray",
                    help="renderers whose ΔE2000 against the exact colour must be within --bound")
     p.add_argument("--keep", help="keep renders and scenes in this folder")
     p.add_argument("materials", nargs="+")
@@ -267,35 +269,36 @@ def main():
 
 
 def pearray_diagnostic(args, work, cmf):
-    """PearRay's `fluorescent` material with c = 0 against its `diffuse` with the same albedo.
+    """PearRay's plain `diffuse` with the first material's diagonal d, against its exact colour.
 
-    With no fluorophore the material is a Lambertian of reflectance `albedo`, so both must
-    show the exact colour of that reflectance. Uses the first material's exported CSV."""
+    Separates the film from the fluorescence: a binary built without -DPR_USE_CIE_1931 shows
+    the CIE 2006 observer here (docs/renderers.md). Uses the first material's exported CSV,
+    whose column 3 holds 2·d (the export's `add` doubles it)."""
     material = args.materials[0]
     stem = os.path.splitext(os.path.basename(material))[0]
     tag = (os.path.relpath(material, "fits")[:-5] if material.startswith("fits/") else stem).replace("/", "_")
     light = args.lights.split(",")[0]
-    pr_out = os.path.join(work, f"pearray_{tag}_{light}")
-    csv = os.path.join(pr_out, f"{stem}_pearray.csv")
+    rows = np.loadtxt(os.path.join(work, f"pearray_{tag}_{light}", f"{stem}_pearray.csv"),
+                      delimiter=",", skiprows=1)
+    with open(os.path.join(work, "pearray_check_d.csv"), "w") as f:
+        f.write("wavelength,d\n")
+        for l, d2 in zip(rows[:, 0], rows[:, 3]):
+            f.write(f"{l:g},{d2 / 2:.9g}\n")
     light_csv = os.path.join(work, f"light_{light}.csv")
     white = pearray_render(args, "(material :name 'white' :type 'diffuse' :albedo 1)", "white",
                            light_csv, work, f"pearray_white_{light}")[0]
-    lambert = f"(material :name 'm' :type 'diffuse' :albedo (spd '{csv}' 3))"
-    fluo = (f"(material :name 'm' :type 'fluorescent' :absorption (spd '{csv}' 1) "
-            f":emission (spd '{csv}' 2) :albedo (spd '{csv}' 3) :aefactor 1 :concentration 0)")
-    rows = np.loadtxt(csv, delimiter=",", skiprows=1)
-    albedo_only = {"schema": "fluorite-material/1", "name": "albedo",
-                   "reflectance": {"wavelength_nm": list(rows[:, 0]), "value": list(rows[:, 3])},
-                   "fluorophores": []}
-    exact, exact_white = fx.furnace_xyz(albedo_only, fx.light(light, args.shared), cmf)
+    d_only = {"schema": "fluorite-material/1", "name": "d",
+              "reflectance": {"wavelength_nm": list(rows[:, 0]), "value": list(rows[:, 3] / 2)},
+              "fluorophores": []}
+    exact, exact_white = fx.furnace_xyz(d_only, fx.light(light, args.shared), cmf)
+    prc = f"(material :name 'm' :type 'diffuse' :albedo (spd '{os.path.join(work, 'pearray_check_d.csv')}' 1))"
+    xyz, err = pearray_render(args, prc, "m", light_csv, work, "pearray_check_diffuse")
+    de = fx.delta_e2000(fx.lab(exact, exact_white), fx.lab(xyz, white))
     print()
-    print(f"PearRay check ({stem}'s exported albedo, no fluorescence, {light}): Y exact "
-          f"{exact[1] / exact_white[1]:.4f}", end="")
-    for name, prc in (("diffuse", lambert), ("fluorescent, concentration 0", fluo)):
-        xyz, err = pearray_render(args, prc, "m", light_csv, work, f"pearray_check_{name[:7]}")
-        de = fx.delta_e2000(fx.lab(exact, exact_white), fx.lab(xyz, white))
-        print(f"; `{name}` Y {xyz[1] / white[1]:.4f} (ΔE2000 {de:.2f})", end="")
-    print(".")
+    print(f"PearRay check ({stem}'s diagonal d as a plain `diffuse`, {light}): Y exact "
+          f"{exact[1] / exact_white[1]:.4f}, PearRay {xyz[1] / white[1]:.4f} (±{100 * err:.2f} %), "
+          f"ΔE2000 {de:.2f} (more than about 0.3 on a coloured d: PearRay's film is not CIE 1931; "
+          f"build it with -DPR_USE_CIE_1931).")
 
 
 def write_light_csv(path, spd):

@@ -11,8 +11,9 @@
 //! whole array sits on one line, as the parser skips only spaces between series. Grids
 //! are regular (start and increment); ART's interpolation divides offsets by 10 nm
 //! (`ArRSSpectrum2D.c`), so 10 nm steps are the default. The model's full matrix is
-//! written, every fluorophore summed, anti-Stokes cells included. ART was not built for
-//! the project, so the entry's description says it is checked against the format only.
+//! written, every fluorophore summed, anti-Stokes cells included. ART 99c65c0 builds and
+//! renders it, but no render has been graded against the exact colour yet, so the entry's
+//! description says it is checked against the format only (docs/renderers.md).
 
 use crate::error::{Error, Result};
 use crate::material::Material;
@@ -26,8 +27,8 @@ use super::{VERSION, one_line};
 const ART_STEP_NM: f64 = 10.0;
 
 /// What the archive has been checked against, in its description (the archive holds no
-/// comments): ART was not built for the project, so nothing rendered it.
-const ART_CHECKED: &str = "Checked against ART's archive format only (a parser written from ArfMeasurementArchive.m), not rendered in ART: ART was not built for fluorite (docs/renderers.md).";
+/// comments): ART builds and renders it, but no render has been graded yet.
+const ART_CHECKED: &str = "Checked against ART's archive format only (a parser written from ArfMeasurementArchive.m), not against a render: ART 99c65c0 builds and renders it in a furnace, but that render has not been checked against the exact colour (docs/renderers.md).";
 
 /// A regular grid's start and step, or an error naming `what` and the fix.
 fn regular(grid: &[f64], what: &str) -> Result<(f64, f64)> {

@@ -787,9 +787,11 @@ fn pearray_csv(text: &str) -> (Vec<String>, Vec<Vec<f32>>) {
     (first, rows)
 }
 
-/// The `fluorescent` material reads back to the model: c'·Q'·a'(λi)·e(λo) is the kept
-/// fluorophore's X(λi)·e(λo) and (1 − c'·a')·albedo is d, from a CSV PearRay's reader and
-/// spd node take (equidistant rows, no comments, no negative values).
+/// The PearRay export reads back to the model: an `add` of a `diffuse` of 2·d and a
+/// `fluorescent` with albedo 0 whose c'·Q'·a'(λi)·e(λo) is the kept fluorophore's
+/// X(λi)·e(λo), with `scale` twice span·Σ400 e (what PearRay's material divides by), from
+/// a CSV PearRay's reader and spd node take (equidistant rows, no comments, no negative
+/// values).
 #[test]
 fn pearray_material_reads_back_to_the_model() {
     for m in materials() {
@@ -804,52 +806,76 @@ fn pearray_material_reads_back_to_the_model() {
                 .unwrap_or_else(|| panic!(":{key} missing"));
             line.trim_start()[key.len() + 2..].trim().parse().unwrap()
         };
-        assert!(prc.contains("\t:type 'fluorescent'\n"));
-        for (key, column) in [("absorption", 1), ("emission", 2), ("albedo", 3)] {
-            assert!(
-                prc.contains(&format!("\t:{key} (spd '{csv_name}' {column})\n")),
-                "{prc}"
-            );
+        let reemitted = truth.reemitted(&lights()[0]);
+        let k = (0..reemitted.len()).max_by(|&a, &b| reemitted[a].total_cmp(&reemitted[b]));
+        if k.is_none() {
+            continue; // a_plain_material_exports_as_plain_diffuse
+        }
+        let name = &m.name;
+        for block in [
+            format!(
+                "(material\n\t:name '{name}_reflectance'\n\t:type 'diffuse'\n\t:albedo (spd '{csv_name}' 3)\n)\n"
+            ),
+            format!(
+                "(material\n\t:name '{name}_fluorescence'\n\t:type 'fluorescent'\n\t:absorption (spd '{csv_name}' 1)\n\t:emission (spd '{csv_name}' 2)\n\t:albedo 0\n"
+            ),
+            format!(
+                "(material\n\t:name '{name}'\n\t:type 'add'\n\t:material1 '{name}_reflectance'\n\t:material2 '{name}_fluorescence'\n)\n"
+            ),
+        ] {
+            assert!(prc.contains(&block), "{block}\n{prc}");
         }
         for line in prc.lines().filter(|l| !l.starts_with(';')) {
             assert!(!line.contains(';'), "{line}");
         }
-        let (q, c) = (number("aefactor"), number("concentration"));
+        let (q, c, scale) = (number("aefactor"), number("concentration"), number("scale"));
         assert!(
             (0.0..=1.0).contains(&q) && (0.0..=1.0).contains(&c),
             "Number01"
         );
         let (header, rows) = pearray_csv(file(&files, &csv_name));
-        assert_eq!(header, ["wavelength", "absorption", "emission", "albedo"]);
+        assert_eq!(
+            header,
+            ["wavelength", "absorption", "emission", "reflectance_x2"]
+        );
         let start = rows[0][0];
         let delta = rows[1][0] - rows[0][0];
         assert!(delta > 0.0);
-        let reemitted = truth.reemitted(&lights()[0]);
-        let k = (0..reemitted.len()).max_by(|&a, &b| reemitted[a].total_cmp(&reemitted[b]));
         for (i, row) in rows.iter().enumerate() {
             assert_eq!(row[0], i as f32 * delta + start, "not equidistant");
             assert!(row[1..].iter().all(|v| *v >= 0.0));
+            assert!(row[2] > 0.0, "the emission's floor");
             let l = f64::from(row[0]);
-            let (a, e, albedo) = (f64::from(row[1]), f64::from(row[2]), f64::from(row[3]));
+            let (a, e, d2) = (f64::from(row[1]), f64::from(row[2]), f64::from(row[3]));
             let tolerance = 1e-6;
+            assert!((d2 / 2.0 - truth.d(l)).abs() <= tolerance, "d at {l}");
+            let k = k.unwrap();
             assert!(
-                ((1.0 - c * a) * albedo - truth.d(l)).abs() <= tolerance,
-                "d at {l}"
+                (c * q * a - truth.x(k, l)).abs() <= tolerance * (1.0 + truth.x(k, l)),
+                "X at {l}"
             );
-            match k {
-                Some(k) => {
-                    assert!(
-                        (c * q * a - truth.x(k, l)).abs() <= tolerance * (1.0 + truth.x(k, l)),
-                        "X at {l}"
-                    );
-                    assert!(
-                        (e - truth.e(k, l)).abs() <= tolerance * (1.0 + truth.e(k, l)),
-                        "e at {l}"
-                    );
-                }
-                None => assert_eq!(c * a, 0.0),
-            }
+            assert!(
+                (e - truth.e(k, l)).abs() <= tolerance * (1.0 + truth.e(k, l)),
+                "e at {l}"
+            );
         }
+        // PearRay's normalisation (fluorescent_diffuse.cpp, buildEmissionDistribution):
+        // Σ over 400 bins of e at start + span·i/400, linear between the rows.
+        let span = f64::from(rows[rows.len() - 1][0] - start);
+        let sum: f64 = (0..400)
+            .map(|i| {
+                let x = span * f64::from(i) / 400.0 / f64::from(delta);
+                let j = (x.floor() as usize).min(rows.len() - 2);
+                let t = x - j as f64;
+                f64::from(rows[j][2]) * (1.0 - t) + f64::from(rows[j + 1][2]) * t
+            })
+            .sum();
+        assert!(
+            (scale / (2.0 * span * sum) - 1.0).abs() < 1e-5,
+            "scale {scale}"
+        );
+        // e integrates to 1 per nm, so the scale is about twice 400.
+        assert!((scale / 800.0 - 1.0).abs() < 0.01, "scale {scale}");
         let n = m.fluorophores.len();
         assert_eq!(
             prc.contains(&format!("This material has {n} fluorophores")),
@@ -1061,8 +1087,9 @@ fn a_plain_material_exports_as_plain_diffuse() {
 }
 
 /// Each fluorescent export says in its header how it was checked: the fork's scene that it
-/// was rendered (and what the released fork gets wrong), PearRay's and ART's that they are
-/// checked against the format only (docs/renderers.md).
+/// was rendered (and what the released fork gets wrong), PearRay's that it was rendered
+/// (with `:nee false` and the CIE 1931 build), ART's that it is checked against the format
+/// only (docs/renderers.md).
 #[test]
 fn fluorescent_exports_say_how_they_were_checked() {
     for m in materials() {
@@ -1075,10 +1102,9 @@ fn fluorescent_exports_say_how_they_were_checked() {
         assert!(fork.contains("value/p, pdf·p"));
         let files = render(&m, ExportFormat::Pearray);
         let prc = file(&files, &format!("{}.prc", m.name));
-        assert!(
-            prc.contains("; CHECKED AGAINST PEARRAY'S FORMATS ONLY"),
-            "{prc}"
-        );
+        assert!(prc.contains("; RENDERED in PearRay 95f065ad"), "{prc}");
+        assert!(prc.contains("(integrator :type 'direct' :nee false)"));
+        assert!(prc.contains("-DPR_USE_CIE_1931"));
         let files = render(&m, ExportFormat::Art);
         let ark = file(&files, &format!("{}.ark", m.name));
         let description = ark
