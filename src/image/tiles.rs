@@ -380,27 +380,63 @@ impl TiledFile {
         tiles: std::ops::Range<usize>,
         mut produce: impl FnMut(Rect) -> Result<Vec<f32>>,
     ) -> Result<()> {
-        let io = |e: std::io::Error| Error::io(path, e);
-        if tiles.end > self.tiles() {
-            return Err(Error::invalid(
-                path.display().to_string(),
-                format!("tiles {tiles:?} of an image of {} tiles", self.tiles()),
-            ));
+        let mut writer = self.writer(path)?;
+        for tile in tiles {
+            let rect = self.rect(tile).ok_or_else(|| {
+                Error::invalid(
+                    path.display().to_string(),
+                    format!("tile {tile} of an image of {} tiles", self.tiles()),
+                )
+            })?;
+            writer.write(tile, &produce(rect)?)?;
         }
+        Ok(())
+    }
+
+    /// Opens `path` (made by [`TiledFile::create`]) to write tiles into, one after the
+    /// other ([`TileWriter::write`]).
+    pub fn writer<'a>(&'a self, path: &'a Path) -> Result<TileWriter<'a>> {
         let file = std::fs::OpenOptions::new()
             .write(true)
             .open(path)
-            .map_err(io)?;
-        let sample = if self.spec.half { 2 } else { 4 };
-        for (index, block) in &self.layout.blocks[tiles] {
-            let rect = Rect::of_block(block);
-            let values = produce(rect)?;
-            let size = rect.width * rect.height * self.spec.channels.len() * sample;
-            let mut chunk = vec![0u8; CHUNK_HEAD + size];
-            fill_tile_chunk(&values, rect, &self.spec, &self.order, &mut chunk)?;
-            write_at(&file, &chunk, self.layout.offsets[*index]).map_err(io)?;
-        }
-        Ok(())
+            .map_err(|e| Error::io(path, e))?;
+        Ok(TileWriter {
+            plan: self,
+            path,
+            file,
+            chunk: Vec::new(),
+        })
+    }
+}
+
+/// Writes tiles into a file laid out by a [`TiledFile`], each into its place, through
+/// one buffer (a tile of a bispectral image is 19.5 MB: allocating it afresh for every
+/// tile costs the kernel's first touch of its pages each time).
+pub struct TileWriter<'a> {
+    plan: &'a TiledFile,
+    path: &'a Path,
+    file: File,
+    chunk: Vec<u8>,
+}
+
+impl TileWriter<'_> {
+    /// Writes tile `tile` (in the file's order): `values` are its pixels, row by row,
+    /// each pixel's values in the spec's channel order.
+    pub fn write(&mut self, tile: usize, values: &[f32]) -> Result<()> {
+        let plan = self.plan;
+        let Some((index, block)) = plan.layout.blocks.get(tile) else {
+            return Err(Error::invalid(
+                self.path.display().to_string(),
+                format!("tile {tile} of an image of {} tiles", plan.tiles()),
+            ));
+        };
+        let rect = Rect::of_block(block);
+        let sample = if plan.spec.half { 2 } else { 4 };
+        let size = CHUNK_HEAD + rect.width * rect.height * plan.spec.channels.len() * sample;
+        self.chunk.resize(size, 0);
+        fill_tile_chunk(values, rect, &plan.spec, &plan.order, &mut self.chunk)?;
+        write_at(&self.file, &self.chunk, plan.layout.offsets[*index])
+            .map_err(|e| Error::io(self.path, e))
     }
 }
 

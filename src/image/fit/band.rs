@@ -278,18 +278,22 @@ pub fn write_band(
         .zip(&job.staged)
         .map(|(spec, path)| TiledFile::plan(path, spec))
         .collect::<Result<Vec<_>>>()?;
+    let mut writers = files
+        .iter()
+        .zip(&job.staged)
+        .map(|(file, path)| file.writer(path))
+        .collect::<Result<Vec<_>>>()?;
     let row_bytes = style.row_bytes(width);
     let mut png: Vec<u8> = (0..rows).flat_map(|_| style.blank_row(width)).collect();
     let mut clamped = 0;
+    // Each file's values of one tile, the buffers kept from tile to tile.
+    let mut values: [Vec<f32>; 4] = Default::default();
     for tile in tiles {
         let Some(rect) = files[0].rect(tile) else {
             break;
         };
         // The tile's pixels, evaluated once for the four files and the PNGs.
-        let mut values: [Vec<f32>; 4] = Default::default();
-        for (v, spec) in values.iter_mut().zip(&specs) {
-            v.reserve(rect.width * rect.height * spec.channels.len());
-        }
+        values.iter_mut().for_each(Vec::clear);
         for py in rect.y..rect.y + rect.height {
             let row = &mut png[(py - y) * row_bytes..(py - y + 1) * row_bytes];
             for px in rect.x..rect.x + rect.width {
@@ -305,12 +309,8 @@ pub fn write_band(
                 style.fill(row, width, px, &f, &colours);
             }
         }
-        for ((file, path), v) in files.iter().zip(&job.staged).zip(values) {
-            let mut v = Some(v);
-            file.write_tiles(path, tile..tile + 1, |_| {
-                v.take()
-                    .ok_or_else(|| Error::invalid("band", "a tile asked for twice"))
-            })?;
+        for (writer, v) in writers.iter_mut().zip(&values) {
+            writer.write(tile, v)?;
         }
     }
     Ok(BandOutputs { clamped, png })
