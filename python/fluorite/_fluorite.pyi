@@ -565,13 +565,16 @@ class _ImageStages:
         read_rows: Callable[[int, int], npt.ArrayLike],
         map_chunks: Optional[Callable[[str, int], List[str]]] = None,
         map_bands: Optional[Callable[[str], Iterable[Tuple[int, int, bytes]]]] = None,
+        fetch_pixels: Optional[Callable[[int, int], npt.ArrayLike]] = None,
     ) -> ImageFit:
         """The fit after the passes, from the records read_rows(y, rows) returns; with
         map_chunks(kernel, chunks), the passes over the records run through it (the
         results of run_records on every chunk of RECORD_CHUNK records, in order); with
         map_bands(job) (uncompressed outputs), the EXR outputs' tiles are written by it:
         (y, clamped, png) of write_band on bands of whole rows of 64-pixel tiles, in row
-        order; the PNGs are encoded here from their rows."""
+        order; the PNGs are encoded here from their rows. With fetch_pixels(first, count)
+        returning (count, record_len) float32, the records are read through it when
+        needed instead of copied through read_rows."""
     RECORD_CHUNK: int
     """Records per chunk of a pass over the records."""
     def run_records(

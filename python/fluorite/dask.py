@@ -11,8 +11,9 @@ those records (its iterations, the start and the judge of every K) runs on the w
 too, on records they keep in memory, the client folding each chunk's small result in
 chunk order. The workers then write the uncompressed EXR outputs' tiles into files the
 client laid out (a row of tiles per task), and return the PNG rows, which the client
-encodes; with ``zip=True`` (compressed tiles have no place before they are compressed)
-the client writes every output from its copy of the records.
+encodes; the client itself reads only the few records the start of the shared fit needs.
+With ``zip=True`` (compressed tiles have no place before they are compressed) the client
+copies every record and writes every output.
 
 ``fit_files`` fits many files as a Dask bag (``fluorite.fit_many`` on each partition)
 and gathers the fits, their materials and a summary table.
@@ -427,7 +428,14 @@ def fit_image(
         for y, (clamped, png) in _pairs(starts, runner.ordered("outputs", tasks)):
             yield y, clamped, png
 
+    # The client reads only the records it needs (the start's few pixels) from Zarr when
+    # the workers run every pass over the records and write the outputs; with zip=True
+    # it writes the outputs itself from a copy of every record.
     stored = zarr.open_array(records_path, mode="r")
+
+    def fetch_pixels(first: int, count: int) -> np.ndarray:
+        return _load_task(records_path, stages.width, stages.record_len, first, count)
+
     fit = stages.fit_records(
         output,
         basis,
@@ -436,6 +444,7 @@ def fit_image(
         lambda y, n: np.asarray(stored[y : y + n], dtype=np.float32),
         map_chunks,
         map_bands,
+        None if zip else fetch_pixels,
     )
     del held  # the records leave the workers' memory
     resume.finish()

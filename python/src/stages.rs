@@ -11,7 +11,7 @@
 //! [`fluorite::image::fit::fit_image_from_records`], the code `fit_image` runs after its
 //! passes.
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use fluorite::image::fit::band::{BandOutputs, OutputJob, PngStyle, write_band};
 use fluorite::image::fit::colour::CellColours;
@@ -22,7 +22,7 @@ use fluorite::image::fit::records::{
 };
 use fluorite::image::fit::scratch::RecordLayout;
 use fluorite::image::fit::shared::Shared;
-use fluorite::image::fit::{ImageFitOptions, fit_image_from_records, stages};
+use fluorite::image::fit::{ImageFitOptions, RecordSource, fit_image_from_records, stages};
 use fluorite::image::source::{ChunkIndex, PlanarBlock};
 use fluorite::image::{ArrayImage, ExrImage, Layout, PixelSource};
 use numpy::ndarray::{Array2, Array3, ArrayViewD};
@@ -629,9 +629,12 @@ impl PyImageStages {
     /// With `map_bands` (and uncompressed outputs), the EXR outputs' tiles are written by
     /// it: `map_bands(job)` returns an iterable of ``(y, clamped, png)``, the results of
     /// ``write_band(job, y, records)`` on bands of whole rows of 64-pixel tiles covering
-    /// the image, in row order; the PNGs are encoded here from their rows.
+    /// the image, in row order; the PNGs are encoded here from their rows. With
+    /// `fetch_pixels(first, count)` returning the records of pixels first..first + count
+    /// (count, record_len) float32, the records are read through it when needed (with
+    /// both mappers: the start's few pixels) instead of copied through `read_rows`.
     /// Returns an ``ImageFit``.
-    #[pyo3(signature = (output, basis, masked_pixels, non_finite_cells, read_rows, map_chunks = None, map_bands = None))]
+    #[pyo3(signature = (output, basis, masked_pixels, non_finite_cells, read_rows, map_chunks = None, map_bands = None, fetch_pixels = None))]
     #[allow(clippy::too_many_arguments)]
     fn fit_records(
         &self,
@@ -643,6 +646,7 @@ impl PyImageStages {
         read_rows: Py<PyAny>,
         map_chunks: Option<Py<PyAny>>,
         map_bands: Option<Py<PyAny>>,
+        fetch_pixels: Option<Py<PyAny>>,
     ) -> PyResult<PyImageFit> {
         let out = crate::convert::path(output, "output")?;
         let basis = basis_of(basis, self.m, self.record.rank)?;
@@ -655,8 +659,8 @@ impl PyImageStages {
             self.image().height(),
             self.record.len(),
         );
-        // A Python error of `read_rows`, raised again as it was.
-        let raised: Mutex<Option<PyErr>> = Mutex::new(None);
+        // A Python error of a callable, raised again as it was.
+        let raised: Arc<Mutex<Option<PyErr>>> = Arc::new(Mutex::new(None));
         const BAND: usize = 64;
         let image = self.image();
         let options = &self.options;
@@ -670,6 +674,78 @@ impl PyImageStages {
             raised: &raised,
         });
         let bands = bands.as_ref().map(|m| m as &dyn BandMapper);
+        let records = match fetch_pixels {
+            Some(fetch) => {
+                let raised = Arc::clone(&raised);
+                RecordSource::Fetch(Box::new(move |first: usize, count: usize| {
+                    let got = Python::attach(|py| -> PyResult<Vec<f32>> {
+                        let a = fetch.call1(py, (first, count))?;
+                        let a = a
+                            .bind(py)
+                            .extract::<PyArrayLikeDyn<'_, f32, AllowTypeChange>>()
+                            .map_err(|_| {
+                                invalid(
+                                    "fetch_pixels",
+                                    "returned something other than an array of real numbers",
+                                )
+                            })?;
+                        if a.shape() != [count, len] {
+                            return Err(invalid(
+                                "fetch_pixels",
+                                format!(
+                                    "returned shape {:?} for {count} pixels: expected ({count}, {len})",
+                                    a.shape()
+                                ),
+                            ));
+                        }
+                        Ok(a.as_array().iter().copied().collect())
+                    });
+                    got.map_err(|e| {
+                        *raised.lock().expect("not poisoned") = Some(e);
+                        fluorite::Error::invalid("fetch_pixels", "raised an exception")
+                    })
+                }))
+            }
+            None => RecordSource::Fill(Box::new(|scratch| {
+                for y in (0..height).step_by(BAND) {
+                    let rows = BAND.min(height - y);
+                    let band = Python::attach(|py| -> PyResult<Vec<f32>> {
+                        let a = read_rows.call1(py, (y, rows))?;
+                        let a = a
+                            .bind(py)
+                            .extract::<PyArrayLikeDyn<'_, f32, AllowTypeChange>>()
+                            .map_err(|_| {
+                                invalid(
+                                    "read_rows",
+                                    "returned something other than an array of real numbers",
+                                )
+                            })?;
+                        if a.shape() != [rows, width, len] {
+                            return Err(invalid(
+                                "read_rows",
+                                format!(
+                                    "returned shape {:?} for rows {y}..{}: expected ({rows}, {width}, {len})",
+                                    a.shape(),
+                                    y + rows
+                                ),
+                            ));
+                        }
+                        Ok(a.as_array().iter().copied().collect())
+                    });
+                    match band {
+                        Ok(band) => scratch.write(y * width, &band)?,
+                        Err(e) => {
+                            *raised.lock().expect("not poisoned") = Some(e);
+                            return Err(fluorite::Error::invalid(
+                                "read_rows",
+                                "raised an exception",
+                            ));
+                        }
+                    }
+                }
+                Ok(())
+            })),
+        };
         let result = detached(py, "fluorite.dask fit", || {
             fit_image_from_records(
                 image,
@@ -677,45 +753,7 @@ impl PyImageStages {
                 options,
                 &basis,
                 &census,
-                |scratch| {
-                    for y in (0..height).step_by(BAND) {
-                        let rows = BAND.min(height - y);
-                        let band = Python::attach(|py| -> PyResult<Vec<f32>> {
-                            let a = read_rows.call1(py, (y, rows))?;
-                            let a = a
-                                .bind(py)
-                                .extract::<PyArrayLikeDyn<'_, f32, AllowTypeChange>>()
-                                .map_err(|_| {
-                                    invalid(
-                                        "read_rows",
-                                        "returned something other than an array of real numbers",
-                                    )
-                                })?;
-                            if a.shape() != [rows, width, len] {
-                                return Err(invalid(
-                                    "read_rows",
-                                    format!(
-                                        "returned shape {:?} for rows {y}..{}: expected ({rows}, {width}, {len})",
-                                        a.shape(),
-                                        y + rows
-                                    ),
-                                ));
-                            }
-                            Ok(a.as_array().iter().copied().collect())
-                        });
-                        match band {
-                            Ok(band) => scratch.write(y * width, &band)?,
-                            Err(e) => {
-                                *raised.lock().expect("not poisoned") = Some(e);
-                                return Err(fluorite::Error::invalid(
-                                    "read_rows",
-                                    "raised an exception",
-                                ));
-                            }
-                        }
-                    }
-                    Ok(())
-                },
+                records,
                 mapper,
                 bands,
                 &|_| {},

@@ -165,6 +165,27 @@ def test_without_a_client_dask_s_threads_give_the_same_files(client, scan, tmp_p
     assert_same_outputs(tmp_path / "threads", reference)
 
 
+def test_compressed_outputs_are_written_by_the_client_from_every_record(client, cli, scan, tmp_path):
+    """zip=True: compressed tiles have no place before they are compressed, so the client
+    copies every record and writes the outputs; the same files as `fit-image --zip`."""
+    image, _ = scan
+    reference = tmp_path / "cli-zip"
+    fitted = run_cli(cli, "fit-image", image, "-o", reference, "--components", K, "--zip", "-q")
+    assert fitted.returncode == 0, fitted.stderr
+    seen = []
+    fdask.fit_image(
+        image,
+        output=tmp_path / "zip",
+        components=K,
+        zip=True,
+        client=client,
+        timeout=TIMEOUT,
+        progress=lambda stage, done, total: seen.append(stage),
+    )
+    assert "outputs" not in seen
+    assert_same_outputs(tmp_path / "zip", reference)
+
+
 @pytest.mark.parametrize("when", ["sketch", "shared fit (pass 3)"])
 def test_a_worker_killed_mid_run_changes_nothing(client, scan, tmp_path, when):
     """Killed in the first pass over the image, or in the shared fit, when it holds

@@ -391,10 +391,19 @@ fn run(
     Ok(fit)
 }
 
+/// Where [`fit_image_from_records`] finds the pixels' records.
+pub enum RecordSource<'a> {
+    /// Copied into the run's scratch file by the closure, given the file.
+    Fill(Box<dyn FnOnce(&Scratch) -> Result<()> + Send + 'a>),
+    /// Kept elsewhere and read when needed: with the passes over the records and the
+    /// outputs run elsewhere too, only the start's few pixels are read.
+    Fetch(scratch::FetchRecords),
+}
+
 /// Fits an image whose passes another process ran (a Dask cluster, `fluorite.dask`):
 /// `basis` is the basis after the power steps, `census` the sketch's count of masked
-/// pixels, and `fill` writes every pixel's record (pass 3's, [`stages::projection_block`])
-/// into the scratch file it is given. The rest is `fit_image`'s: the shared fluorophores
+/// pixels, and `records` gives every pixel's record (pass 3's,
+/// [`stages::projection_block`]): copied into a scratch file, or fetched when read. The rest is `fit_image`'s: the shared fluorophores
 /// for K = 1, 2, …, the gauge and the outputs, written into `out` from the scratch file
 /// (kept in `out`'s work folder while it runs). With `mapper`, the passes over the records
 /// of the shared fit (its iterations, start and judge of every K, the noise) run there,
@@ -410,7 +419,7 @@ pub fn fit_image_from_records(
     options: &ImageFitOptions,
     basis: &[f64],
     census: &passes::Census,
-    fill: impl FnOnce(&Scratch) -> Result<()>,
+    records: RecordSource<'_>,
     mapper: Option<&dyn records::ChunkMapper>,
     bands: Option<&dyn outputs::BandMapper>,
     report: &(dyn Fn(Step) + Sync),
@@ -443,9 +452,15 @@ pub fn fit_image_from_records(
     }
     let (record, expected) = work_sizes(image, options, rank);
     let mut state = State::open(&work, image, &options.key(), expected)?;
-    let scratch_path = state.folder()?.join("scratch.f32");
-    let scratch = Scratch::create(&scratch_path, record, image.pixels())?;
-    fill(&scratch)?;
+    let scratch = match records {
+        RecordSource::Fill(fill) => {
+            let scratch_path = state.folder()?.join("scratch.f32");
+            let scratch = Scratch::create(&scratch_path, record, image.pixels())?;
+            fill(&scratch)?;
+            scratch
+        }
+        RecordSource::Fetch(fetch) => Scratch::fetched("records", record, image.pixels(), fetch),
+    };
     let fit = conclude(
         image,
         out,

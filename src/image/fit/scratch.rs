@@ -52,15 +52,34 @@ impl RecordLayout {
     }
 }
 
-/// A scratch file of `pixels` records.
-#[derive(Debug)]
+/// Reads the records of pixels `first..first + count` from elsewhere.
+pub type FetchRecords = Box<dyn Fn(usize, usize) -> Result<Vec<f32>> + Send + Sync>;
+
+/// The records of `pixels` pixels: a scratch file, or records kept elsewhere (a
+/// cluster's Zarr array) and fetched when read ([`Scratch::fetched`]).
 pub struct Scratch {
     path: PathBuf,
-    file: File,
+    store: Store,
     /// The record layout.
     pub layout: RecordLayout,
     /// Number of records.
     pub pixels: usize,
+}
+
+enum Store {
+    File(File),
+    Fetched(FetchRecords),
+}
+
+impl std::fmt::Debug for Scratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Scratch")
+            .field("path", &self.path)
+            .field("fetched", &matches!(self.store, Store::Fetched(_)))
+            .field("layout", &self.layout)
+            .field("pixels", &self.pixels)
+            .finish()
+    }
 }
 
 impl Scratch {
@@ -77,7 +96,7 @@ impl Scratch {
             .map_err(|e| Error::io(path, e))?;
         Ok(Scratch {
             path: path.to_path_buf(),
-            file,
+            store: Store::File(file),
             layout,
             pixels,
         })
@@ -99,25 +118,69 @@ impl Scratch {
         }
         Ok(Scratch {
             path: path.to_path_buf(),
-            file,
+            store: Store::File(file),
             layout,
             pixels,
         })
     }
 
+    /// Records kept elsewhere, read through `fetch` (read-only): when the passes over
+    /// the records and the outputs run where the records are, the process that runs the
+    /// fit reads only a few pixels (the start's), not a copy of every record. `name`
+    /// names them in errors.
+    pub fn fetched(
+        name: &str,
+        layout: RecordLayout,
+        pixels: usize,
+        fetch: FetchRecords,
+    ) -> Scratch {
+        Scratch {
+            path: PathBuf::from(name),
+            store: Store::Fetched(fetch),
+            layout,
+            pixels,
+        }
+    }
+
+    fn file(&self) -> Result<&File> {
+        match &self.store {
+            Store::File(file) => Ok(file),
+            Store::Fetched(_) => Err(Error::invalid(
+                self.path.display().to_string(),
+                "records kept elsewhere are read-only",
+            )),
+        }
+    }
+
     /// Writes the records of pixels `first..first + records.len() / record length`.
     pub fn write(&self, first: usize, records: &[f32]) -> Result<()> {
         let bytes: Vec<u8> = records.iter().flat_map(|v| v.to_le_bytes()).collect();
-        self.file
+        self.file()?
             .write_all_at(&bytes, (first * self.layout.len() * 4) as u64)
             .map_err(|e| Error::io(&self.path, e))
     }
 
     /// Reads the records of pixels `first..first + count`.
     pub fn read(&self, first: usize, count: usize) -> Result<Vec<f32>> {
+        let file = match &self.store {
+            Store::File(file) => file,
+            Store::Fetched(fetch) => {
+                let records = fetch(first, count)?;
+                if records.len() != count * self.layout.len() {
+                    return Err(Error::invalid(
+                        self.path.display().to_string(),
+                        format!(
+                            "{} values fetched for {count} records of {}",
+                            records.len(),
+                            self.layout.len()
+                        ),
+                    ));
+                }
+                return Ok(records);
+            }
+        };
         let mut bytes = vec![0u8; count * self.layout.len() * 4];
-        self.file
-            .read_exact_at(&mut bytes, (first * self.layout.len() * 4) as u64)
+        file.read_exact_at(&mut bytes, (first * self.layout.len() * 4) as u64)
             .map_err(|e| Error::io(&self.path, e))?;
         Ok(bytes
             .chunks_exact(4)
@@ -127,6 +190,9 @@ impl Scratch {
 
     /// Flushes to disk (before a stage is recorded as done).
     pub fn sync(&self) -> Result<()> {
-        self.file.sync_all().map_err(|e| Error::io(&self.path, e))
+        match &self.store {
+            Store::File(file) => file.sync_all().map_err(|e| Error::io(&self.path, e)),
+            Store::Fetched(_) => Ok(()),
+        }
     }
 }
