@@ -391,10 +391,13 @@ fn run(
     Ok(fit)
 }
 
+/// Copies every pixel's record into the scratch file it is given.
+pub type FillRecords<'a> = Box<dyn FnOnce(&Scratch) -> Result<()> + Send + 'a>;
+
 /// Where [`fit_image_from_records`] finds the pixels' records.
 pub enum RecordSource<'a> {
     /// Copied into the run's scratch file by the closure, given the file.
-    Fill(Box<dyn FnOnce(&Scratch) -> Result<()> + Send + 'a>),
+    Fill(FillRecords<'a>),
     /// Kept elsewhere and read when needed: with the passes over the records and the
     /// outputs run elsewhere too, only the start's few pixels are read.
     Fetch(scratch::FetchRecords),
