@@ -100,14 +100,26 @@ def components(material):
     return (1 - absorbed) * r, parts
 
 
-def furnace_xyz(material, light_spd, cmf, keep=None):
+def furnace_xyz(material, light_spd, cmf, keep=None, stokes_cell_nm=None):
     """(XYZ of the sphere, XYZ of a white diffuser); `keep` = indices of the fluorophores
-    whose re-emission counts (the others still absorb), None = all."""
+    whose re-emission counts (the others still absorb), None = all. `stokes_cell_nm`:
+    None = the model (light absorbed at any λi is re-emitted at every λo); w = only Stokes
+    shifts at the resolution of a bispectral matrix with cells w nm wide centred on the
+    multiples of w, the way ART renders the `.ark` (docs/renderers.md): light absorbed at λi
+    re-emitted at λo when λi's cell is not above λo's (the shared cell is kept whole, as
+    ART keeps the diagonal); 0 = strictly λi < λo."""
     d, parts = components(material)
     lo = d * light_spd
     for k, (x, e) in enumerate(parts):
         if keep is None or k in keep:
-            lo = lo + e * trapezoid(x * light_spd, GRID)
+            if stokes_cell_nm is None:
+                lo = lo + e * trapezoid(x * light_spd, GRID)
+                continue
+            f = x * light_spd
+            below = np.concatenate([[0.0], np.cumsum((f[1:] + f[:-1]) * np.diff(GRID) / 2)])
+            w = stokes_cell_nm
+            edge = GRID if w == 0 else w * np.floor(GRID / w + 0.5) + w / 2
+            lo = lo + e * np.interp(edge, GRID, below)
     xyz = np.array([trapezoid(lo * c, GRID) for c in cmf])
     white = np.array([trapezoid(light_spd * c, GRID) for c in cmf])
     return xyz, white

@@ -1088,8 +1088,8 @@ fn a_plain_material_exports_as_plain_diffuse() {
 
 /// Each fluorescent export says in its header how it was checked: the fork's scene that it
 /// was rendered (and what the released fork gets wrong), PearRay's that it was rendered
-/// (with `:nee false` and the CIE 1931 build), ART's that it is checked against the format
-/// only (docs/renderers.md).
+/// (with `:nee false` and the CIE 1931 build), ART's that it was rendered (with `-s46e`,
+/// Stokes shifts only) (docs/renderers.md).
 #[test]
 fn fluorescent_exports_say_how_they_were_checked() {
     for m in materials() {
@@ -1111,6 +1111,11 @@ fn fluorescent_exports_say_how_they_were_checked() {
             .lines()
             .find(|l| l.starts_with("Description"))
             .expect("a description line");
-        assert!(description.contains("Checked against ART's archive format only"));
+        assert!(
+            description.contains("RENDERED in ART 99c65c0"),
+            "{description}"
+        );
+        assert!(description.contains("-s46e"));
+        assert!(description.contains("anti-Stokes"));
     }
 }
