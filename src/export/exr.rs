@@ -15,12 +15,14 @@ use std::collections::HashMap;
 
 use exr::prelude::{
     AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer, LayerAttributes,
-    Text, WritableImage,
+    WritableImage,
 };
 
 use crate::colour::{Light, material_xyz, xyz_to_linear_srgb};
 use crate::error::{Error, Result};
-use crate::formats::exr::{VERSION, VERSION_ATTRIBUTE, diagonal_channel, reradiation_channel};
+use crate::formats::exr::{
+    VERSION, VERSION_ATTRIBUTE, diagonal_channel, header_text as text, reradiation_channel,
+};
 use crate::material::Material;
 use crate::measurement::{Measurement, Units};
 
@@ -54,15 +56,6 @@ fn anti_stokes_share_of(m: &Measurement) -> f64 {
         }
     }
     if total > 0.0 { anti / total } else { 0.0 }
-}
-
-/// Header text: OpenEXR strings are Latin-1, so other characters become `?`.
-fn text(s: &str) -> Text {
-    let latin1: String = s
-        .chars()
-        .map(|c| if (c as u32) < 256 { c } else { '?' })
-        .collect();
-    Text::new_or_none(latin1).unwrap_or_else(|| Text::from("?"))
 }
 
 /// The uniform bispectral EXR of `material` on `grid` (sorted, in nm), and the share of

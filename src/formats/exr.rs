@@ -19,6 +19,16 @@ use super::Parsed;
 
 /// The header attribute naming the layout's version.
 pub const VERSION_ATTRIBUTE: &str = "spectralLayoutVersion";
+
+/// Header text: OpenEXR strings are Latin-1, so other characters become `?`.
+pub fn header_text(s: &str) -> exr::meta::attribute::Text {
+    use exr::meta::attribute::Text;
+    let latin1: String = s
+        .chars()
+        .map(|c| if (c as u32) < 256 { c } else { '?' })
+        .collect();
+    Text::new_or_none(latin1).unwrap_or_else(|| Text::from("?"))
+}
 /// The version of the layout written and read.
 pub const VERSION: &str = "1.0";
 /// The first four bytes of every OpenEXR file.

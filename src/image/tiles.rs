@@ -16,6 +16,7 @@ use exr::meta::attribute::{
 use exr::meta::header::Header;
 
 use crate::error::{Error, Result};
+use crate::formats::exr::header_text as text;
 
 /// Tile edge of every image fluorite writes: a 64 × 64 tile of a 49 × 41 bispectral
 /// image is 19 MB as 32-bit floats, whatever the image's width.
@@ -66,15 +67,6 @@ pub struct ImageSpec {
     /// Text attributes of the header (name, value). `spectralLayoutVersion` is written as
     /// its own attribute; the others are joined into the standard `comments` attribute.
     pub attributes: Vec<(String, String)>,
-}
-
-/// OpenEXR text: Latin-1, other characters become `?`.
-fn text(s: &str) -> Text {
-    let latin1: String = s
-        .chars()
-        .map(|c| if (c as u32) < 256 { c } else { '?' })
-        .collect();
-    Text::new_or_none(latin1).unwrap_or_else(|| Text::from("?"))
 }
 
 /// The header of an image of `spec`, and the order of its channels in the file:
