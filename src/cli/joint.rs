@@ -9,7 +9,7 @@ use std::process::ExitCode;
 use fluorite::fit::joint::reference::Reference;
 use fluorite::pipeline::InputOptions;
 use fluorite::pipeline::joint::{
-    JointOutcome, JointRequest, fit_samples, read_samples, select_samples,
+    JointOutcome, JointRequest, SecondOrderChoice, fit_samples, read_samples, select_samples,
 };
 
 use crate::cli::printer;
@@ -42,6 +42,20 @@ pub struct JointArgs {
     /// Skip split-half validation in a joint fit.
     #[arg(long, requires = "joint")]
     pub no_split_half: bool,
+    /// Model the grating's second-order image of the emission in a joint EEM fit (each
+    /// component seen as e(λo) + G(λo)·e(λo/2), G fitted and shared): `auto` (when the
+    /// second-order Rayleigh line stands out in the data), `on` or `off`.
+    #[arg(long, value_parser = parse_second_order, default_value = "auto", requires = "joint")]
+    pub second_order: SecondOrderChoice,
+}
+
+fn parse_second_order(text: &str) -> Result<SecondOrderChoice, String> {
+    match text {
+        "auto" => Ok(SecondOrderChoice::Auto),
+        "on" => Ok(SecondOrderChoice::On),
+        "off" => Ok(SecondOrderChoice::Off),
+        _ => Err(format!("{text:?}: give auto, on or off")),
+    }
 }
 
 /// A joint fit as `fit` hands it over: its inputs, how to read them, the request (`fit`'s
@@ -70,6 +84,7 @@ impl JointArgs {
             em_range: self.em_range.map(|r| (r.0, r.1)),
             ex_range: self.ex_range.map(|r| (r.0, r.1)),
             no_split_half: self.no_split_half,
+            second_order: self.second_order,
             reference: self.reference.as_deref().map(Reference::read).transpose()?,
             ..request
         })

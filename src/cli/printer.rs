@@ -516,6 +516,24 @@ pub fn joint_summary(fit: &JointFit, dir: &Path, matches: Option<&[AnalyteMatch]
         if let Some(o) = &comp.scatter {
             out.push_str(&format!("    {}\n", scatter_text(o)));
         }
+        if let Some(share) = comp.image_share {
+            out.push_str(&format!(
+                "    second-order image: {:.1} % of its signal on the emission grid (its emission above is first order)\n",
+                100.0 * share
+            ));
+        }
+    }
+    if let Some(image) = &fit.second_order {
+        let nodes: Vec<String> = image
+            .wavelength_nm
+            .iter()
+            .zip(&image.gain)
+            .map(|(l, g)| format!("{l:.0} {g:.3}"))
+            .collect();
+        out.push_str(&format!(
+            "  second-order image: the data see e(λo) + G(λo)·e(λo/2); G fitted, shared (nm G: {})\n",
+            nodes.join(", ")
+        ));
     }
     if let Some((worst, r)) = fit
         .samples

@@ -42,6 +42,38 @@ pub struct JointRequest {
     pub timing_runs: usize,
     /// Known concentrations to match the components with.
     pub reference: Option<Reference>,
+    /// Whether an EEM set's fit models the grating's second-order image.
+    pub second_order: SecondOrderChoice,
+}
+
+/// Whether a joint EEM fit models the grating's second-order image of the emission
+/// ([`JointOptions::second_order`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SecondOrderChoice {
+    /// When the data hold second-order light: the second-order Rayleigh line stood out
+    /// (its width was measured) in at least one sample.
+    #[default]
+    Auto,
+    /// Always (where the emission grid holds an image).
+    On,
+    /// Never: the effective emission is reported as the component's.
+    Off,
+}
+
+impl SecondOrderChoice {
+    /// The choice for a set whose samples were masked with `reports`' bands: `Auto` is on
+    /// when any sample's second-order Rayleigh line stood out in at least 3 excitation
+    /// rows (the rows that measure a band's width), i.e. the instrument passes the
+    /// grating's second order.
+    pub fn resolve<'a>(self, reports: impl IntoIterator<Item = &'a [MaskedBand]>) -> bool {
+        match self {
+            SecondOrderChoice::On => true,
+            SecondOrderChoice::Off => false,
+            SecondOrderChoice::Auto => reports.into_iter().flatten().any(|b| {
+                b.line == crate::eem::scatter::ScatterLine::Rayleigh2 && b.rows_measured >= 3
+            }),
+        }
+    }
 }
 
 impl Default for JointRequest {
@@ -57,6 +89,7 @@ impl Default for JointRequest {
             lights: Light::standard(),
             timing_runs: 1,
             reference: None,
+            second_order: SecondOrderChoice::Auto,
         }
     }
 }
@@ -181,6 +214,12 @@ fn fit_eem_set(samples: &[Prepared], request: &JointRequest) -> Result<Vec<EemFi
     let eems: Vec<_> = samples.iter().map(|s| s.measurement.clone()).collect();
     let max_iterations = usize::try_from(request.max_iterations.max(1)).unwrap_or(usize::MAX);
     let (bands, shift) = set_scatter_bands(samples);
+    let second_order = request.second_order.resolve(
+        samples
+            .iter()
+            .filter_map(|s| s.preprocessing.as_ref())
+            .map(|p| p.scatter.as_slice()),
+    );
     request
         .component_counts()
         .into_iter()
@@ -194,6 +233,7 @@ fn fit_eem_set(samples: &[Prepared], request: &JointRequest) -> Result<Vec<EemFi
                 em_range: request.em_range,
                 ex_range: request.ex_range,
                 no_split_half: request.no_split_half,
+                second_order,
             };
             let mut fit = fit_joint(&eems, &options)?;
             if request.timing_runs > 1 {

@@ -20,6 +20,7 @@ mod eem_instrument;
 mod eem_joint;
 mod eem_options;
 mod eem_scatter_leak;
+mod eem_second_order;
 mod export;
 mod export_exr_rgb;
 mod export_options;

@@ -19,7 +19,8 @@ use crate::material::{FitReport, FluorophoreShapes, SHAPES_SCHEMA};
 use crate::measurement::Measurement;
 use crate::spectrum::{Spectrum, bin_widths};
 use diagnostics::{SplitHalf, core_consistency, split_half};
-use parafac::{Factors, ParafacOptions, Tensor, fit};
+use parafac::image::Image;
+use parafac::{Factors, ParafacOptions, Tensor, fit_with_image};
 
 /// Schema tag of a joint model file.
 pub const JOINT_SCHEMA: &str = "fluorite-parafac/1";
@@ -35,6 +36,21 @@ pub struct JointOptions {
     pub ex_range: Option<(f64, f64)>,
     /// Skip the split-half validation (it fits both halves again).
     pub no_split_half: bool,
+    /// Fit the grating's second-order image of the emission: each component seen as
+    /// `e(λo) + G(λo)·e(λo/2)`, G shared ([`parafac::image`]); the components' emission
+    /// is then first-order only. Ignored when no emission wavelength has its half on the
+    /// grid.
+    pub second_order: bool,
+}
+
+/// The fitted second-order image: the data see each component's first-order emission e
+/// as `e(λo) + G(λo)·e(λo/2)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SecondOrderImage {
+    /// G's nodes (nm); G is linear between them and zero outside.
+    pub wavelength_nm: Vec<f64>,
+    /// G at the nodes (≥ 0).
+    pub gain: Vec<f64>,
 }
 
 /// One component: shapes shared by every sample.
@@ -54,6 +70,10 @@ pub struct JointComponent {
     /// maximum ([`JointFit::check_scatter`]); absent until checked.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scatter: Option<scatter::ScatterOverlap>,
+    /// With the second-order image fitted: the share of the component's signal over the
+    /// emission grid (∫ of `e + G·e(λo/2)`) that is its image.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_share: Option<f64>,
 }
 
 /// A joint fit of a sample set and how good it is.
@@ -90,6 +110,9 @@ pub struct JointFit {
     pub seconds: f64,
     /// Wall time of core consistency and split-half validation (seconds).
     pub diagnostics_seconds: f64,
+    /// The second-order image, when fitted ([`JointOptions::second_order`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub second_order: Option<SecondOrderImage>,
 }
 
 /// Crops every matrix to the ranges and stacks them; all must share the cropped grids.
@@ -195,10 +218,48 @@ pub fn fit_joint(measurements: &[Measurement], options: &JointOptions) -> Result
         ));
     }
     let weights = bin_widths(&em_nm);
+    let image = if options.second_order {
+        Image::new(&em_nm)
+    } else {
+        None
+    };
     let started = Instant::now();
-    let model = fit(&t, &weights, &options.parafac)?;
+    let model = fit_with_image(&t, &weights, &options.parafac, image.as_ref())?;
     let seconds = started.elapsed().as_secs_f64();
-    let factors = ordered(&model.factors, &t);
+    let mut factors = ordered(&model.factors, &t);
+    // With the image: the effective emission rescaled so that its first-order part has
+    // ∫e = 1 (the scores take the scale), and the first-order parts for the report.
+    let mut first_order = factors.emission.clone();
+    let mut image_shares = vec![None; k];
+    let mut second_order = None;
+    if let (Some(image), Some(g)) = (&image, &model.image_gain) {
+        let gain = image.gain(g);
+        for (c, image_share) in image_shares.iter_mut().enumerate() {
+            let range = c * t.n_em..(c + 1) * t.n_em;
+            let e = image.first_order(&factors.emission[range.clone()], &gain);
+            let area = crate::numeric::dot(&e, &weights);
+            let total = crate::numeric::dot(&factors.emission[range.clone()], &weights);
+            if area > 0.0 {
+                for s in 0..t.samples {
+                    factors.scores[s * k + c] *= area;
+                }
+                factors.emission[range.clone()]
+                    .iter_mut()
+                    .for_each(|v| *v /= area);
+                first_order[range.clone()]
+                    .iter_mut()
+                    .zip(&e)
+                    .for_each(|(o, v)| *o = v / area);
+            }
+            if total > 0.0 {
+                *image_share = Some((1.0 - area / total).clamp(0.0, 1.0));
+            }
+        }
+        second_order = Some(SecondOrderImage {
+            wavelength_nm: image.nodes_nm().to_vec(),
+            gain: g.clone(),
+        });
+    }
     let started = Instant::now();
     let core = core_consistency(&t, &factors);
     let halves = if options.no_split_half {
@@ -232,7 +293,7 @@ pub fn fit_joint(measurements: &[Measurement], options: &JointOptions) -> Result
     let components = (0..k)
         .map(|c| {
             let absorption = factors.excitation[c * t.n_ex..(c + 1) * t.n_ex].to_vec();
-            let emission = factors.emission[c * t.n_em..(c + 1) * t.n_em].to_vec();
+            let emission = first_order[c * t.n_em..(c + 1) * t.n_em].to_vec();
             JointComponent {
                 peak_excitation_nm: ex_nm[argmax(&absorption)],
                 peak_emission_nm: em_nm[argmax(&emission)],
@@ -246,6 +307,7 @@ pub fn fit_joint(measurements: &[Measurement], options: &JointOptions) -> Result
                 },
                 share: shares[c],
                 scatter: None,
+                image_share: image_shares[c],
             }
         })
         .collect();
@@ -271,6 +333,7 @@ pub fn fit_joint(measurements: &[Measurement], options: &JointOptions) -> Result
         converged: model.converged,
         seconds,
         diagnostics_seconds,
+        second_order,
     })
 }
 

@@ -163,6 +163,7 @@ mod tests {
             peak_emission_nm: 0.0,
             share: 1.0,
             scatter: None,
+            image_share: None,
         }
     }
 

@@ -173,6 +173,7 @@ pub fn dorrit_classic_options(split_half: bool) -> fluorite::fit::joint::JointOp
         em_range: Some((250.0, 681.0)),
         ex_range: Some((230.0, 315.0)),
         no_split_half: !split_half,
+        second_order: false,
     }
 }
 

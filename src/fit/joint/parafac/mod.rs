@@ -17,9 +17,14 @@
 //! is deterministic: the passes over the data run on the samples in parallel, their
 //! partial sums added in sample order.
 
+pub mod image;
+mod start;
+
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
+use image::Image;
+use start::start;
 
 /// Coordinate-descent sweeps per mode update (the normal equations are cheap to revisit;
 /// more sweeps bring each update closer to the exact non-negative least-squares solution).
@@ -167,7 +172,15 @@ pub struct Parafac {
     /// Components restarted from the residual after they had died (all scores or a
     /// loading at zero, from which HALS cannot leave).
     pub reseeded: usize,
+    /// With the second-order image fitted ([`fit_with_image`]): G at the image's nodes
+    /// ([`Image::nodes_nm`]). The factors' emission is then the effective one,
+    /// `e(λo) + G(λo)·e(λo/2)`; [`Image::first_order`] gives e.
+    pub image_gain: Option<Vec<f64>>,
 }
+
+/// Rounds of (fit G to the effective emission, refit the factors with G held) after the
+/// fit without the image.
+const IMAGE_ROUNDS: usize = 4;
 
 /// The working state: data with the sample-specific gaps filled, and the common mask.
 struct Work<'a> {
@@ -189,6 +202,30 @@ struct Work<'a> {
 /// Fits `options.components` non-negative components to `t`. `em_weights` are the
 /// emission integration weights (bin widths) of the ∫e = 1 normalisation.
 pub fn fit(t: &Tensor, em_weights: &[f64], options: &ParafacOptions) -> Result<Parafac> {
+    fit_with_image(t, em_weights, options, None)
+}
+
+/// The iterations' bookkeeping.
+#[derive(Default)]
+struct Progress {
+    iterations: usize,
+    converged: bool,
+    extrapolations: usize,
+    reseeded: usize,
+}
+
+/// [`fit`], and with `image` the grating's second-order image of the emission as well:
+/// every component's emission is seen as `e(λo) + G(λo)·e(λo/2)` with one non-negative
+/// G shared by all ([`image`]). The fit first runs without the image; then, per round,
+/// G is fitted to the effective emission ([`Image::fit_gain`]) and the factors refitted
+/// with G held, the emission updated as first-order emission ≥ 0 ([`Image::update_rows`]).
+/// Without an image (or with G = 0) this is [`fit`].
+pub fn fit_with_image(
+    t: &Tensor,
+    em_weights: &[f64],
+    options: &ParafacOptions,
+    image: Option<&Image>,
+) -> Result<Parafac> {
     let k = options.components;
     if k == 0 || k > MAX_COMPONENTS {
         return Err(Error::invalid(
@@ -219,55 +256,140 @@ pub fn fit(t: &Tensor, em_weights: &[f64], options: &ParafacOptions) -> Result<P
             "the tensor's cells or emission weights do not match its dimensions",
         ));
     }
+    if image.is_some_and(|i| i.len() != t.n_em) {
+        return Err(Error::invalid(
+            "joint fit",
+            "the second-order image was built for another emission grid",
+        ));
+    }
     let work = Work::new(t);
     let mut factors = start(&work, k);
     factors.normalise(t.n_ex, t.n_em, em_weights);
     let mut work = work;
     work.impute(&factors);
-    let mut loss = work.loss(&factors);
+    let mut progress = Progress::default();
+    let mut loss = iterate(
+        &mut work,
+        &mut factors,
+        em_weights,
+        options,
+        None,
+        &mut progress,
+    );
+    let mut image_gain = None;
+    if let Some(image) = image {
+        let mut gain = vec![0.0; t.n_em];
+        let mut g = vec![0.0; image.nodes_nm().len()];
+        for _ in 0..IMAGE_ROUNDS {
+            let rows = transpose(&factors.emission, k, t.n_em);
+            let weights = work.emission_weights(&factors);
+            let next = image.fit_gain(&rows, k, &weights, &gain);
+            let change = next
+                .iter()
+                .zip(&g)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            let scale = next.iter().cloned().fold(0.0, f64::max);
+            g = next;
+            gain = image.gain(&g);
+            project(&mut factors, image, &gain, t, em_weights);
+            work.impute(&factors);
+            let mut round = Progress::default();
+            loss = iterate(
+                &mut work,
+                &mut factors,
+                em_weights,
+                options,
+                Some((image, &gain)),
+                &mut round,
+            );
+            progress.iterations += round.iterations;
+            progress.extrapolations += round.extrapolations;
+            progress.reseeded += round.reseeded;
+            progress.converged = round.converged;
+            if change <= 1e-3 * scale.max(1e-12) {
+                break;
+            }
+        }
+        image_gain = Some(g);
+    }
+    let _ = loss;
+    Ok(Parafac {
+        // Exact, free of the cancellation in the sweeps' running figure.
+        loss: work.loss(&factors),
+        factors,
+        iterations: progress.iterations,
+        converged: progress.converged,
+        extrapolations: progress.extrapolations,
+        reseeded: progress.reseeded,
+        image_gain,
+    })
+}
+
+/// Makes every component's effective emission one the image allows (first-order emission
+/// ≥ 0 under `gain`), then normalises.
+fn project(f: &mut Factors, image: &Image, gain: &[f64], t: &Tensor, em_weights: &[f64]) {
+    let n = t.n_em;
+    for c in 0..f.k {
+        let e = image.first_order(&f.emission[c * n..(c + 1) * n], gain);
+        f.emission[c * n..(c + 1) * n].copy_from_slice(&image.effective(&e, gain));
+    }
+    f.normalise(t.n_ex, n, em_weights);
+}
+
+/// The ALS sweeps until converged or `options.max_iterations` in all (counted in
+/// `progress`); returns the last loss.
+fn iterate(
+    work: &mut Work<'_>,
+    factors: &mut Factors,
+    em_weights: &[f64],
+    options: &ParafacOptions,
+    image: Option<(&Image, &[f64])>,
+    progress: &mut Progress,
+) -> f64 {
+    let t = work.t;
+    let mut loss = work.loss(factors);
     let mut previous = factors.clone();
-    let (mut iterations, mut converged, mut extrapolations, mut reseeded) = (0, false, 0, 0);
-    while iterations < options.max_iterations {
-        iterations += 1;
-        let mut new_loss = work.sweep(&mut factors);
-        let dead = work.reseed_dead(&mut factors);
+    let mut sweeps = 0;
+    while sweeps < options.max_iterations {
+        sweeps += 1;
+        progress.iterations += 1;
+        let mut new_loss = work.sweep(factors, image);
+        let dead = work.reseed_dead(factors);
         if dead > 0 {
-            reseeded += dead;
-            new_loss = work.loss(&factors);
+            progress.reseeded += dead;
+            if let Some((image, gain)) = image {
+                project(factors, image, gain, t, em_weights);
+            }
+            new_loss = work.loss(factors);
         }
         factors.normalise(t.n_ex, t.n_em, em_weights);
-        if iterations > 1 {
-            let step = (iterations as f64).sqrt();
-            let trial = extrapolate(&factors, &previous, step, t, em_weights);
+        if sweeps > 1 {
+            let step = (sweeps as f64).sqrt();
+            let mut trial = extrapolate(factors, &previous, step, t, em_weights);
+            if let Some((image, gain)) = image {
+                project(&mut trial, image, gain, t, em_weights);
+            }
             let trial_loss = work.loss(&trial);
             if trial_loss < new_loss {
-                previous = factors;
-                factors = trial;
+                previous = std::mem::replace(factors, trial);
                 new_loss = trial_loss;
-                extrapolations += 1;
+                progress.extrapolations += 1;
             } else {
                 previous = factors.clone();
             }
         } else {
             previous = factors.clone();
         }
-        work.impute(&factors);
+        work.impute(factors);
         let change = (loss - new_loss).abs() / loss.max(f64::MIN_POSITIVE);
         loss = new_loss;
         if change < options.tolerance || loss == 0.0 {
-            converged = true;
+            progress.converged = true;
             break;
         }
     }
-    Ok(Parafac {
-        // Exact, free of the cancellation in the sweeps' running figure.
-        loss: work.loss(&factors),
-        factors,
-        iterations,
-        converged,
-        extrapolations,
-        reseeded,
-    })
+    loss
 }
 
 /// `f + step·(f − previous)`, clipped at 0 and normalised.
@@ -292,112 +414,6 @@ fn extrapolate(
     };
     trial.normalise(t.n_ex, t.n_em, em_weights);
     trial
-}
-
-/// The closed-form start (see the module doc).
-fn start(work: &Work<'_>, k: usize) -> Factors {
-    let t = work.t;
-    let (s_n, n_ex, n_em) = (t.samples, t.n_ex, t.n_em);
-    let x = &work.filled;
-    // Excitation mode: the n_ex × n_ex Gram of the excitation unfolding.
-    let mut gram = nalgebra::DMatrix::<f64>::zeros(n_ex, n_ex);
-    for s in 0..s_n {
-        for a in 0..n_ex {
-            let ra = &x[t.index(s, a, 0)..t.index(s, a, 0) + n_em];
-            for b in a..n_ex {
-                let rb = &x[t.index(s, b, 0)..t.index(s, b, 0) + n_em];
-                gram[(a, b)] += crate::numeric::dot(ra, rb);
-            }
-        }
-    }
-    for a in 0..n_ex {
-        for b in 0..a {
-            gram[(a, b)] = gram[(b, a)];
-        }
-    }
-    let ex_vectors = leading_eigenvectors(gram, k);
-    // Emission mode from the excitation-projected data (n_em × s·k), through the small
-    // Gram of its columns.
-    let kx = ex_vectors.len();
-    let columns = s_n * kx;
-    let mut projected = vec![0.0; columns * n_em];
-    for s in 0..s_n {
-        for (c, v) in ex_vectors.iter().enumerate() {
-            let out = &mut projected[(s * kx + c) * n_em..(s * kx + c + 1) * n_em];
-            for (ex, w) in v.iter().enumerate() {
-                let row = &x[t.index(s, ex, 0)..t.index(s, ex, 0) + n_em];
-                for (o, r) in out.iter_mut().zip(row) {
-                    *o += w * r;
-                }
-            }
-        }
-    }
-    let mut small = nalgebra::DMatrix::<f64>::zeros(columns, columns);
-    for a in 0..columns {
-        for b in a..columns {
-            let d = crate::numeric::dot(
-                &projected[a * n_em..(a + 1) * n_em],
-                &projected[b * n_em..(b + 1) * n_em],
-            );
-            small[(a, b)] = d;
-            small[(b, a)] = d;
-        }
-    }
-    let em_vectors: Vec<Vec<f64>> = leading_eigenvectors(small, k)
-        .into_iter()
-        .map(|v| {
-            let mut u = vec![0.0; n_em];
-            for (c, w) in v.iter().enumerate() {
-                for (o, p) in u.iter_mut().zip(&projected[c * n_em..(c + 1) * n_em]) {
-                    *o += w * p;
-                }
-            }
-            u
-        })
-        .collect();
-    Factors {
-        k,
-        scores: vec![1.0; s_n * k],
-        excitation: non_negative_parts(&ex_vectors, k, n_ex),
-        emission: non_negative_parts(&em_vectors, k, n_em),
-    }
-}
-
-/// The eigenvectors of the `k` largest eigenvalues of a symmetric matrix, largest first
-/// (fewer when the matrix is smaller).
-fn leading_eigenvectors(m: nalgebra::DMatrix<f64>, k: usize) -> Vec<Vec<f64>> {
-    let n = m.nrows();
-    let eigen = m.symmetric_eigen();
-    let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
-    order
-        .into_iter()
-        .take(k)
-        .map(|c| eigen.eigenvectors.column(c).iter().copied().collect())
-        .collect()
-}
-
-/// NNDSVD's rule per vector: the larger (in norm) of its positive and negative parts,
-/// scaled to max 1, plus [`START_FLOOR`]; missing vectors (a mode shorter than k) are flat.
-fn non_negative_parts(vectors: &[Vec<f64>], k: usize, n: usize) -> Vec<f64> {
-    let mut out = Vec::with_capacity(k * n);
-    for c in 0..k {
-        let part: Vec<f64> = match vectors.get(c) {
-            Some(v) => {
-                let positive: f64 = v.iter().map(|x| x.max(0.0).powi(2)).sum();
-                let negative: f64 = v.iter().map(|x| (-x).max(0.0).powi(2)).sum();
-                let sign = if positive >= negative { 1.0 } else { -1.0 };
-                v.iter().map(|x| (sign * x).max(0.0)).collect()
-            }
-            None => vec![1.0; n],
-        };
-        let peak = part.iter().cloned().fold(0.0, f64::max);
-        out.extend(
-            part.iter()
-                .map(|x| if peak > 0.0 { x / peak } else { 1.0 } + START_FLOOR),
-        );
-    }
-    out
 }
 
 /// A HALS right-hand side by rows of one mode: out[row·k + c] = Σ_other term(row, other, c),
@@ -571,6 +587,25 @@ impl<'a> Work<'a> {
         dead.len()
     }
 
+    /// The diagonal of each emission row's Gram matrix, `[em·K + c]`: how much the cells
+    /// of row em weigh on component c's emission.
+    fn emission_weights(&self, f: &Factors) -> Vec<f64> {
+        let t = self.t;
+        let (k, n_ex, n_em) = (f.k, t.n_ex, t.n_em);
+        let ata = scores_gram(f, t.samples);
+        let mut out = vec![0.0; n_em * k];
+        for ex in 0..n_ex {
+            for em in 0..n_em {
+                if self.present[ex * n_em + em] > 0.0 {
+                    for c in 0..k {
+                        out[em * k + c] += ata[c * k + c] * f.excitation[c * n_ex + ex].powi(2);
+                    }
+                }
+            }
+        }
+        out
+    }
+
     /// Sum of squared residuals over the measured cells.
     fn loss(&self, f: &Factors) -> f64 {
         let t = self.t;
@@ -599,7 +634,7 @@ impl<'a> Work<'a> {
 
     /// One ALS sweep: scores, excitation, emission (this order reuses the emission
     /// projection for the first two). Returns the loss over the measured cells.
-    fn sweep(&self, f: &mut Factors) -> f64 {
+    fn sweep(&self, f: &mut Factors, image: Option<(&Image, &[f64])>) -> f64 {
         let t = self.t;
         let (k, n_ex, n_em, samples) = (f.k, t.n_ex, t.n_em, t.samples);
         let x = &self.filled;
@@ -706,9 +741,14 @@ impl<'a> Work<'a> {
             }
         }
         let mut rows = transpose(&f.emission, k, n_em);
-        hals_rows(&mut rows, k, &rhs, |em| {
-            grams[em * k * k..(em + 1) * k * k].to_vec()
-        });
+        match image {
+            Some((image, gain)) => {
+                image.update_rows(&mut rows, k, &rhs, &grams, gain, INNER_SWEEPS)
+            }
+            None => hals_rows(&mut rows, k, &rhs, |em| {
+                grams[em * k * k..(em + 1) * k * k].to_vec()
+            }),
+        }
         // The loss over the cells the model is fitted to, without another pass over the
         // data: Σ X² − 2⟨X, M⟩ + ‖M‖², with ⟨X, M⟩ from the emission right-hand side
         // and ‖M‖² from the emission Gram matrices.
@@ -749,43 +789,4 @@ fn scores_gram(f: &Factors, samples: usize) -> Vec<f64> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Exact rank-2 non-negative data with a hole: the fit reproduces every cell.
-    #[test]
-    fn exact_low_rank_data_are_reproduced() {
-        let (samples, n_ex, n_em) = (5, 6, 30);
-        let ex = |k: usize, j: usize| (-((j as f64 - 1.5 - 3.0 * k as f64).powi(2)) / 2.0).exp();
-        let em = |k: usize, i: usize| (-((i as f64 - 8.0 - 12.0 * k as f64).powi(2)) / 18.0).exp();
-        let score = |s: usize, k: usize| 1.0 + ((s * 7 + k * 3) % 5) as f64;
-        let mut values = Vec::new();
-        for s in 0..samples {
-            for j in 0..n_ex {
-                for i in 0..n_em {
-                    let v: f64 = (0..2).map(|k| score(s, k) * ex(k, j) * em(k, i)).sum();
-                    values.push(if i == j + 3 || (s == 1 && i == 20) {
-                        f64::NAN
-                    } else {
-                        v
-                    });
-                }
-            }
-        }
-        let t = Tensor {
-            samples,
-            n_ex,
-            n_em,
-            values: values.clone(),
-        };
-        let weights = vec![1.0; n_em];
-        let options = ParafacOptions {
-            components: 2,
-            tolerance: 1e-12,
-            max_iterations: 5000,
-        };
-        let fit = fit(&t, &weights, &options).unwrap();
-        let total: f64 = values.iter().filter(|v| v.is_finite()).map(|v| v * v).sum();
-        assert!(fit.loss / total < 1e-8, "{} {}", fit.loss, total);
-    }
-}
+mod tests;
