@@ -60,6 +60,7 @@ def main():
         help="fit the image as a Zarr array (height, width, cells) copied from the EXR (synth's default grids), "
         "`chunks` then rows per task: the memory of an array source",
     )
+    parser.add_argument("--judge-size", action="store_true", help="print what each judge task sends to the client")
     args = parser.parse_args()
 
     work = Path(tempfile.mkdtemp(prefix="fluorite-dask-bench-"))
@@ -119,7 +120,28 @@ def main():
     stages.project(basis, 0, blocks)
     kernels["projection"] = time.process_time() - cpu
     print(json.dumps({"kernel_cpu_ms_per_block": {k: round(1000 * v / blocks, 1) for k, v in kernels.items()}}), flush=True)
-    for workers in [int(w) for w in args.workers.split(",")]:
+    if args.judge_size:
+        # What each judge task sends to the client (its results as text), from one run on
+        # Dask's synchronous scheduler in this process, where the task can be watched.
+        import dask
+
+        sizes = []
+        task = fdask._records_task
+
+        def watched(plan, basis, kernel, first, piece):
+            out = task(plan, basis, kernel, first, piece)
+            if kernel.startswith('{"Judge"'):
+                sizes.append({"pixels": len(piece), "bytes": sum(len(r) for r in out)})
+            return out
+
+        fdask._records_task = watched
+        try:
+            with dask.config.set(scheduler="synchronous"):
+                fdask.fit_image(source, output=work / "judge-size", components=args.components, **grids)
+        finally:
+            fdask._records_task = task
+        print(json.dumps({"judge_task_bytes": sizes}), flush=True)
+    for workers in [int(w) for w in args.workers.split(",") if w]:
         for chunks in [int(c) for c in args.chunks.split(",")]:
             cluster = distributed.LocalCluster(
                 n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
