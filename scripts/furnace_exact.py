@@ -100,14 +100,16 @@ def components(material):
     return (1 - absorbed) * r, parts
 
 
-def furnace_xyz(material, light_spd, cmf, keep=None, stokes_cell_nm=None):
+def furnace_xyz(material, light_spd, cmf, keep=None, stokes_cell_nm=None, fold=False):
     """(XYZ of the sphere, XYZ of a white diffuser); `keep` = indices of the fluorophores
     whose re-emission counts (the others still absorb), None = all. `stokes_cell_nm`:
     None = the model (light absorbed at any λi is re-emitted at every λo); w = only Stokes
     shifts at the resolution of a bispectral matrix with cells w nm wide centred on the
     multiples of w, the way ART renders the `.ark` (docs/renderers.md): light absorbed at λi
     re-emitted at λo when λi's cell is not above λo's (the shared cell is kept whole, as
-    ART keeps the diagonal); 0 = strictly λi < λo."""
+    ART keeps the diagonal); 0 = strictly λi < λo. `fold` (with `stokes_cell_nm`): the
+    re-emission at λo of light absorbed above λo's cell is not dropped but counted as if the
+    light at λo had been absorbed (what fluorite's ART export writes into the diagonal)."""
     d, parts = components(material)
     lo = d * light_spd
     for k, (x, e) in enumerate(parts):
@@ -120,6 +122,9 @@ def furnace_xyz(material, light_spd, cmf, keep=None, stokes_cell_nm=None):
             w = stokes_cell_nm
             edge = GRID if w == 0 else w * np.floor(GRID / w + 0.5) + w / 2
             lo = lo + e * np.interp(edge, GRID, below)
+            if fold:
+                g = np.concatenate([[0.0], np.cumsum((x[1:] + x[:-1]) * np.diff(GRID) / 2)])
+                lo = lo + e * light_spd * (g[-1] - np.interp(edge, GRID, g))
     xyz = np.array([trapezoid(lo * c, GRID) for c in cmf])
     white = np.array([trapezoid(light_spd * c, GRID) for c in cmf])
     return xyz, white

@@ -10,21 +10,27 @@
 //! i, j)` reads `array[j·stride + i]`, i the excitation and j the emission index. The
 //! whole array sits on one line, as the parser skips only spaces between series. Grids
 //! are regular (start and increment); ART's interpolation divides offsets by 10 nm
-//! (`ArRSSpectrum2D.c`), so 10 nm steps are the default. The model's full matrix is
-//! written, every fluorophore summed, anti-Stokes cells included (ART zeroes the cells with
-//! excitation at or above emission but keeps the diagonal, `rss2d_strip_noncrosstalk_data`
-//! in `ArCrosstalk500.c`, so it renders only the Stokes part of the model).
+//! (`ArRSSpectrum2D.c`), so 10 nm steps are the default. The model's matrix is written,
+//! every fluorophore summed, with its anti-Stokes part folded into the diagonal: ART zeroes
+//! the cells with excitation at or above emission but keeps the diagonal
+//! (`rss2d_strip_noncrosstalk_data` in `ArCrosstalk500.c`), so it renders only Stokes
+//! shifts, and dropping the model's anti-Stokes re-emission (light absorbed at λi, emitted
+//! at λo < λi where absorption and emission overlap) cost up to ΔE2000 1.5. Folded, that
+//! light is emitted at λo as if the light at λo had been reflected: exact under an
+//! equal-energy light, off under others by how much the light differs between λi and λo
+//! ([`fold_anti_stokes`]).
 //!
 //! RENDERED in ART 99c65c0 (docs/renderers.md, `scripts/verify-renderers.sh` with `ART`): a
 //! furnace of each material of `fits/measured/` under D65, A, F11 and the UV-rich light,
 //! rendered with `-s46e` (ART's default 8 bands of 40 nm over 380-700 nm cost up to 4
-//! ΔE2000 on plain saturated reflectances), matches the exact colour of the model without
-//! its anti-Stokes re-emission at these 10 nm cells within ΔE2000 1; against the full model
-//! the dropped anti-Stokes part costs up to about 1.5.
+//! ΔE2000 on plain saturated reflectances); the figures against the model's exact colour
+//! are in docs/renderers.md.
 
 use crate::error::{Error, Result};
 use crate::material::Material;
 use crate::measurement::Units;
+
+use crate::measurement::Measurement;
 
 use super::matrix::{default_grids, matrix};
 use super::spectra::number;
@@ -35,7 +41,67 @@ const ART_STEP_NM: f64 = 10.0;
 
 /// What the archive has been checked against, in its description (the archive holds no
 /// comments): the furnace renders of docs/renderers.md.
-const ART_CHECKED: &str = "RENDERED in ART 99c65c0 (render with artist -s46e: the default 8 bands of 40 nm shift saturated colours by up to 4 CIEDE2000): in a furnace under D65, A, F11 and a UV-rich light, the six one-fluorophore materials of fluorite's fits/measured come out within 1 CIEDE2000 of the model's exact colour without anti-Stokes re-emission, which ART does not render (it zeroes the cells with excitation at or above emission, keeping the diagonal); that part costs up to about 1.5 CIEDE2000 against the full model (docs/renderers.md).";
+const ART_CHECKED: &str = "RENDERED in ART 99c65c0 (render with artist -s46e: the default 8 bands of 40 nm shift saturated colours by up to 4 CIEDE2000) in a furnace under D65, A, F11 and a UV-rich light: the six one-fluorophore materials of fluorite's fits/measured come out within 0.85 CIEDE2000 of the model's exact colour, except one under A (1.07), where the fold below costs 0.85 (docs/renderers.md). ART renders Stokes shifts only (it zeroes the cells with excitation at or above emission, keeping the diagonal), so the model's anti-Stokes re-emission is folded into the diagonal of its emission wavelength and those cells are written as 0: exact under an equal-energy light.";
+
+/// What [`fold_anti_stokes`] moved, for the export's notes.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(super) struct Fold {
+    /// The anti-Stokes share of the off-diagonal energy under an equal-energy light.
+    pub share: f64,
+    /// The part of that share not folded, because the diagonal's excitation would have
+    /// re-emitted more than it received.
+    pub clamped: f64,
+}
+
+/// Moves every anti-Stokes cell (excitation above emission) of `m` onto the diagonal cell
+/// of its emission wavelength, scaled by the excitation step over the emission step (what
+/// keeps the emission under an equal-energy light), and zeroes it. An emission wavelength
+/// without a diagonal cell keeps its anti-Stokes cells (ART drops them). A diagonal
+/// excitation's albedo (its column's sum) is not raised above 1 by the fold: the surplus
+/// is dropped and reported in [`Fold::clamped`].
+pub(super) fn fold_anti_stokes(m: &mut Measurement, ex_step: f64, em_step: f64) -> Fold {
+    let (ex, em) = (m.excitation_nm.clone(), m.emission_nm.clone());
+    let scale = ex_step / em_step;
+    let (mut off_diagonal, mut anti, mut clamped) = (0.0, 0.0, 0.0);
+    for (i, &li) in ex.iter().enumerate() {
+        for (j, &lo) in em.iter().enumerate() {
+            let v = m.get(i, j);
+            if (li - lo).abs() > 1e-9 && v.is_finite() {
+                off_diagonal += v;
+            }
+        }
+    }
+    for (d, j) in m.diagonal() {
+        let lo = em[j];
+        let mut moved = 0.0;
+        for (i, &li) in ex.iter().enumerate() {
+            if li > lo + 1e-9 {
+                let cell = m.get_mut(i, j);
+                if cell.is_finite() {
+                    moved += *cell;
+                    anti += *cell;
+                }
+                *cell = 0.0;
+            }
+        }
+        let albedo: f64 = (0..em.len())
+            .map(|k| m.get(d, k))
+            .filter(|v| v.is_finite())
+            .sum();
+        let room = (1.0 - albedo).max(0.0);
+        let folded = (moved * scale).min(room);
+        clamped += moved - folded / scale;
+        *m.get_mut(d, j) += folded;
+    }
+    if off_diagonal > 0.0 {
+        Fold {
+            share: anti / off_diagonal,
+            clamped: clamped / off_diagonal,
+        }
+    } else {
+        Fold::default()
+    }
+}
 
 /// A regular grid's start and step, or an error naming `what` and the fix.
 fn regular(grid: &[f64], what: &str) -> Result<(f64, f64)> {
@@ -76,13 +142,14 @@ pub(super) fn art(
     stem: &str,
     excitation_nm: Option<&[f64]>,
     emission_nm: Option<&[f64]>,
-) -> Result<(String, String)> {
+) -> Result<(String, String, Fold)> {
     let (default_ex, default_em) = default_grids(material);
     let ex = excitation_nm.map_or_else(|| tens(&default_ex), <[f64]>::to_vec);
     let em = emission_nm.map_or_else(|| tens(&default_em), <[f64]>::to_vec);
     let (ex_start, ex_step) = regular(&ex, "excitation")?;
     let (em_start, em_step) = regular(&em, "emission")?;
-    let m = matrix(material, &ex, &em, Units::PerBin)?;
+    let mut m = matrix(material, &ex, &em, Units::PerBin)?;
+    let fold = fold_anti_stokes(&mut m, ex_step, em_step);
     let name = one_line(&material.name);
     let n = material.fluorophores.len();
     let step_note = if ex_step != ART_STEP_NM || em_step != ART_STEP_NM {
@@ -109,7 +176,7 @@ Archive content: fluorite {VERSION} export of material \"{name}\": the reradiati
 \n\
 Entry ID:   {stem}\n\
 ---------------------------------------------------------------------------\n\
-Description           :  fluorite model of {name}: bispectral radiance factor per emission bin (trapezoid widths: {em_step} nm, half at the two ends), dimensionless; series = emission wavelengths, values within a series = excitation wavelengths; every cell of the model, the anti-Stokes ones included.{step_note} {ART_CHECKED}\n\
+Description           :  fluorite model of {name}: bispectral radiance factor per emission bin (trapezoid widths: {em_step} nm, half at the two ends), dimensionless; series = emission wavelengths, values within a series = excitation wavelengths; the model's anti-Stokes re-emission (excitation above emission) folded into the diagonal of its emission wavelength, those cells 0.{step_note} {ART_CHECKED}\n\
 Type                  :  reflectance spectrum\n\
 Fluorescence data     :  yes\n\
 Measurement device    :  fluorite {VERSION} (a model, not a measurement)\n\
@@ -130,5 +197,46 @@ ASCII sample data\n\
 {{{}}}\n",
         series.join(", ")
     );
-    Ok((format!("{stem}.ark"), text))
+    Ok((format!("{stem}.ark"), text, fold))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 3 × 3 on a shared 10 nm grid: rows excitation, columns emission.
+    fn matrix3(values: [[f64; 3]; 3]) -> Measurement {
+        let grid = vec![400.0, 410.0, 420.0];
+        let flat = values.iter().flatten().copied().collect();
+        Measurement::new("fold", grid.clone(), grid, flat, Units::PerBin).unwrap()
+    }
+
+    /// The anti-Stokes cells move onto the diagonal of their emission wavelength, so every
+    /// emission column keeps its sum (the emission under an equal-energy light).
+    #[test]
+    fn fold_keeps_each_emission_under_equal_energy() {
+        let before = [[0.5, 0.1, 0.05], [0.02, 0.4, 0.1], [0.01, 0.03, 0.3]];
+        let mut m = matrix3(before);
+        let fold = fold_anti_stokes(&mut m, 10.0, 10.0);
+        for j in 0..3 {
+            let was: f64 = before.iter().map(|row| row[j]).sum();
+            let now: f64 = (0..3).map(|i| m.get(i, j)).sum();
+            assert!((was - now).abs() < 1e-15, "emission {j}: {was} → {now}");
+            assert!((j + 1..3).all(|i| m.get(i, j) == 0.0), "emission {j}");
+        }
+        assert!((m.get(0, 0) - 0.53).abs() < 1e-15 && (m.get(1, 1) - 0.43).abs() < 1e-15);
+        let off = 0.1 + 0.05 + 0.02 + 0.1 + 0.01 + 0.03;
+        assert!((fold.share - 0.06 / off).abs() < 1e-12 && fold.clamped == 0.0);
+    }
+
+    /// A fold that would make an excitation re-emit more than it receives stops at 1 and
+    /// says how much it dropped.
+    #[test]
+    fn fold_never_raises_an_albedo_above_one() {
+        let mut m = matrix3([[0.9, 0.05, 0.0], [0.2, 0.5, 0.0], [0.0, 0.0, 0.5]]);
+        let fold = fold_anti_stokes(&mut m, 10.0, 10.0);
+        assert!((m.get(0, 0) + m.get(0, 1) + m.get(0, 2) - 1.0).abs() < 1e-15);
+        assert!((fold.share - 0.2 / 0.25).abs() < 1e-12);
+        assert!((fold.clamped - 0.15 / 0.25).abs() < 1e-12, "{fold:?}");
+    }
 }

@@ -156,8 +156,8 @@ pub fn export(material: &Material, options: &ExportOptions) -> Result<Vec<Export
 }
 
 /// An export's files and what it dropped or approximated, one line each (the anti-Stokes
-/// share the `exr` layout cannot hold, the ΔE2000 of each `rgb` reduction; none for the
-/// other formats), for the command to print.
+/// share the `exr` layout cannot hold and the one `art` folds into the diagonal, the
+/// ΔE2000 of each `rgb` reduction; none for the other formats), for the command to print.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Exported {
     /// The files, as [`export`] renders them.
@@ -247,12 +247,27 @@ pub fn export_with_notes(material: &Material, options: &ExportOptions) -> Result
             .map(|(n, s)| text(n, s))
             .collect(),
         ExportFormat::Art => {
-            let (n, s) = art::art(
+            let (n, s, fold) = art::art(
                 material,
                 &stem,
                 options.excitation_nm.as_deref(),
                 options.emission_nm.as_deref(),
             )?;
+            if fold.share > 0.0 {
+                notes.push(format!(
+                    "{}: anti-Stokes cells (λo < λi), which ART does not render, carry {:.3} % of the off-diagonal energy: folded into the diagonal of their emission wavelength{}",
+                    material.name,
+                    100.0 * fold.share,
+                    if fold.clamped > 0.0 {
+                        format!(
+                            " ({:.3} % dropped where the fold would raise an albedo above 1)",
+                            100.0 * fold.clamped
+                        )
+                    } else {
+                        String::new()
+                    }
+                ));
+            }
             vec![text(n, s)]
         }
         ExportFormat::Exr => {

@@ -1024,7 +1024,9 @@ fn art_entry(text: &str) -> (f64, f64, f64, f64, f64, Vec<Vec<f64>>) {
 }
 
 /// The `.ark` entry parses as ART's parser reads it and holds the model's matrix per
-/// emission bin: series per emission wavelength, values per excitation wavelength.
+/// emission bin: series per emission wavelength, values per excitation wavelength; the
+/// anti-Stokes cells (excitation above emission), which ART zeroes, are 0 and their sum
+/// sits on the diagonal of their emission wavelength, which ART keeps.
 #[test]
 fn art_archive_holds_the_reradiation_matrix() {
     for m in materials() {
@@ -1036,14 +1038,20 @@ fn art_archive_holds_the_reradiation_matrix() {
         assert!(series.iter().all(|r| r.len() == columns));
         let em: Vec<f64> = (0..series.len()).map(|j| em0 + dem * j as f64).collect();
         let bins = trapezoid(&em);
+        let cell = |li: f64, lo: f64, j: usize| -> f64 {
+            (0..m.fluorophores.len())
+                .map(|k| truth.x(k, li) * truth.e(k, lo) * bins[j])
+                .sum()
+        };
         for (j, row) in series.iter().enumerate() {
             for (i, v) in row.iter().enumerate() {
                 let (li, lo) = (ex0 + dex * i as f64, em[j]);
-                let mut want: f64 = (0..m.fluorophores.len())
-                    .map(|k| truth.x(k, li) * truth.e(k, lo) * bins[j])
-                    .sum();
+                let mut want = if li > lo { 0.0 } else { cell(li, lo, j) };
                 if li == lo {
-                    want += truth.d(li);
+                    let folded: f64 = (i + 1..row.len())
+                        .map(|k| cell(ex0 + dex * k as f64, lo, j))
+                        .sum();
+                    want += truth.d(li) + folded;
                 }
                 assert!(
                     f32_close(*v, want, 1e-12),
