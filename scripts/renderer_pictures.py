@@ -6,7 +6,8 @@
 
 Panels, left to right: fluorite's own furnace render (rendered here at 256×256, the
 sphere cropped to the renderers' framing), then each renderer found in DIR (the fork as
-released, the fork with the lobe patch, PearRay). Every panel is divided by its own
+released, the fork with the lobe patch, PearRay, ART: its camera sits inside the sphere's
+silhouette, so its panel is the sphere's colour filling the frame). Every panel is divided by its own
 renderer's white diffuser (so the light's white is the same everywhere), adapted to D65 by
 scaling XYZ, shown at -0.5 stop in sRGB. A 4-pixel grey gap separates the panels.
 """
@@ -19,7 +20,7 @@ import zlib
 
 import numpy as np
 
-from verify_renderers import SRGB_TO_XYZ, XYZ_TO_SRGB, disc, read_exr
+from verify_renderers import SRGB_TO_XYZ, XYZ_TO_SRGB, disc, read_artcsp, read_exr
 
 D65_WHITE = np.array([0.95047, 1.0, 1.08883])
 SIZE = 128
@@ -90,6 +91,15 @@ def main():
         white = disc(read_exr(os.path.join(k, f"pearray_white_{light}", "results", "image.exr"), "RGB"), 0.4).mean(axis=0)
         panels.append(display(read_exr(f, "RGB"), white))  # PearRay: X, Y, Z in R, G, B
         names.append("pearray")
+    f = os.path.join(k, f"art_{stem}_{light}_r", "furnace.artcsp")
+    if os.path.exists(f):
+        # ART's camera sits inside the sphere's silhouette (verify_renderers.ART_SCENE): its
+        # panel is the sphere's colour filling the frame.
+        white = disc(read_artcsp(os.path.join(k, f"art_white_{light}_r", "furnace.artcsp")), 0.5).mean(axis=0)
+        image = read_artcsp(f)
+        idx = (np.arange(SIZE) + 0.5) / SIZE * image.shape[1]
+        panels.append(display(image[np.ix_(idx.astype(int), idx.astype(int))], white))
+        names.append("art")
     gap = np.full((SIZE, 4, 3), 128, np.uint8)
     strip = [panels[0]]
     for panel in panels[1:]:
