@@ -13,28 +13,34 @@
 
 use std::sync::{Arc, Mutex};
 
-use fluorite::image::fit::band::{BandOutputs, OutputJob, PngStyle, write_band};
+use fluorite::image::fit::band::{OutputJob, PngStyle, write_band};
 use fluorite::image::fit::colour::CellColours;
 use fluorite::image::fit::outputs::BandMapper;
 use fluorite::image::fit::passes::{Census, orthonormal};
 use fluorite::image::fit::records::{
-    ChunkMapper, ChunkResult, RECORD_CHUNK, RecordContext, RecordKernel, fold_exact,
+    ChunkMapper, RECORD_CHUNK, RecordContext, RecordKernel, fold_exact,
 };
 use fluorite::image::fit::scratch::RecordLayout;
 use fluorite::image::fit::shared::Shared;
 use fluorite::image::fit::{ImageFitOptions, RecordSource, fit_image_from_records, stages};
-use fluorite::image::source::{ChunkIndex, PlanarBlock};
+use fluorite::image::source::ChunkIndex;
 use fluorite::image::{ArrayImage, ExrImage, Layout, PixelSource};
-use numpy::ndarray::{Array2, Array3, ArrayViewD};
+use numpy::ndarray::{Array2, Array3};
 use numpy::{
-    AllowTypeChange, IntoPyArray, PyArray2, PyArray3, PyArrayDyn, PyArrayLikeDyn, PyArrayMethods,
-    PyReadonlyArray2, PyReadonlyArray3, PyUntypedArray, PyUntypedArrayMethods,
+    AllowTypeChange, IntoPyArray, PyArray2, PyArray3, PyArrayLikeDyn, PyReadonlyArray2,
+    PyReadonlyArray3, PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyIterator};
+use pyo3::types::PyBytes;
+
+mod arrays;
+mod mapper;
+
+use arrays::{Blocks, basis_of, chunk_values, stack, unaligned};
+use mapper::PythonMapper;
 
 use crate::convert::is_path;
-use crate::image::{PyImageFit, cell_indices, gather, grid, image_options};
+use crate::image::{PyImageFit, cell_indices, grid, image_options};
 use crate::{detached, error, invalid};
 
 /// What the passes read.
@@ -136,130 +142,6 @@ impl PyImageStages {
 }
 
 /// The blocks of one call, read (EXR) or built (array) as the kernel runs.
-enum Blocks<'a> {
-    Exr(&'a ExrImage, &'a ChunkIndex, std::ops::Range<usize>),
-    Array(Vec<f32>, usize, usize, usize),
-}
-
-impl Blocks<'_> {
-    /// Runs `map` on every block in order (on this thread).
-    fn each<T>(
-        self,
-        mut map: impl FnMut(PlanarBlock) -> fluorite::Result<T>,
-    ) -> fluorite::Result<Vec<T>> {
-        let mut out = Vec::new();
-        match self {
-            Blocks::Exr(image, index, range) => {
-                image.pass_planar_range(range, index, &mut map, |t| {
-                    out.push(t);
-                    Ok(())
-                })?;
-            }
-            Blocks::Array(values, y, width, cells) => {
-                for block in stages::row_blocks(&values, y, width, cells) {
-                    out.push(map(block)?);
-                }
-            }
-        }
-        Ok(out)
-    }
-}
-
-/// The rows of an array chunk as the layout's cells, pixel-major (float32, as
-/// `fit_image` reads a numpy image): (rows, width, excitation, emission), or (rows,
-/// width, cells) already in the layout's canonical cell order.
-fn chunk_values(
-    pixels: &Bound<'_, PyAny>,
-    cells: &[(usize, usize)],
-    width: usize,
-    ni: usize,
-    no: usize,
-) -> PyResult<Vec<f32>> {
-    let check = |shape: &[usize]| -> PyResult<()> {
-        let grid = shape.len() == 4 && shape[1] == width && shape[2] == ni && shape[3] == no;
-        let canonical = shape.len() == 3 && shape[1] == width && shape[2] == cells.len();
-        if !(grid || canonical) {
-            return Err(invalid(
-                "pixels",
-                format!(
-                    "shape {shape:?}: expected (rows, {width}, {ni}, {no}) (rows, width, excitation, emission) or (rows, {width}, {}) (rows, width, cells)",
-                    cells.len()
-                ),
-            ));
-        }
-        Ok(())
-    };
-    fn values<T: Copy + Into<f64>>(view: ArrayViewD<'_, T>, cells: &[(usize, usize)]) -> Vec<f32> {
-        if view.ndim() == 3 {
-            // Canonical cells: converted as `gather` converts them.
-            view.as_standard_layout()
-                .iter()
-                .map(|&v| v.into() as f32)
-                .collect()
-        } else {
-            gather(view, cells)
-        }
-    }
-    if pixels
-        .cast::<PyUntypedArray>()
-        .is_ok_and(|a| !a.is_aligned())
-    {
-        return Err(unaligned("pixels"));
-    }
-    if let Ok(a) = pixels.cast::<PyArrayDyn<f32>>() {
-        let a = a.readonly();
-        check(a.shape())?;
-        return Ok(values(a.as_array(), cells));
-    }
-    if let Ok(a) = pixels.cast::<PyArrayDyn<f64>>() {
-        let a = a.readonly();
-        check(a.shape())?;
-        return Ok(values(a.as_array(), cells));
-    }
-    let a = pixels
-        .extract::<PyArrayLikeDyn<'_, f32, AllowTypeChange>>()
-        .map_err(|_| invalid("pixels", "expected a numpy array of real numbers"))?;
-    check(a.shape())?;
-    Ok(values(a.as_array(), cells))
-}
-
-/// The error for an array whose data are not aligned (one deserialised from a buffer):
-/// numpy.require(a, requirements=["C", "A"]) copies it aligned.
-fn unaligned(what: &str) -> PyErr {
-    invalid(
-        what,
-        "the array's data are not aligned to its type: pass numpy.require(a, requirements=[\"C\", \"A\"])",
-    )
-}
-
-/// Stacks blocks' m × rank contributions into an array (blocks, m, rank).
-fn stack<'py>(
-    py: Python<'py>,
-    parts: Vec<Vec<f32>>,
-    m: usize,
-    rank: usize,
-) -> PyResult<Bound<'py, PyArray3<f32>>> {
-    let n = parts.len();
-    let flat: Vec<f32> = parts.into_iter().flatten().collect();
-    Array3::from_shape_vec((n, m, rank), flat)
-        .map(|a| a.into_pyarray(py))
-        .map_err(|e| invalid("parts", e))
-}
-
-/// A basis (m × rank) from Python, checked.
-fn basis_of(basis: PyReadonlyArray2<'_, f64>, m: usize, rank: usize) -> PyResult<Vec<f64>> {
-    if !basis.is_aligned() {
-        return Err(unaligned("basis"));
-    }
-    if basis.shape() != [m, rank] {
-        return Err(invalid(
-            "basis",
-            format!("shape {:?}: expected ({m}, {rank})", basis.shape()),
-        ));
-    }
-    Ok(basis.as_array().iter().copied().collect())
-}
-
 #[pymethods]
 impl PyImageStages {
     #[new]
@@ -989,87 +871,5 @@ fn floats_len(value: Option<&Bound<'_, PyAny>>, what: &str) -> PyResult<usize> {
             what,
             "is required for an image given as arrays (nm, 1-D)",
         )),
-    }
-}
-
-impl BandMapper for PythonMapper<'_> {
-    fn write_bands(
-        &self,
-        job: &OutputJob,
-        each: &mut dyn FnMut(usize, BandOutputs) -> fluorite::Result<()>,
-    ) -> fluorite::Result<bool> {
-        let text = serde_json::to_string(job)
-            .map_err(|e| fluorite::Error::invalid("job", e.to_string()))?;
-        let fail = |e: PyErr| {
-            *self.raised.lock().expect("not poisoned") = Some(e);
-            fluorite::Error::invalid("map_bands", "raised an exception")
-        };
-        let bands = Python::attach(|py| -> PyResult<Py<PyAny>> {
-            Ok(self
-                .call
-                .call1(py, (text,))?
-                .bind(py)
-                .try_iter()?
-                .into_any()
-                .unbind())
-        })
-        .map_err(fail)?;
-        loop {
-            // The GIL is held only to take the next band: the client's own threads
-            // (Dask's event loop) need it while this thread encodes the PNGs.
-            let next = Python::attach(|py| -> PyResult<Option<(usize, usize, Vec<u8>)>> {
-                match bands.bind(py).cast::<PyIterator>()?.clone().next() {
-                    None => Ok(None),
-                    Some(item) => Ok(Some(item?.extract()?)),
-                }
-            })
-            .map_err(fail)?;
-            let Some((y, clamped, png)) = next else {
-                return Ok(true);
-            };
-            each(y, BandOutputs { clamped, png })?;
-        }
-    }
-}
-
-/// The passes over the records run by a Python callable (``fluorite.dask``'s tasks).
-struct PythonMapper<'a> {
-    call: Py<PyAny>,
-    /// A Python error of the callable, raised again as it was.
-    raised: &'a Mutex<Option<PyErr>>,
-}
-
-impl ChunkMapper for PythonMapper<'_> {
-    fn map_chunks(
-        &self,
-        kernel: &RecordKernel,
-        chunks: usize,
-    ) -> fluorite::Result<Vec<ChunkResult>> {
-        let text = serde_json::to_string(kernel)
-            .map_err(|e| fluorite::Error::invalid("kernel", e.to_string()))?;
-        let answer = Python::attach(|py| -> PyResult<Vec<String>> {
-            self.call.call1(py, (text, chunks))?.extract(py)
-        });
-        let texts = match answer {
-            Ok(texts) => texts,
-            Err(e) => {
-                *self.raised.lock().expect("not poisoned") = Some(e);
-                return Err(fluorite::Error::invalid(
-                    "map_chunks",
-                    "raised an exception",
-                ));
-            }
-        };
-        texts
-            .iter()
-            .map(|t| {
-                serde_json::from_str(t).map_err(|e| {
-                    fluorite::Error::invalid(
-                        "map_chunks",
-                        format!("returned a result that is not run_records' ({e})"),
-                    )
-                })
-            })
-            .collect()
     }
 }
