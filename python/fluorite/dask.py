@@ -150,6 +150,13 @@ def _band_task(plan: _Plan, job: str, basis: np.ndarray, records: str, y: int, r
     return _stages(plan).write_band(job, _aligned(basis, np.float64), y, band)
 
 
+def _held_band_task(plan: _Plan, job: str, basis: np.ndarray, piece: np.ndarray, row0: int, y: int, rows: int) -> Tuple[int, bytes]:
+    """``_band_task`` on records a worker holds: ``piece`` holds whole rows from row0."""
+    width = _stages(plan).width
+    band = piece[(y - row0) * width : (y - row0 + rows) * width]
+    return _stages(plan).write_band(job, _aligned(basis, np.float64), y, _aligned(band.reshape(rows, width, -1), np.float32))
+
+
 def _maps_task(plan: _Plan, model: str, basis: np.ndarray, records: str, maps: str, y: int, rows: int) -> int:
     """The maps of rows y..y + rows from their records, into the Zarr group `maps`."""
     band = _aligned(zarr.open_array(records, mode="r")[y : y + rows], np.float32)
@@ -240,10 +247,12 @@ def fit_image(
     ``output/records.zarr``: ``output`` (or ``records``) must be on storage the workers
     and the client share. ``record_chunks`` is the work of one task of the shared fit's
     passes over the records, in chunks of ``RECORD_CHUNK`` (4096) records (default:
-    about 64 MB of records). ``keep_records``: each task's records are read from Zarr
+    about 64 MB of records; with ``keep_records`` and a width that is a multiple of 64,
+    rounded to whole rows of 64-pixel tiles). ``keep_records``: each task's records are read from Zarr
     once and stay in the workers' memory for every pass of the shared fit (the records
     divided among the workers: 79 floats per pixel on the BFC-450 grid; Dask spills them
-    to disk under memory pressure); False reads them from Zarr for every pass (about 40),
+    to disk under memory pressure) and, when they are whole rows of tiles, for writing
+    the outputs; False reads them from Zarr for every pass (about 40),
     a worker then holding one task's records at a time. ``maps`` is the Zarr group the workers write the maps into
     from the records (default ``output/maps.zarr``; False: none): ``concentration``
     (height, width, K), ``reflectance`` (height, width, n) with its ``wavelengths_nm``
@@ -393,6 +402,15 @@ def fit_image(
     if record_chunks is not None and (not isinstance(record_chunks, int) or record_chunks < 1):
         raise FluoriteError(f"invalid record_chunks: {record_chunks!r}: give a positive number of chunks of {chunk} records")
     records_per_task = (record_chunks or max(1, DEFAULT_ARRAY_BYTES // (stages.record_len * 4 * chunk))) * chunk
+    # The outputs are written a row of tiles at a time: when such a band is whole chunks
+    # of records (widths a multiple of 64), each task's records are rounded to whole
+    # bands, and the band tasks take theirs from the records the workers hold instead of
+    # reading them from Zarr again.
+    tile = 64
+    band_pixels = tile * stages.width
+    aligned_bands = keep_records and band_pixels % chunk == 0
+    if aligned_bands:
+        records_per_task = max(1, round(records_per_task / band_pixels)) * band_pixels
     firsts = list(range(0, pixels, records_per_task))
     # Each task's records, read from Zarr once and kept in the workers' memory for every
     # pass (Dask places each pass's task beside its records, recomputes them from Zarr
@@ -418,13 +436,17 @@ def fit_image(
     # The EXR outputs (uncompressed: every tile's place is known) are written by the
     # workers, a row of tiles per task, into files the client lays out; the client
     # encodes the PNGs from the rows the tasks return, in order.
-    tile = 64
+    def band_task(job: str, y: int) -> Any:
+        rows = min(tile, stages.height - y)
+        if aligned_bands:
+            piece = (y * stages.width) // records_per_task
+            row0 = firsts[piece] // stages.width
+            return dask.delayed(_held_band_task, pure=True)(plan_d, job, basis_d, held[piece], row0, y, rows)
+        return dask.delayed(_band_task, pure=True)(plan_d, job, basis_d, records_path, y, rows)
 
     def map_bands(job: str) -> Iterable[Tuple[int, int, bytes]]:
         starts = list(range(0, stages.height, tile))
-        tasks = [
-            dask.delayed(_band_task, pure=True)(plan_d, job, basis_d, records_path, y, min(tile, stages.height - y)) for y in starts
-        ]
+        tasks = [band_task(job, y) for y in starts]
         for y, (clamped, png) in _pairs(starts, runner.ordered("outputs", tasks)):
             yield y, clamped, png
 

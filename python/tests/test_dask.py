@@ -276,3 +276,34 @@ def test_a_worker_s_error_arrives_as_fluorite_error(client, scan, tmp_path):
         fdask.fit_image(damaged, output=tmp_path / "out", components=K, client=client, chunks=1, timeout=TIMEOUT)
     with pytest.raises(fluorite.FluoriteError, match="chunks"):
         fdask.fit_image(image, output=tmp_path / "out", client=client, chunks=0)
+
+
+def test_output_tasks_take_the_records_the_workers_hold(client, cli, tmp_path):
+    """A width that is a multiple of 64: each task's records are whole rows of tiles, and
+    the tasks writing the outputs take theirs from the workers' memory (not Zarr); the
+    same files as fit-image. 72 rows: two rows of tiles, the second 8 rows high."""
+    made = run_cli(cli, "synth", "--image", "-q", "--size", "128x72", *GRID, "--out", tmp_path, "--name", "wide", cwd=ROOT)
+    assert made.returncode == 0, made.stderr
+    image = tmp_path / "wide.exr"
+    fitted = run_cli(cli, "fit-image", image, "-o", tmp_path / "cli", "--components", K, "-q")
+    assert fitted.returncode == 0, fitted.stderr
+    seen = []
+    with distributed.get_task_stream(client) as stream:
+        fdask.fit_image(
+            image,
+            output=tmp_path / "dask",
+            components=K,
+            client=client,
+            record_chunks=1,
+            timeout=TIMEOUT,
+            progress=lambda stage, done, total: seen.append((stage, done, total)),
+        )
+    # One chunk of 4096 records is half a row of tiles (64 × 128 pixels): each task holds
+    # a whole row, the last one the 8 rows left.
+    assert {total for stage, _, total in seen if stage.startswith("shared fit")} == {2}
+    assert ("outputs", 2, 2) in seen
+    names = {str(task["key"]) for task in stream.data}
+    assert any(n.startswith("_held_band_task-") for n in names), sorted(names)[:20]
+    assert not any(n.startswith("_band_task-") for n in names), sorted(names)[:20]
+    assert_same_outputs(tmp_path / "dask", tmp_path / "cli")
+    assert_maps_hold_the_outputs(tmp_path / "dask")
