@@ -6,25 +6,16 @@
 //! grating orders, water's Raman band) with known concentrations.
 
 use crate::common;
+use crate::common::eem_sim::{Lcg, gauss, grids, pearson_squared, simulate};
 
 use fluorite::eem::scatter::{MaskedBand, ScatterLine, WidthSource};
 use fluorite::eem::{EemOptions, prepare};
 use fluorite::fit::joint::parafac::ParafacOptions;
 use fluorite::fit::joint::{JointFit, JointOptions, fit_joint};
 use fluorite::formats::{ReadOptions, read};
-use fluorite::measurement::{Measurement, Units};
+use fluorite::measurement::Measurement;
 
 const MAX_SHARE: f64 = 0.02;
-
-/// Squared Pearson correlation (written out here, apart from the library's).
-fn pearson_squared(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len() as f64;
-    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
-    let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
-    let syy: f64 = y.iter().map(|b| (b - my).powi(2)).sum();
-    sxy * sxy / (sxx * syy)
-}
 
 /// Water Raman line for excitation `ex` (3400 cm⁻¹).
 fn raman_nm(ex: f64) -> f64 {
@@ -205,12 +196,6 @@ type HeldOut = (
 );
 
 fn held_out(seed: u64, slit: f64, offset2: f64, image: f64) -> HeldOut {
-    let ex: Vec<f64> = (0..19).map(|i| 230.0 + 5.0 * i as f64).collect();
-    let em: Vec<f64> = (0..226).map(|i| 250.0 + 2.0 * i as f64).collect();
-    let gauss = |x: f64, mu: f64, fwhm: f64| {
-        let s = fwhm / 2.3548;
-        (-(x - mu).powi(2) / (2.0 * s * s)).exp()
-    };
     // (excitation max, FWHM; emission max, FWHM)
     let dyes = [
         (255.0, 20.0, 283.0, 28.0),
@@ -221,59 +206,34 @@ fn held_out(seed: u64, slit: f64, offset2: f64, image: f64) -> HeldOut {
         let (_, _, m, w) = dyes[k];
         gauss(l, m, w) + image * gauss(l / 2.0, m, w)
     };
-    let mut state = seed.wrapping_mul(0x9E3779B97F4A7C15) | 1;
-    let mut uniform = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let samples = 20;
-    let truth: Vec<Vec<f64>> = (0..samples)
+    let mut rng = Lcg::new(seed);
+    let truth: Vec<Vec<f64>> = (0..20)
         .map(|_| {
             (0..3)
                 .map(|_| {
-                    let u = uniform();
+                    let u = rng.uniform();
                     if u < 0.15 { 0.0 } else { 10.0 * u }
                 })
                 .collect()
         })
         .collect();
-    let mut measurements = Vec::new();
-    for (s, conc) in truth.iter().enumerate() {
-        let rayleigh = 300.0 * (0.3 + 2.0 * uniform());
-        let mut values = Vec::with_capacity(ex.len() * em.len());
-        for &x in &ex {
-            for &l in &em {
-                let fluorescence: f64 = (0..3)
-                    .map(|k| 10.0 * conc[k] * gauss(x, dyes[k].0, dyes[k].1) * emission(k, l))
-                    .sum();
-                let r = raman_nm(x);
-                let raman_width = |order: f64| {
-                    let intrinsic = r * r * 1e-7 * 400.0;
-                    order * (slit * slit * 2.0 + intrinsic * intrinsic).sqrt()
-                };
-                let scatter = rayleigh
-                    * (gauss(l, x, slit * 2f64.sqrt())
-                        + 0.5 * gauss(l, 2.0 * x + offset2, slit * 5f64.sqrt())
-                        + 0.01 * gauss(l, r, raman_width(1.0))
-                        + 0.005 * gauss(l, 2.0 * r + offset2, raman_width(2.0)));
-                let noise = (uniform() - 0.5) * 12f64.sqrt() * 0.01 * 10.0;
-                values.push(fluorescence + scatter + noise);
-            }
-        }
-        let _ = s;
-        measurements.push(
-            Measurement::new(
-                format!("h{s}"),
-                ex.clone(),
-                em.clone(),
-                values,
-                Units::PerBin,
-            )
-            .unwrap(),
-        );
-    }
+    let measurements = simulate("h", &truth, &mut rng, |conc, rayleigh, x, l| {
+        let fluorescence: f64 = (0..3)
+            .map(|k| 10.0 * conc[k] * gauss(x, dyes[k].0, dyes[k].1) * emission(k, l))
+            .sum();
+        let r = raman_nm(x);
+        let raman_width = |order: f64| {
+            let intrinsic = r * r * 1e-7 * 400.0;
+            order * (slit * slit * 2.0 + intrinsic * intrinsic).sqrt()
+        };
+        let scatter = rayleigh
+            * (gauss(l, x, slit * 2f64.sqrt())
+                + 0.5 * gauss(l, 2.0 * x + offset2, slit * 5f64.sqrt())
+                + 0.01 * gauss(l, r, raman_width(1.0))
+                + 0.005 * gauss(l, 2.0 * r + offset2, raman_width(2.0)));
+        fluorescence + scatter
+    });
+    let em = grids().1;
     let shapes = (0..3)
         .map(|k| (em.iter().map(|&l| emission(k, l)).collect(), dyes[k].0))
         .collect();

@@ -7,13 +7,10 @@
 use fluorite::eem::{EemOptions, prepare};
 use fluorite::fit::joint::parafac::ParafacOptions;
 use fluorite::fit::joint::{JointFit, JointOptions, fit_joint};
-use fluorite::measurement::{Measurement, Units};
-use fluorite::pipeline::joint::SecondOrderChoice;
+use fluorite::measurement::Measurement;
 
-fn gauss(x: f64, mu: f64, fwhm: f64) -> f64 {
-    let s = fwhm / 2.3548;
-    (-(x - mu).powi(2) / (2.0 * s * s)).exp()
-}
+use crate::common::eem_sim::{Lcg, gauss, grids, pearson_squared, simulate};
+use fluorite::pipeline::joint::SecondOrderChoice;
 
 /// The simulation's gain: 1.2 at 500 nm falling to 0.32 at 700 nm.
 fn true_gain(l: f64) -> f64 {
@@ -32,54 +29,28 @@ const DYES: [(f64, f64, f64, f64); 3] = [
 /// A set of 20 samples; `second_order` says whether the instrument passes the grating's
 /// second order (image and second-order scatter lines). Returns the matrices, the
 /// concentrations and the emission grid.
-fn simulate(seed: u64, second_order: bool) -> (Vec<Measurement>, Vec<Vec<f64>>, Vec<f64>) {
-    let ex: Vec<f64> = (0..19).map(|i| 230.0 + 5.0 * i as f64).collect();
-    let em: Vec<f64> = (0..226).map(|i| 250.0 + 2.0 * i as f64).collect();
+fn simulate_set(seed: u64, second_order: bool) -> (Vec<Measurement>, Vec<Vec<f64>>, Vec<f64>) {
     let order2 = if second_order { 1.0 } else { 0.0 };
-    let mut state = seed.wrapping_mul(0x9E3779B97F4A7C15) | 1;
-    let mut uniform = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = Lcg::new(seed);
     let truth: Vec<Vec<f64>> = (0..20)
-        .map(|_| (0..3).map(|_| 0.5 + 9.5 * uniform()).collect())
+        .map(|_| (0..3).map(|_| 0.5 + 9.5 * rng.uniform()).collect())
         .collect();
-    let mut out = Vec::new();
-    for (s, conc) in truth.iter().enumerate() {
-        let rayleigh = 300.0 * (0.3 + 2.0 * uniform());
-        let mut values = Vec::with_capacity(ex.len() * em.len());
-        for &x in &ex {
-            for &l in &em {
-                let fluorescence: f64 = (0..3)
-                    .map(|k| {
-                        let (xm, xw, m, w) = DYES[k];
-                        let first = |l: f64| gauss(l, m, w);
-                        10.0 * conc[k]
-                            * gauss(x, xm, xw)
-                            * (first(l) + order2 * true_gain(l) * first(l / 2.0))
-                    })
-                    .sum();
-                let scatter = rayleigh
-                    * (gauss(l, x, 5.0 * 2f64.sqrt())
-                        + order2 * 0.5 * gauss(l, 2.0 * x, 5.0 * 5f64.sqrt()));
-                let noise = (uniform() - 0.5) * 12f64.sqrt() * 0.01 * 10.0;
-                values.push(fluorescence + scatter + noise);
-            }
-        }
-        out.push(
-            Measurement::new(
-                format!("s{s}"),
-                ex.clone(),
-                em.clone(),
-                values,
-                Units::PerBin,
-            )
-            .unwrap(),
-        );
-    }
-    (out, truth, em)
+    let out = simulate("s", &truth, &mut rng, |conc, rayleigh, x, l| {
+        let fluorescence: f64 = (0..3)
+            .map(|k| {
+                let (xm, xw, m, w) = DYES[k];
+                let first = |l: f64| gauss(l, m, w);
+                10.0 * conc[k]
+                    * gauss(x, xm, xw)
+                    * (first(l) + order2 * true_gain(l) * first(l / 2.0))
+            })
+            .sum();
+        let scatter = rayleigh
+            * (gauss(l, x, 5.0 * 2f64.sqrt())
+                + order2 * 0.5 * gauss(l, 2.0 * x, 5.0 * 5f64.sqrt()));
+        fluorescence + scatter
+    });
+    (out, truth, grids().1)
 }
 
 /// Prepares the set as `fit` does, resolves `--second-order auto` and fits three
@@ -104,15 +75,6 @@ fn fit(raw: Vec<Measurement>) -> (JointFit, bool) {
     (fit_joint(&measurements, &options).unwrap(), on)
 }
 
-fn pearson_squared(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len() as f64;
-    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
-    let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
-    let syy: f64 = y.iter().map(|b| (b - my).powi(2)).sum();
-    sxy * sxy / (sxx * syy)
-}
-
 fn congruence(a: &[f64], b: &[f64]) -> f64 {
     let dot: f64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
     let na: f64 = a.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -123,7 +85,7 @@ fn congruence(a: &[f64], b: &[f64]) -> f64 {
 #[test]
 fn a_known_second_order_image_is_recovered() {
     for seed in [11, 12] {
-        let (raw, truth, em) = simulate(seed, true);
+        let (raw, truth, em) = simulate_set(seed, true);
         let (fit, on) = fit(raw);
         assert!(on, "auto must see the second-order Rayleigh line");
         let image = fit.second_order.as_ref().expect("G reported");
@@ -196,7 +158,7 @@ fn a_known_second_order_image_is_recovered() {
 /// finds a "line" at 2λi in the broad dye's fluorescence).
 #[test]
 fn no_second_order_light_no_gain() {
-    let (raw, _, _) = simulate(13, false);
+    let (raw, _, _) = simulate_set(13, false);
     let (fit, _) = fit(raw);
     if let Some(image) = &fit.second_order {
         eprintln!("G without second-order light: {:?}", image.gain);

@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+pub mod eem_sim;
 pub mod map;
 
 /// `../shared/data/<sub>` (a folder or a file), or None when it is absent: the calling
