@@ -69,6 +69,14 @@ pub struct ImageSpec {
     pub attributes: Vec<(String, String)>,
 }
 
+impl ImageSpec {
+    /// The bytes of an uncompressed chunk's pixels (`block`'s pixels × channels × sample).
+    pub(super) fn chunk_data_bytes(&self, block: &exr::block::BlockIndex) -> usize {
+        let sample_bytes = if self.half { 2 } else { 4 };
+        block.pixel_size.x() * block.pixel_size.y() * self.channels.len() * sample_bytes
+    }
+}
+
 /// The header of an image of `spec`, and the order of its channels in the file:
 /// `order[k]` is the producer's index of the file's k-th channel (sorted by name).
 pub(super) fn header_of(path: &Path, spec: &ImageSpec) -> Result<(Header, Vec<usize>)> {
@@ -265,10 +273,7 @@ impl UncompressedLayout {
         let blocks: Vec<(usize, exr::block::BlockIndex)> =
             exr::block::enumerate_ordered_header_block_indices(&headers).collect();
         let total = blocks.len();
-        let sample_bytes = if spec.half { 2 } else { 4 };
-        let data_size = |b: &exr::block::BlockIndex| {
-            b.pixel_size.x() * b.pixel_size.y() * spec.channels.len() * sample_bytes
-        };
+        let data_size = |b: &exr::block::BlockIndex| spec.chunk_data_bytes(b);
         if let Some(block) = blocks
             .iter()
             .find(|(_, b)| i32::try_from(data_size(b)).is_err())
