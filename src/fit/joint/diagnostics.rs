@@ -5,7 +5,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::parafac::{Factors, ParafacOptions, Tensor, fit};
+use super::parafac::image::Image;
+use super::parafac::{Factors, ParafacOptions, Tensor, fit_with_image};
 use crate::error::Result;
 
 /// Tucker's congruence coefficient of two loadings: u·v / (|u|·|v|) (0 when one is 0).
@@ -129,20 +130,36 @@ pub struct SplitHalf {
 pub const VALIDATION_CONGRUENCE: f64 = 0.95;
 
 /// Fits both halves of `t` (samples 0, 2, 4, … and 1, 3, 5, …) with `options` and
-/// matches their components; `None` with fewer than two samples per half.
+/// matches their components; `None` with fewer than two samples per half. With the
+/// grating's second-order `image`, each half is fitted with it, as the whole set was, and
+/// the halves' first-order emissions are compared (each half fits its own gain).
 pub fn split_half(
     t: &Tensor,
     em_weights: &[f64],
     options: &ParafacOptions,
+    image: Option<&Image>,
 ) -> Result<Option<SplitHalf>> {
     if t.samples < 4 {
         return Ok(None);
     }
+    let k = options.components;
+    let half = |samples: &[usize]| -> Result<Factors> {
+        let model = fit_with_image(&t.subset(samples), em_weights, options, image)?;
+        let mut factors = model.factors;
+        if let (Some(image), Some(g)) = (image, &model.image_gain) {
+            let gain = image.gain(g);
+            for c in 0..k {
+                let range = c * t.n_em..(c + 1) * t.n_em;
+                let first_order = image.first_order(&factors.emission[range.clone()], &gain);
+                factors.emission[range].copy_from_slice(&first_order);
+            }
+        }
+        Ok(factors)
+    };
     let even: Vec<usize> = (0..t.samples).step_by(2).collect();
     let odd: Vec<usize> = (1..t.samples).step_by(2).collect();
-    let first = fit(&t.subset(&even), em_weights, options)?.factors;
-    let second = fit(&t.subset(&odd), em_weights, options)?.factors;
-    let k = options.components;
+    let first = half(&even)?;
+    let second = half(&odd)?;
     let pair = |a: usize, b: usize| MatchedPair {
         first: a,
         second: b,

@@ -265,7 +265,7 @@ pub fn fit_joint(measurements: &[Measurement], options: &JointOptions) -> Result
     let halves = if options.no_split_half {
         None
     } else {
-        split_half(&t, &weights, &options.parafac)?
+        split_half(&t, &weights, &options.parafac, image.as_ref())?
     };
     let diagnostics_seconds = started.elapsed().as_secs_f64();
     let (mut total, mut residual) = (0.0, 0.0);
