@@ -281,6 +281,7 @@ fn held_out_check(sets: &[(u64, f64, f64, f64)]) {
                 ..Default::default()
             },
             no_split_half: true,
+            second_order: SecondOrderChoice::Auto.resolve(reports.iter().map(Vec::as_slice)),
             ..Default::default()
         };
         let fit = fit_joint(&measurements, &options).unwrap();
