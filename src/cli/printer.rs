@@ -523,6 +523,9 @@ pub fn joint_summary(fit: &JointFit, dir: &Path, matches: Option<&[AnalyteMatch]
             ));
         }
     }
+    if let Some(note) = &fit.second_order_note {
+        out.push_str(&format!("  second-order image: none ({note})\n"));
+    }
     if let Some(image) = &fit.second_order {
         let nodes: Vec<String> = image
             .wavelength_nm

@@ -224,7 +224,7 @@ fn fit_eem_set(samples: &[Prepared], request: &JointRequest) -> Result<Vec<EemFi
         .component_counts()
         .into_iter()
         .map(|k| {
-            let options = JointOptions {
+            let mut options = JointOptions {
                 parafac: ParafacOptions {
                     components: k,
                     max_iterations,
@@ -236,6 +236,13 @@ fn fit_eem_set(samples: &[Prepared], request: &JointRequest) -> Result<Vec<EemFi
                 second_order,
             };
             let mut fit = fit_joint(&eems, &options)?;
+            if request.second_order == SecondOrderChoice::Auto
+                && let Some(note) = image_found_nothing(&fit)
+            {
+                options.second_order = false;
+                fit = fit_joint(&eems, &options)?;
+                fit.second_order_note = Some(note);
+            }
             if request.timing_runs > 1 {
                 let quick = JointOptions {
                     no_split_half: true,
@@ -252,6 +259,29 @@ fn fit_eem_set(samples: &[Prepared], request: &JointRequest) -> Result<Vec<EemFi
             Ok(EemFit { fit, matches })
         })
         .collect()
+}
+
+/// The largest share of a component's signal its second-order image may carry for
+/// `--second-order auto` to keep the image: below it, the image explains nothing the
+/// plain PARAFAC does not (the line that turned it on was the set's own fluorescence).
+pub const AUTO_IMAGE_MIN_SHARE: f64 = 0.02;
+
+/// With the image fitted, why to fit without it: every component's image at most
+/// [`AUTO_IMAGE_MIN_SHARE`] of its signal.
+fn image_found_nothing(fit: &JointFit) -> Option<String> {
+    let image = fit.second_order.as_ref()?;
+    let largest = fit
+        .components
+        .iter()
+        .map(|c| c.image_share.unwrap_or(0.0))
+        .fold(0.0, f64::max);
+    (largest <= AUTO_IMAGE_MIN_SHARE).then(|| {
+        format!(
+            "--second-order auto: a second-order line stood out, but the fitted image carried at most {:.1} % of any component's signal (largest G {:.3}); fitted without it",
+            100.0 * largest,
+            image.gain.iter().copied().fold(0.0, f64::max)
+        )
+    })
 }
 
 /// The set's scatter bands (per line the widest any sample was masked with) and Raman

@@ -159,8 +159,9 @@ fn a_known_second_order_image_is_recovered() {
 }
 
 /// Without second-order light G comes out (near) zero: the fit reduces to the plain
-/// PARAFAC (the automatic choice still turns the image on here: the band measurement
-/// finds a "line" at 2λi in the broad dye's fluorescence).
+/// PARAFAC (the line resolve() keys on still stands out here: the band measurement finds
+/// a "line" at 2λi in the broad dye's fluorescence; the command then drops the image,
+/// `auto_drops_an_image_that_carries_nothing`).
 #[test]
 fn no_second_order_light_no_gain() {
     let (raw, _, _) = simulate_set(13, false);
@@ -190,4 +191,45 @@ fn split_half_fits_the_halves_with_the_image() {
         halves.validated && halves.min_congruence >= 0.95,
         "{halves:?}"
     );
+}
+
+/// The command's `--second-order auto` (fluorite::pipeline): on a set without
+/// second-order light the line it keys on still stands out (the broad dye's fluorescence
+/// near 2λi), so the image is fitted, carries nothing and is dropped, and the fit says so;
+/// on a set with it, the image stays.
+#[test]
+fn auto_drops_an_image_that_carries_nothing() {
+    use fluorite::pipeline::input::{InputOptions, Prepared};
+    use fluorite::pipeline::joint::{JointOutcome, JointRequest, fit_samples};
+    for (second_order, seed) in [(false, 13), (true, 11)] {
+        let (raw, _, _) = simulate_set(seed, second_order);
+        let samples: Vec<Prepared> = raw
+            .into_iter()
+            .map(|m| Prepared::from_measurement(m, &InputOptions::default()).unwrap())
+            .collect();
+        let request = JointRequest {
+            components: vec![3],
+            no_split_half: true,
+            ..Default::default()
+        };
+        let JointOutcome::Eem(fits) = fit_samples(&samples, &request).unwrap() else {
+            panic!("an EEM set");
+        };
+        let fit = &fits[0].fit;
+        eprintln!(
+            "second-order light {second_order}: note {:?}",
+            fit.second_order_note
+        );
+        if second_order {
+            assert!(fit.second_order.is_some() && fit.second_order_note.is_none());
+        } else {
+            assert!(fit.second_order.is_none(), "{:?}", fit.second_order);
+            assert!(
+                fit.second_order_note
+                    .as_ref()
+                    .is_some_and(|n| n.contains("fitted without it"))
+            );
+            assert!(fit.components.iter().all(|c| c.image_share.is_none()));
+        }
+    }
 }

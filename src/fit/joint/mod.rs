@@ -113,6 +113,10 @@ pub struct JointFit {
     /// The second-order image, when fitted ([`JointOptions::second_order`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub second_order: Option<SecondOrderImage>,
+    /// Why the fit holds no second-order image where the data seemed to ask for one
+    /// (`--second-order auto` found it carrying nothing and fitted without it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub second_order_note: Option<String>,
 }
 
 /// Crops every matrix to the ranges and stacks them; all must share the cropped grids.
@@ -334,6 +338,7 @@ pub fn fit_joint(measurements: &[Measurement], options: &JointOptions) -> Result
         seconds,
         diagnostics_seconds,
         second_order,
+        second_order_note: None,
     })
 }
 
