@@ -27,11 +27,38 @@ use crate::material::Escalation;
 /// [`ESCALATION_LIGHTS`] (1: invisible side by side).
 pub const ESCALATION_BOUND: f64 = 1.0;
 
-/// The lights the default fit is judged under: daylight, incandescent and a narrow-band
-/// fluorescent lamp. The `uv` light is left out: under it the colour is mostly the
-/// fluorescence of wavelengths below most grids' reach, and the search would chase it
-/// (it is still reported).
+/// The lights the default fit is always judged under: daylight, incandescent and a
+/// narrow-band fluorescent lamp. The `uv` light joins them where the grid measures it
+/// ([`judges_uv`]).
 pub const ESCALATION_LIGHTS: [&str; 3] = ["d65", "a", "f11"];
+
+/// The UV-rich light, judged where the excitation grid reaches its LED.
+pub const UV_LIGHT: &str = "uv";
+
+/// Whether the default fit judges `m` under [`UV_LIGHT`] too: when the excitation grid
+/// holds the rows its 365 nm LED excites (it starts at most one LED width below the peak
+/// and ends above it). Under that light half the energy is the LED's, so the colour is
+/// mostly the fluorescence of those rows; a grid that starts above them (most EEMs and
+/// reflectance-only grids) cannot see it and is judged under daylight, A and F11 only.
+/// On BFC-450 grids (excitation from 300 nm) the rows are measured, and a fluorophore the
+/// grid fit misses there (HERPICER's blue emitter, excitation 340–440 nm) moves the colour
+/// by ΔE2000 4.5 while d65, a and f11 stay below 0.8.
+pub fn judges_uv(m: &Measurement) -> bool {
+    let (Some(first), Some(last)) = (m.excitation_nm.first(), m.excitation_nm.last()) else {
+        return false;
+    };
+    *first <= crate::colour::UV_LED_PEAK_NM - crate::colour::UV_LED_FWHM_NM
+        && *last >= crate::colour::UV_LED_PEAK_NM + crate::colour::UV_LED_FWHM_NM
+}
+
+/// The names of the lights the default fit judges `m` under.
+pub fn judged_light_names(m: &Measurement) -> Vec<&'static str> {
+    let mut names = ESCALATION_LIGHTS.to_vec();
+    if judges_uv(m) {
+        names.push(UV_LIGHT);
+    }
+    names
+}
 
 /// Fits one fluorophore on the grid, and escalates to the model search when it does not
 /// explain the matrix (see the module documentation).
@@ -56,7 +83,8 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         }
         return Ok(grid);
     }
-    let verdict = judge(m, material);
+    let judged = judged_light_names(m);
+    let verdict = judge(m, material, &judged);
     let report = material
         .fit
         .as_mut()
@@ -68,12 +96,12 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
                 None => format!(
                     "one fluorophore explains the matrix: residual within {} × the noise and ΔE2000 ≤ {ESCALATION_BOUND} under {} ({})",
                     assess::RESIDUAL_NOISE_FACTOR,
-                    ESCALATION_LIGHTS.join(", "),
+                    judged.join(", "),
                     per_light(&verdict.grid_delta_e2000)
                 ),
                 Some(structure) => format!(
                     "one fluorophore kept: it meets ΔE2000 ≤ {ESCALATION_BOUND} under {} ({}), although {structure}; fit --model auto for the model of lowest BIC",
-                    ESCALATION_LIGHTS.join(", "),
+                    judged.join(", "),
                     per_light(&verdict.grid_delta_e2000)
                 ),
             },
@@ -109,7 +137,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
     let search_options = FitOptions {
         model: ModelChoice::Auto,
         max_delta_e: Some(ESCALATION_BOUND),
-        lights: escalation_lights(),
+        lights: lights_named(&judged),
         ..options.clone()
     };
     let searched = match search::fit_model(m, &search_options) {
@@ -152,7 +180,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
     }
     let mut searched = *searched;
     // Report the chosen model under the lights asked for (the search judged it under
-    // ESCALATION_LIGHTS only).
+    // the judged lights only).
     let data = data::FitData::new(m, options.guard_nm.unwrap_or(0.0));
     let accuracy = assess::accuracy(&searched, m, &data, &options.lights);
     let fit = searched
@@ -160,7 +188,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         .as_mut()
         .expect("searched materials carry a report");
     accuracy.record_in(fit);
-    let chosen_delta_e = under_escalation_lights(&fit.delta_e2000);
+    let chosen_delta_e = under_lights(&fit.delta_e2000, &judged);
     fit.escalation = Some(Escalation {
         escalated: true,
         reason: format!(
@@ -169,7 +197,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
             if met {
                 format!(
                     "smallest model with ΔE2000 ≤ {ESCALATION_BOUND} under {}",
-                    ESCALATION_LIGHTS.join(", ")
+                    judged.join(", ")
                 )
             } else {
                 "closest model tried; none met the bound".to_string()
@@ -183,7 +211,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
     Ok(FitOutcome::Material(Box::new(searched)))
 }
 
-/// What the grid fit leaves: its ΔE2000 under [`ESCALATION_LIGHTS`], why it does not
+/// What the grid fit leaves: its ΔE2000 under the judged lights, why it does not
 /// explain the matrix (in words) when it misses the bound, and the structure its residual
 /// shows.
 struct Verdict {
@@ -194,20 +222,20 @@ struct Verdict {
 }
 
 /// Judges the one-fluorophore grid fit `material` of `m` from its report: the residual
-/// warning its checks already gave, and its ΔE2000 (computed here only for the lights of
-/// [`ESCALATION_LIGHTS`] the fit's own `--lights` left out).
-fn judge(m: &Measurement, material: &Material) -> Verdict {
+/// warning its checks already gave, and its ΔE2000 under the lights `judged` (computed
+/// here only for those the fit's own `--lights` left out).
+fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
     let report = material
         .fit
         .as_ref()
         .expect("fitted materials carry a report");
-    let mut grid_delta_e2000: BTreeMap<String, f64> = ESCALATION_LIGHTS
+    let mut grid_delta_e2000: BTreeMap<String, f64> = judged
         .iter()
         .filter_map(|l| report.delta_e2000.get(*l).map(|de| (l.to_string(), *de)))
         .collect();
-    if grid_delta_e2000.len() < ESCALATION_LIGHTS.len() {
+    if grid_delta_e2000.len() < judged.len() {
         let data = data::FitData::new(m, report.guard_nm);
-        grid_delta_e2000 = assess::accuracy(material, m, &data, &escalation_lights()).delta_e2000;
+        grid_delta_e2000 = assess::accuracy(material, m, &data, &lights_named(judged)).delta_e2000;
     }
     let structure = report
         .warnings
@@ -224,7 +252,7 @@ fn judge(m: &Measurement, material: &Material) -> Verdict {
         misses
     } else {
         let data = data::FitData::new(m, report.guard_nm);
-        let lights = escalation_lights();
+        let lights = lights_named(judged);
         let reference = patch_xyz(m, material, &lights);
         let noise = assess::colour_noise(&data, &lights, &reference, report.noise_sigma);
         let bounds = assess::noise_aware_bounds(ESCALATION_BOUND, &lights, &noise);
@@ -268,9 +296,9 @@ fn patch_xyz(m: &Measurement, material: &Material, lights: &[Light]) -> Vec<crat
         .collect()
 }
 
-/// The lights of [`ESCALATION_LIGHTS`].
-fn escalation_lights() -> Vec<Light> {
-    ESCALATION_LIGHTS
+/// The built-in lights `names`.
+fn lights_named(names: &[&str]) -> Vec<Light> {
+    names
         .iter()
         .map(|n| Light::builtin(n).expect("escalation lights are built in"))
         .collect()
@@ -293,11 +321,11 @@ fn per_light(delta_e: &BTreeMap<String, f64>) -> String {
         .join(", ")
 }
 
-/// The ΔE2000 under the escalation lights only.
-fn under_escalation_lights(delta_e: &BTreeMap<String, f64>) -> BTreeMap<String, f64> {
+/// The ΔE2000 under the lights `names` only.
+fn under_lights(delta_e: &BTreeMap<String, f64>, names: &[&str]) -> BTreeMap<String, f64> {
     delta_e
         .iter()
-        .filter(|(l, _)| ESCALATION_LIGHTS.contains(&l.as_str()))
+        .filter(|(l, _)| names.contains(&l.as_str()))
         .map(|(l, de)| (l.clone(), *de))
         .collect()
 }
