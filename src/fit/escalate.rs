@@ -94,15 +94,17 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
             escalated: false,
             reason: match &verdict.structure {
                 None => format!(
-                    "one fluorophore explains the matrix: residual within {} × the noise and ΔE2000 ≤ {ESCALATION_BOUND} under {} ({})",
+                    "one fluorophore explains the matrix: residual within {} × the noise and ΔE2000 ≤ {ESCALATION_BOUND} under {} ({}){}",
                     assess::RESIDUAL_NOISE_FACTOR,
                     judged.join(", "),
-                    per_light(&verdict.grid_delta_e2000)
+                    per_light(&verdict.grid_delta_e2000),
+                    noise_note(&verdict.excused)
                 ),
                 Some(structure) => format!(
-                    "one fluorophore kept: it meets ΔE2000 ≤ {ESCALATION_BOUND} under {} ({}), although {structure}; fit --model auto for the model of lowest BIC",
+                    "one fluorophore kept: it meets ΔE2000 ≤ {ESCALATION_BOUND} under {} ({}){}, although {structure}; fit --model auto for the model of lowest BIC",
                     judged.join(", "),
-                    per_light(&verdict.grid_delta_e2000)
+                    per_light(&verdict.grid_delta_e2000),
+                    noise_note(&verdict.excused)
                 ),
             },
             grid_delta_e2000: verdict.grid_delta_e2000,
@@ -219,6 +221,8 @@ struct Verdict {
     grid_rel_residual: f64,
     trigger: Option<String>,
     structure: Option<String>,
+    /// Lights missed by less than the measured colour's noise explains, with that bound.
+    excused: BTreeMap<String, f64>,
 }
 
 /// Judges the one-fluorophore grid fit `material` of `m` from its report: the residual
@@ -248,6 +252,7 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
         .collect();
     // A miss the measured colour's own noise explains is no evidence of a second
     // fluorophore (and no model would reach the bound reliably): it does not escalate.
+    let mut excused = BTreeMap::new();
     let misses = if misses.is_empty() {
         misses
     } else {
@@ -256,10 +261,14 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
         let reference = patch_xyz(m, material, &lights);
         let noise = assess::colour_noise(&data, &lights, &reference, report.noise_sigma);
         let bounds = assess::noise_aware_bounds(ESCALATION_BOUND, &lights, &noise);
-        misses
+        let (kept, noise_explained): (BTreeMap<_, _>, BTreeMap<_, _>) = misses
             .into_iter()
-            .filter(|(l, de)| bounds.get(l).is_none_or(|b| de > b))
-            .collect()
+            .partition(|(l, de)| bounds.get(l).is_none_or(|b| de > b));
+        excused = noise_explained
+            .into_keys()
+            .filter_map(|l| bounds.get(&l).map(|b| (l, *b)))
+            .collect();
+        kept
     };
     let structure = structure.map(|_| {
         format!(
@@ -283,6 +292,7 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
         grid_rel_residual: report.rel_residual_fluorescence,
         trigger,
         structure,
+        excused,
     }
 }
 
@@ -319,6 +329,22 @@ fn per_light(delta_e: &BTreeMap<String, f64>) -> String {
         .map(|(l, de)| format!("{l} {de:.2}"))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// `; uv within what the measured colour's noise explains (ΔE2000 ≤ 1.41)`, or nothing.
+fn noise_note(excused: &BTreeMap<String, f64>) -> String {
+    if excused.is_empty() {
+        return String::new();
+    }
+    format!(
+        "; {} within what the measured colour's noise explains (ΔE2000 ≤ {})",
+        excused.keys().cloned().collect::<Vec<_>>().join(", "),
+        excused
+            .values()
+            .map(|b| format!("{b:.2}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    )
 }
 
 /// The ΔE2000 under the lights `names` only.
