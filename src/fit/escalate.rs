@@ -83,7 +83,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         }
         return Ok(grid);
     }
-    let judged = judged_light_names(m);
+    let mut judged = judged_light_names(m);
     let verdict = judge(m, material, &judged);
     let report = material
         .fit
@@ -136,13 +136,62 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         )));
         return Ok(grid);
     }
-    let search_options = FitOptions {
-        model: ModelChoice::Auto,
-        max_delta_e: Some(ESCALATION_BOUND),
-        lights: lights_named(&judged),
-        ..options.clone()
+    let search = |names: &[&str]| {
+        search::fit_model(
+            m,
+            &FitOptions {
+                model: ModelChoice::Auto,
+                max_delta_e: Some(ESCALATION_BOUND),
+                lights: lights_named(names),
+                ..options.clone()
+            },
+        )
     };
-    let searched = match search::fit_model(m, &search_options) {
+    let mut outcome = search(&judged);
+    // Under uv a model may be out of reach (a UV-excited emitter the search does not
+    // separate); the default's first promise is daylight, A and F11. When no model meets
+    // all the judged lights: keep the grid fit if it met those three (uv alone missed), or
+    // search under those three, as the default did before uv was judged.
+    let unmet = |o: &Result<FitOutcome>| match o {
+        Ok(FitOutcome::Material(s)) => !s
+            .fit
+            .as_ref()
+            .and_then(|f| f.model_search.as_ref())
+            .is_some_and(|ms| ms.met),
+        _ => true,
+    };
+    if judged.len() > ESCALATION_LIGHTS.len() && unmet(&outcome) {
+        if verdict.missed.iter().all(|l| l == UV_LIGHT) {
+            let closest = match &outcome {
+                Ok(FitOutcome::Material(s)) => s.fit.as_ref().map(|f| {
+                    format!(
+                        "closest {}: {}",
+                        f.model,
+                        per_light(&under_lights(&f.delta_e2000, &judged))
+                    )
+                }),
+                _ => None,
+            }
+            .unwrap_or_else(|| "the search failed".into());
+            report.warnings.push(format!(
+                "{trigger}; no model tried meets ΔE2000 ≤ {ESCALATION_BOUND} under {} ({closest}), so one fluorophore is kept: it meets {}; fit --model gaussian:KxB to go further",
+                judged.join(", "),
+                ESCALATION_LIGHTS.join(", ")
+            ));
+            report.model_search = match &outcome {
+                Ok(FitOutcome::Material(s)) => s.fit.as_ref().and_then(|f| f.model_search.clone()),
+                _ => None,
+            };
+            report.escalation = Some(grid_figures(format!(
+                "one fluorophore kept: {trigger}, and no model tried meets all of {}",
+                judged.join(", ")
+            )));
+            return Ok(grid);
+        }
+        judged = ESCALATION_LIGHTS.to_vec();
+        outcome = search(&judged);
+    }
+    let searched = match outcome {
         Ok(FitOutcome::Material(searched)) => searched,
         other => {
             let e = match other {
@@ -221,6 +270,8 @@ struct Verdict {
     grid_rel_residual: f64,
     trigger: Option<String>,
     structure: Option<String>,
+    /// The lights whose miss escalates.
+    missed: Vec<String>,
     /// Lights missed by less than the measured colour's noise explains, with that bound.
     excused: BTreeMap<String, f64>,
 }
@@ -304,6 +355,7 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
         grid_rel_residual: report.rel_residual_fluorescence,
         trigger,
         structure,
+        missed: misses.keys().cloned().collect(),
         excused,
     }
 }
