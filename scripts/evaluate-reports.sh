@@ -3,7 +3,8 @@
 # written apart from fluorite (its own loaders, model evaluation and colour-science
 # colorimetry): the default fit and the model search (--max-delta-e 1) of every file in
 # ../shared/data/measured, ΔE2000 under D65, A, F11 and UV, reported / recomputed, and the
-# largest difference per fit. Installs numpy and colour-science into target/evaluate-venv.
+# largest difference per fit. Installs numpy and colour-science into
+# $CARGO_TARGET_DIR/evaluate-venv (target/ by default), or uses the venv EVALUATE_VENV names.
 #
 #   scripts/evaluate-reports.sh [OUT]        (default OUT: /tmp/fluorite-evaluate-reports)
 set -euo pipefail
@@ -11,7 +12,8 @@ cd "$(dirname "$0")/.."
 shared=../shared
 out="${1:-/tmp/fluorite-evaluate-reports}"
 [ -d "$shared/data/measured" ] || { echo "skipped: $shared/data/measured is absent" >&2; exit 0; }
-venv=target/evaluate-venv
+target="${CARGO_TARGET_DIR:-target}"
+venv="${EVALUATE_VENV:-$target/evaluate-venv}"
 if [ ! -x "$venv/bin/python" ]; then
     python3 -m venv "$venv"
     "$venv/bin/pip" install --quiet numpy colour-science
@@ -19,8 +21,8 @@ fi
 cargo build --release --quiet --bin fluorite
 rm -rf "$out"
 files=("$shared"/data/measured/*.BFC "$shared"/data/measured/*.csv)
-target/release/fluorite fit "${files[@]}" -o "$out/default/" -q
-target/release/fluorite fit "${files[@]}" -o "$out/search/" --max-delta-e 1 -q
+"$target/release/fluorite" fit "${files[@]}" -o "$out/default/" -q
+"$target/release/fluorite" fit "${files[@]}" -o "$out/search/" --max-delta-e 1 -q
 echo "| fit | file | D65 reported / recomputed | A | F11 | UV | largest difference |"
 echo "|---|---|---|---|---|---|---|"
 worst=0

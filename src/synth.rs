@@ -450,3 +450,77 @@ pub const PRESETS: [&str; 5] = [
     "two-dyes",
     "plain",
 ];
+
+impl SynthSpec {
+    /// One draw of the UV-tail pigment class, on the BFC-450 grid: an orange-red pigment
+    /// (absorption 470–560 nm plus a UV band at 310–390 nm of 0.15–0.6 of the peak,
+    /// emission 40–90 nm above, with an optional shoulder) in a dark-to-light reflectance
+    /// edge, energy or photon form, BFC-450 noise (σ 4·10⁻⁴–9·10⁻⁴) and crosstalk
+    /// (0.001–0.04); with `emitter`, a weak UV-excited blue emitter beside it (absorption
+    /// 345–380 nm, emission 425–455 nm, c 0.003–0.05: a brightener in the substrate or
+    /// binder, as HERPICER.BFC shows). Named `uvtailNNN` after `index`; `rng` draws
+    /// everything, so a seed fixes the class.
+    pub fn uv_tail_pigment(rng: &mut SplitMix64, index: usize, emitter: bool) -> SynthSpec {
+        let mut u = |lo: f64, hi: f64| lo + (hi - lo) * rng.uniform();
+        let band = |centre_nm: f64, width_nm: f64, weight: f64| Band {
+            centre_nm,
+            width_nm,
+            weight,
+        };
+        let main = u(470.0, 560.0);
+        let absorption = vec![
+            band(main, u(18.0, 40.0), 1.0),
+            band(u(310.0, 390.0), u(15.0, 40.0), u(0.15, 0.6)),
+        ];
+        let peak = main + u(40.0, 90.0);
+        let emission = vec![
+            band(peak, u(15.0, 30.0), 1.0),
+            band(peak + u(20.0, 40.0), u(20.0, 35.0), u(0.0, 0.4)),
+        ];
+        let (reflectance_low, reflectance_high) = (u(0.03, 0.1), u(0.75, 0.9));
+        let reflectance_edge_nm = main + u(20.0, 50.0);
+        let reflectance_width_nm = u(10.0, 25.0);
+        let concentration = u(0.5, 0.9);
+        let yield_fraction_of_limit = u(0.5, 0.95);
+        let yield_form = if u(0.0, 1.0) < 0.5 {
+            YieldForm::Energy
+        } else {
+            YieldForm::Photon
+        };
+        let components = if emitter {
+            vec![SynthComponent {
+                absorption: vec![band(u(345.0, 380.0), u(12.0, 25.0), 1.0)],
+                emission: vec![
+                    band(u(425.0, 455.0), u(12.0, 22.0), 1.0),
+                    band(u(460.0, 480.0), u(15.0, 25.0), 0.35),
+                ],
+                concentration: u(0.003, 0.05),
+                yield_fraction_of_limit: u(0.3, 0.9),
+                yield_form: YieldForm::Energy,
+            }]
+        } else {
+            vec![]
+        };
+        let noise_sigma = u(4e-4, 9e-4);
+        let crosstalk = u(0.001, 0.04);
+        SynthSpec {
+            name: format!("uvtail{index:03}"),
+            excitation_nm: uniform_grid(300.0, 780.0, 10.0),
+            emission_nm: uniform_grid(380.0, 780.0, 10.0),
+            absorption,
+            emission,
+            reflectance_low,
+            reflectance_high,
+            reflectance_edge_nm,
+            reflectance_width_nm,
+            concentration,
+            yield_fraction_of_limit,
+            yield_form,
+            components,
+            noise_sigma,
+            crosstalk,
+            missing_fraction: 0.0,
+            seed: rng.next_u64(),
+        }
+    }
+}

@@ -14,8 +14,11 @@ pub const COLOUR_SCALE: f64 = 1.0;
 /// colour, as linear functionals of the cell residuals (measured − model).
 #[derive(Debug, Clone)]
 pub struct ColourTerm {
-    /// w: the cost is ½·w·Σ_lights τ²·ln(1 + ΔE76²/τ²).
+    /// w: the cost is ½·w·Σ_lights s_l·τ²·ln(1 + ΔE76²/τ²).
     pub(super) weight: f64,
+    /// s_l per light, in [0, 1]: how much of the weight that light's colour gets (1 unless
+    /// [`ColourTerm::with_light_shares`] says otherwise).
+    pub(super) light_share: Vec<f64>,
     /// Number of lights.
     pub(super) n_lights: usize,
     /// Per light: the RMS ΔE76 the measurement's noise alone gives the patch; the colour
@@ -45,6 +48,7 @@ impl ColourTerm {
         let n_lights = lights.len().min(reference.len());
         let mut term = ColourTerm {
             weight,
+            light_share: vec![1.0; n_lights],
             n_lights,
             noise_delta_e: vec![0.0; n_lights],
             row_lights: vec![0.0; data.n_excitation() * n_lights],
@@ -98,6 +102,20 @@ impl ColourTerm {
         term
     }
 
+    /// The same term with light `l`'s weight scaled by `shares[l]` (clamped to [0, 1];
+    /// lights beyond `shares` keep theirs).
+    pub fn with_light_shares(mut self, shares: &[f64]) -> Self {
+        for (s, share) in self.light_share.iter_mut().zip(shares) {
+            *s = share.clamp(0.0, 1.0);
+        }
+        self
+    }
+
+    /// The weight of light `l`'s colour: w·s_l.
+    pub(super) fn light_weight(&self, l: usize) -> f64 {
+        self.weight * self.light_share.get(l).copied().unwrap_or(1.0)
+    }
+
     /// ∫L·h_i of every light for excitation row `row`.
     pub(super) fn lights_of_row(&self, row: usize) -> &[f64] {
         &self.row_lights[row * self.n_lights..(row + 1) * self.n_lights]
@@ -135,16 +153,21 @@ impl ColourTerm {
         let tau2 = COLOUR_SCALE * COLOUR_SCALE;
         let mut cost = 0.0;
         let mut pull = patch.to_vec();
-        for (light, delta) in pull.chunks_exact_mut(3).zip(&self.noise_delta_e) {
+        for ((light, delta), share) in pull
+            .chunks_exact_mut(3)
+            .zip(&self.noise_delta_e)
+            .zip(&self.light_share)
+        {
             let t = light.iter().map(|p| p * p).sum::<f64>().sqrt();
             let u = (t - delta).max(0.0);
-            cost += 0.5 * self.weight * tau2 * (u * u / tau2).ln_1p();
-            // ∂cost/∂ΔLab = w·u/(1 + u²/τ²)·ΔLab/t.
-            let factor = if t > 0.0 {
-                u / (1.0 + u * u / tau2) / t
-            } else {
-                1.0
-            };
+            cost += 0.5 * self.weight * share * tau2 * (u * u / tau2).ln_1p();
+            // ∂cost/∂ΔLab = w·s·u/(1 + u²/τ²)·ΔLab/t.
+            let factor = share
+                * if t > 0.0 {
+                    u / (1.0 + u * u / tau2) / t
+                } else {
+                    1.0
+                };
             light.iter_mut().for_each(|p| *p *= factor);
         }
         (cost, pull)
@@ -187,4 +210,57 @@ impl ColourTerm {
         }
         (q, h)
     }
+}
+
+/// Standard deviations of the noise's own residual energy a light's residual must pass
+/// before [`misfit_shares`] counts any of it as structure (the noise-coverage factor of
+/// the fit's other noise tests).
+const MISFIT_COVERAGE: f64 = 3.0;
+
+/// Per light of `term`, the share of the rank-1 start's residual (`row`·`column`ᵀ against
+/// the off-diagonal cells of `data`) that noise of level `sigma` does not explain, in the
+/// rows that light excites: rows weighted by the square of the light reaching them (the
+/// weight of a row's cells in the patch colour), and the noise allowed its expected
+/// energy plus [`MISFIT_COVERAGE`] standard deviations. A light that pours most of its
+/// energy into a few rows (the `uv` light's 365 nm LED: rows 360 and 370 nm) sees only
+/// those rows; where they hold noise alone, least squares is the right estimate there and
+/// the colour term would trade those rows' samples for the noise of the measured colour.
+pub(super) fn misfit_shares(
+    data: &FitData,
+    row: &[f64],
+    column: &[f64],
+    sigma: f64,
+    term: &ColourTerm,
+) -> Vec<f64> {
+    let n_ex = data.n_excitation();
+    let mut energy = vec![0.0; n_ex];
+    let mut cells = vec![0.0; n_ex];
+    for c in &data.off_diagonal {
+        let fitted =
+            row.get(c.row).copied().unwrap_or(0.0) * column.get(c.column).copied().unwrap_or(0.0);
+        energy[c.row] += (c.value - fitted).powi(2);
+        cells[c.row] += 1.0;
+    }
+    let sigma2 = if sigma.is_finite() {
+        sigma * sigma
+    } else {
+        0.0
+    };
+    (0..term.n_lights)
+        .map(|l| {
+            let (mut residual, mut noise, mut variance) = (0.0, 0.0, 0.0);
+            for i in 0..n_ex {
+                let w2 = term.row_lights[i * term.n_lights + l].powi(2);
+                residual += w2 * energy[i];
+                noise += w2 * cells[i] * sigma2;
+                // A row's noise energy is σ²·χ²(n): variance 2·n·σ⁴.
+                variance += w2 * w2 * 2.0 * cells[i] * sigma2 * sigma2;
+            }
+            if residual > 0.0 {
+                (1.0 - (noise + MISFIT_COVERAGE * variance.sqrt()) / residual).max(0.0)
+            } else {
+                0.0
+            }
+        })
+        .collect()
 }

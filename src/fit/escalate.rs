@@ -1,7 +1,15 @@
 //! The default fit ([`ModelChoice::AsNeeded`]): the one-fluorophore grid fit, kept when it
 //! explains the matrix, else the model search's smallest model meeting ΔE2000 ≤
-//! [`ESCALATION_BOUND`] under [`ESCALATION_LIGHTS`] (what `--model auto --max-delta-e 1
-//! --lights d65,a,f11` fits).
+//! [`ESCALATION_BOUND`] under [`ESCALATION_LIGHTS`], and [`UV_LIGHT`] where the grid holds
+//! its LED's rows ([`judges_uv`]; what `--model auto --max-delta-e 1 --lights
+//! d65,a,f11,uv` fits). When no model meets all the judged lights, the grid fit is kept if
+//! uv alone missed, else the search runs under the three lights alone.
+//!
+//! Under uv the colour is mostly the fluorescence of the LED's two rows: HERPICER.BFC's
+//! grid fit is within 0.77 under d65, a and f11 but 4.46 under uv, nearly all of it in the
+//! Stokes cells of rows 350–380 nm (a UV-excited blue emitter at 420–500 nm, and the red
+//! there pulled low to trade for it); judged under uv it escalates to
+//! gaussian:2x2/1+rt/photon (uv 0.36; docs/results.md, "UV-tail pigments").
 //!
 //! The grid fit's own figures decide, so a matrix one fluorophore explains costs nothing
 //! beyond them: its ΔE2000 against the measurement, which its report holds. A residual
@@ -27,11 +35,38 @@ use crate::material::Escalation;
 /// [`ESCALATION_LIGHTS`] (1: invisible side by side).
 pub const ESCALATION_BOUND: f64 = 1.0;
 
-/// The lights the default fit is judged under: daylight, incandescent and a narrow-band
-/// fluorescent lamp. The `uv` light is left out: under it the colour is mostly the
-/// fluorescence of wavelengths below most grids' reach, and the search would chase it
-/// (it is still reported).
+/// The lights the default fit is always judged under: daylight, incandescent and a
+/// narrow-band fluorescent lamp. The `uv` light joins them where the grid measures it
+/// ([`judges_uv`]).
 pub const ESCALATION_LIGHTS: [&str; 3] = ["d65", "a", "f11"];
+
+/// The UV-rich light, judged where the excitation grid reaches its LED.
+pub const UV_LIGHT: &str = "uv";
+
+/// Whether the default fit judges `m` under [`UV_LIGHT`] too: when the excitation grid
+/// holds the rows its 365 nm LED excites (it starts at most one LED width below the peak
+/// and ends above it). Under that light half the energy is the LED's, so the colour is
+/// mostly the fluorescence of those rows; a grid that starts above them (most EEMs and
+/// reflectance-only grids) cannot see it and is judged under daylight, A and F11 only.
+/// On BFC-450 grids (excitation from 300 nm) the rows are measured, and a fluorophore the
+/// grid fit misses there (HERPICER's blue emitter, excitation 340–440 nm) moves the colour
+/// by ΔE2000 4.5 while d65, a and f11 stay below 0.8.
+pub fn judges_uv(m: &Measurement) -> bool {
+    let (Some(first), Some(last)) = (m.excitation_nm.first(), m.excitation_nm.last()) else {
+        return false;
+    };
+    *first <= crate::colour::UV_LED_PEAK_NM - crate::colour::UV_LED_FWHM_NM
+        && *last >= crate::colour::UV_LED_PEAK_NM + crate::colour::UV_LED_FWHM_NM
+}
+
+/// The names of the lights the default fit judges `m` under.
+pub fn judged_light_names(m: &Measurement) -> Vec<&'static str> {
+    let mut names = ESCALATION_LIGHTS.to_vec();
+    if judges_uv(m) {
+        names.push(UV_LIGHT);
+    }
+    names
+}
 
 /// Fits one fluorophore on the grid, and escalates to the model search when it does not
 /// explain the matrix (see the module documentation).
@@ -56,7 +91,8 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         }
         return Ok(grid);
     }
-    let verdict = judge(m, material);
+    let mut judged = judged_light_names(m);
+    let verdict = judge(m, material, &judged);
     let report = material
         .fit
         .as_mut()
@@ -66,15 +102,17 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
             escalated: false,
             reason: match &verdict.structure {
                 None => format!(
-                    "one fluorophore explains the matrix: residual within {} × the noise and ΔE2000 ≤ {ESCALATION_BOUND} under {} ({})",
+                    "one fluorophore explains the matrix: residual within {} × the noise and ΔE2000 ≤ {ESCALATION_BOUND} under {} ({}){}",
                     assess::RESIDUAL_NOISE_FACTOR,
-                    ESCALATION_LIGHTS.join(", "),
-                    per_light(&verdict.grid_delta_e2000)
+                    judged.join(", "),
+                    per_light(&verdict.grid_delta_e2000),
+                    noise_note(&verdict.excused)
                 ),
                 Some(structure) => format!(
-                    "one fluorophore kept: it meets ΔE2000 ≤ {ESCALATION_BOUND} under {} ({}), although {structure}; fit --model auto for the model of lowest BIC",
-                    ESCALATION_LIGHTS.join(", "),
-                    per_light(&verdict.grid_delta_e2000)
+                    "one fluorophore kept: it meets ΔE2000 ≤ {ESCALATION_BOUND} under {} ({}){}, although {structure}; fit --model auto for the model of lowest BIC",
+                    judged.join(", "),
+                    per_light(&verdict.grid_delta_e2000),
+                    noise_note(&verdict.excused)
                 ),
             },
             grid_delta_e2000: verdict.grid_delta_e2000,
@@ -106,13 +144,62 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         )));
         return Ok(grid);
     }
-    let search_options = FitOptions {
-        model: ModelChoice::Auto,
-        max_delta_e: Some(ESCALATION_BOUND),
-        lights: escalation_lights(),
-        ..options.clone()
+    let search = |names: &[&str]| {
+        search::fit_model(
+            m,
+            &FitOptions {
+                model: ModelChoice::Auto,
+                max_delta_e: Some(ESCALATION_BOUND),
+                lights: lights_named(names),
+                ..options.clone()
+            },
+        )
     };
-    let searched = match search::fit_model(m, &search_options) {
+    let mut outcome = search(&judged);
+    // Under uv a model may be out of reach (a UV-excited emitter the search does not
+    // separate); the default's first promise is daylight, A and F11. When no model meets
+    // all the judged lights: keep the grid fit if it met those three (uv alone missed), or
+    // search under those three, as the default did before uv was judged.
+    let unmet = |o: &Result<FitOutcome>| match o {
+        Ok(FitOutcome::Material(s)) => !s
+            .fit
+            .as_ref()
+            .and_then(|f| f.model_search.as_ref())
+            .is_some_and(|ms| ms.met),
+        _ => true,
+    };
+    if judged.len() > ESCALATION_LIGHTS.len() && unmet(&outcome) {
+        if verdict.missed.iter().all(|l| l == UV_LIGHT) {
+            let closest = match &outcome {
+                Ok(FitOutcome::Material(s)) => s.fit.as_ref().map(|f| {
+                    format!(
+                        "closest {}: {}",
+                        f.model,
+                        per_light(&under_lights(&f.delta_e2000, &judged))
+                    )
+                }),
+                _ => None,
+            }
+            .unwrap_or_else(|| "the search failed".into());
+            report.warnings.push(format!(
+                "{trigger}; no model tried meets ΔE2000 ≤ {ESCALATION_BOUND} under {} ({closest}), so one fluorophore is kept: it meets {}; fit --model gaussian:KxB to go further",
+                judged.join(", "),
+                ESCALATION_LIGHTS.join(", ")
+            ));
+            report.model_search = match &outcome {
+                Ok(FitOutcome::Material(s)) => s.fit.as_ref().and_then(|f| f.model_search.clone()),
+                _ => None,
+            };
+            report.escalation = Some(grid_figures(format!(
+                "one fluorophore kept: {trigger}, and no model tried meets all of {}",
+                judged.join(", ")
+            )));
+            return Ok(grid);
+        }
+        judged = ESCALATION_LIGHTS.to_vec();
+        outcome = search(&judged);
+    }
+    let searched = match outcome {
         Ok(FitOutcome::Material(searched)) => searched,
         other => {
             let e = match other {
@@ -152,7 +239,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
     }
     let mut searched = *searched;
     // Report the chosen model under the lights asked for (the search judged it under
-    // ESCALATION_LIGHTS only).
+    // the judged lights only).
     let data = data::FitData::new(m, options.guard_nm.unwrap_or(0.0));
     let accuracy = assess::accuracy(&searched, m, &data, &options.lights);
     let fit = searched
@@ -160,7 +247,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         .as_mut()
         .expect("searched materials carry a report");
     accuracy.record_in(fit);
-    let chosen_delta_e = under_escalation_lights(&fit.delta_e2000);
+    let chosen_delta_e = under_lights(&fit.delta_e2000, &judged);
     fit.escalation = Some(Escalation {
         escalated: true,
         reason: format!(
@@ -169,7 +256,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
             if met {
                 format!(
                     "smallest model with ΔE2000 ≤ {ESCALATION_BOUND} under {}",
-                    ESCALATION_LIGHTS.join(", ")
+                    judged.join(", ")
                 )
             } else {
                 "closest model tried; none met the bound".to_string()
@@ -183,7 +270,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
     Ok(FitOutcome::Material(Box::new(searched)))
 }
 
-/// What the grid fit leaves: its ΔE2000 under [`ESCALATION_LIGHTS`], why it does not
+/// What the grid fit leaves: its ΔE2000 under the judged lights, why it does not
 /// explain the matrix (in words) when it misses the bound, and the structure its residual
 /// shows.
 struct Verdict {
@@ -191,23 +278,27 @@ struct Verdict {
     grid_rel_residual: f64,
     trigger: Option<String>,
     structure: Option<String>,
+    /// The lights whose miss escalates.
+    missed: Vec<String>,
+    /// Lights missed by less than the measured colour's noise explains, with that bound.
+    excused: BTreeMap<String, f64>,
 }
 
 /// Judges the one-fluorophore grid fit `material` of `m` from its report: the residual
-/// warning its checks already gave, and its ΔE2000 (computed here only for the lights of
-/// [`ESCALATION_LIGHTS`] the fit's own `--lights` left out).
-fn judge(m: &Measurement, material: &Material) -> Verdict {
+/// warning its checks already gave, and its ΔE2000 under the lights `judged` (computed
+/// here only for those the fit's own `--lights` left out).
+fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
     let report = material
         .fit
         .as_ref()
         .expect("fitted materials carry a report");
-    let mut grid_delta_e2000: BTreeMap<String, f64> = ESCALATION_LIGHTS
+    let mut grid_delta_e2000: BTreeMap<String, f64> = judged
         .iter()
         .filter_map(|l| report.delta_e2000.get(*l).map(|de| (l.to_string(), *de)))
         .collect();
-    if grid_delta_e2000.len() < ESCALATION_LIGHTS.len() {
+    if grid_delta_e2000.len() < judged.len() {
         let data = data::FitData::new(m, report.guard_nm);
-        grid_delta_e2000 = assess::accuracy(material, m, &data, &escalation_lights()).delta_e2000;
+        grid_delta_e2000 = assess::accuracy(material, m, &data, &lights_named(judged)).delta_e2000;
     }
     let structure = report
         .warnings
@@ -220,18 +311,35 @@ fn judge(m: &Measurement, material: &Material) -> Verdict {
         .collect();
     // A miss the measured colour's own noise explains is no evidence of a second
     // fluorophore (and no model would reach the bound reliably): it does not escalate.
+    let mut excused = BTreeMap::new();
     let misses = if misses.is_empty() {
         misses
     } else {
         let data = data::FitData::new(m, report.guard_nm);
-        let lights = escalation_lights();
+        let lights = lights_named(judged);
         let reference = patch_xyz(m, material, &lights);
         let noise = assess::colour_noise(&data, &lights, &reference, report.noise_sigma);
+        // The noise is an RMS ΔE76; the misses are ΔE2000, which weighs chroma less (under
+        // the UV-rich light an orange patch's noise is mostly chroma: RMS ΔE76 5.2 against
+        // ΔE2000 1.8 on a synthetic pigment), so the noise is taken to ΔE2000 first.
+        let noise: Vec<f64> = lights
+            .iter()
+            .zip(&reference)
+            .zip(&noise)
+            .map(|((light, xyz), delta)| {
+                let white = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm).white;
+                noise_in_delta_e2000(crate::colour::xyz_to_lab(*xyz, white), *delta)
+            })
+            .collect();
         let bounds = assess::noise_aware_bounds(ESCALATION_BOUND, &lights, &noise);
-        misses
+        let (kept, noise_explained): (BTreeMap<_, _>, BTreeMap<_, _>) = misses
             .into_iter()
-            .filter(|(l, de)| bounds.get(l).is_none_or(|b| de > b))
-            .collect()
+            .partition(|(l, de)| bounds.get(l).is_none_or(|b| de > b));
+        excused = noise_explained
+            .into_keys()
+            .filter_map(|l| bounds.get(&l).map(|b| (l, *b)))
+            .collect();
+        kept
     };
     let structure = structure.map(|_| {
         format!(
@@ -255,7 +363,31 @@ fn judge(m: &Measurement, material: &Material) -> Verdict {
         grid_rel_residual: report.rel_residual_fluorescence,
         trigger,
         structure,
+        missed: misses.keys().cloned().collect(),
+        excused,
     }
+}
+
+/// The RMS ΔE2000 at `lab` of a colour noise of RMS ΔE76 `delta`, spread evenly over L*,
+/// a* and b*: δ·√(mean over the axes of (ΔE2000 of a unit step)²), the steps taken at
+/// δ/√3 so the metric's curvature counts.
+fn noise_in_delta_e2000(lab: crate::colour::Lab, delta: f64) -> f64 {
+    if !(delta.is_finite() && delta > 0.0) {
+        return 0.0;
+    }
+    let step = delta / 3f64.sqrt();
+    let mean_square = (0..3)
+        .flat_map(|axis| [-1.0, 1.0].map(|sign| (axis, sign)))
+        .map(|(axis, sign)| {
+            let mut moved = lab;
+            moved[axis] += sign * step;
+            delta_e2000(lab, moved).powi(2)
+        })
+        .sum::<f64>()
+        / 2.0;
+    // Σ over the three axes of the mean over ± of (ΔE2000 of a δ/√3 step)².
+    let rms = mean_square.sqrt();
+    if rms.is_finite() { rms } else { delta }
 }
 
 /// The measured patch's XYZ per light, as the accuracy report sees it.
@@ -268,9 +400,9 @@ fn patch_xyz(m: &Measurement, material: &Material, lights: &[Light]) -> Vec<crat
         .collect()
 }
 
-/// The lights of [`ESCALATION_LIGHTS`].
-fn escalation_lights() -> Vec<Light> {
-    ESCALATION_LIGHTS
+/// The built-in lights `names`.
+fn lights_named(names: &[&str]) -> Vec<Light> {
+    names
         .iter()
         .map(|n| Light::builtin(n).expect("escalation lights are built in"))
         .collect()
@@ -293,11 +425,27 @@ fn per_light(delta_e: &BTreeMap<String, f64>) -> String {
         .join(", ")
 }
 
-/// The ΔE2000 under the escalation lights only.
-fn under_escalation_lights(delta_e: &BTreeMap<String, f64>) -> BTreeMap<String, f64> {
+/// `; uv within what the measured colour's noise explains (ΔE2000 ≤ 1.41)`, or nothing.
+fn noise_note(excused: &BTreeMap<String, f64>) -> String {
+    if excused.is_empty() {
+        return String::new();
+    }
+    format!(
+        "; {} within what the measured colour's noise explains (ΔE2000 ≤ {})",
+        excused.keys().cloned().collect::<Vec<_>>().join(", "),
+        excused
+            .values()
+            .map(|b| format!("{b:.2}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    )
+}
+
+/// The ΔE2000 under the lights `names` only.
+fn under_lights(delta_e: &BTreeMap<String, f64>, names: &[&str]) -> BTreeMap<String, f64> {
     delta_e
         .iter()
-        .filter(|(l, _)| ESCALATION_LIGHTS.contains(&l.as_str()))
+        .filter(|(l, _)| names.contains(&l.as_str()))
         .map(|(l, de)| (l.clone(), *de))
         .collect()
 }

@@ -426,9 +426,9 @@ impl<'a> Objective<'a> {
         let diagonal = self.diagonal_fits(sp, &d);
         r.extend(diagonal.iter().map(|f| f.residual));
         if let Some(colour) = &self.colour {
-            let w = colour.weight.sqrt();
             let patch = self.colour_patch(colour, sp, &d, &diagonal);
             for (l, light) in patch.chunks_exact(3).enumerate() {
+                let w = colour.light_weight(l).sqrt();
                 let t = light.iter().map(|p| p * p).sum::<f64>().sqrt();
                 let (phi, _) = colour.residual_factor(l, t);
                 r.extend(light.iter().map(|p| w * phi * p));
@@ -544,8 +544,8 @@ impl<'a> Objective<'a> {
             }
             let first = data.off_diagonal.len() + data.diagonal.len();
             let patch = self.colour_patch(colour, sp, &d, &diagonal);
-            let root_weight = colour.weight.sqrt();
             for (l, p) in patch.chunks_exact(3).enumerate() {
+                let root_weight = colour.light_weight(l).sqrt();
                 let t = p.iter().map(|x| x * x).sum::<f64>().sqrt();
                 let (phi, dphi) = colour.residual_factor(l, t);
                 for k in 0..n_params {

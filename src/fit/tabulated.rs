@@ -224,7 +224,11 @@ pub(super) fn fit_checked(
         // The colour term is for structure the model cannot follow; where the rank-1
         // start already leaves only noise (χ² per cell ≈ 1: the model is right), least
         // squares is the right estimate and the colour term would fit the noise. Its
-        // weight is the share of the start's residual that noise does not explain.
+        // weight is the share of the start's residual that noise does not explain, and no
+        // more, per light, than that share in the rows the light reaches: the `uv` light's
+        // LED sends half its energy to two rows, whose samples the colour term would
+        // otherwise bend to chase the noise of the measured colour (see
+        // `colour_term::misfit_shares`).
         let residual_energy = 2.0 * start.cost_history.last().copied().unwrap_or(0.0);
         let noise_energy = data.off_diagonal.len() as f64 * noise_sigma * noise_sigma;
         let misfit_share = if residual_energy > 0.0 {
@@ -232,13 +236,19 @@ pub(super) fn fit_checked(
         } else {
             0.0
         };
-        Some(objective::ColourTerm::new(
+        let term = objective::ColourTerm::new(
             &data,
             &options.lights,
             &reference,
-            options.colour_weight * misfit_share,
+            options.colour_weight,
             noise_sigma,
-        ))
+        );
+        let shares: Vec<f64> =
+            colour_term::misfit_shares(&data, &start.row, &start.column, noise_sigma, &term)
+                .into_iter()
+                .map(|s| s.min(misfit_share))
+                .collect();
+        Some(term.with_light_shares(&shares))
     } else {
         None
     };

@@ -253,9 +253,12 @@ fn a_pinned_yield_keeps_one_fluorophore_and_says_so() {
 }
 
 /// The six real surfaces (skipped when ../shared is absent): the default fit meets the
-/// bound against each matrix. Their one-fluorophore fits already do (ΔE2000 ≤ 0.78 under
-/// d65, a and f11), so none escalates, TEXTYELL included, whose residual shows structure:
-/// the search's smallest model meeting the bound would explain less of that matrix.
+/// bound against each matrix under d65, a and f11, and is within 2 under uv (their grid
+/// reaches the 365 nm LED's rows, so uv is judged too). Five keep the grid fit (ΔE2000 ≤
+/// 0.65 under d65, a and f11; postit_pink misses uv by 1.29, within what its measured
+/// colour's noise explains), TEXTYELL included, whose residual shows structure: the
+/// search's smallest model meeting the bound would explain less of that matrix. HERPICER
+/// escalates: its grid fit misses uv by 4.46 (a second, UV-excited blue emitter).
 #[test]
 fn measured_surfaces_meet_the_bound_by_default() {
     let Some(files) = common::measured_files() else {
@@ -267,7 +270,12 @@ fn measured_surfaces_meet_the_bound_by_default() {
         let fitted = material(fit(&m, &FitOptions::default()).unwrap());
         assert_within_bound(&m.name, &fitted, &m);
         let report = fitted.fit.as_ref().unwrap();
-        assert!(!report.escalation.as_ref().unwrap().escalated, "{}", m.name);
-        assert_eq!(report.model, "tabulated", "{}", m.name);
+        let uv = report.delta_e2000["uv"];
+        assert!(uv <= 2.0, "{}: ΔE2000 {uv:.2} under uv", m.name);
+        let escalated = report.escalation.as_ref().unwrap().escalated;
+        assert_eq!(escalated, m.name == "HERPICER", "{}", m.name);
+        if !escalated {
+            assert_eq!(report.model, "tabulated", "{}", m.name);
+        }
     }
 }

@@ -31,9 +31,12 @@ fn every_measured_surface_fits_within_colour_tolerance() {
             path.display(),
             report.warnings
         );
+        // One fluorophore, or two for HERPICER: judged under uv (its grid reaches the
+        // 365 nm LED's rows), the default fit adds its UV-excited blue emitter.
+        let expected = if m.name == "HERPICER" { 2 } else { 1 };
         assert_eq!(
             material.fluorophores.len(),
-            1,
+            expected,
             "{}: a fluorescent surface",
             path.display()
         );

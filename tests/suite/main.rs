@@ -50,3 +50,4 @@ mod reproducible_outputs;
 mod stability;
 mod synth_components;
 mod units_percent;
+mod uv_tail;
