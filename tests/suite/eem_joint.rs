@@ -12,16 +12,7 @@ use fluorite::fit::joint::reference::Reference;
 use fluorite::fit::joint::{JointOptions, fit_joint};
 use fluorite::measurement::{Measurement, Units};
 
-/// Squared Pearson correlation, written out here so the test does not lean on the
-/// library's own statistic.
-fn pearson_squared(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len() as f64;
-    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
-    let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
-    let syy: f64 = y.iter().map(|b| (b - my).powi(2)).sum();
-    sxy * sxy / (sxx * syy)
-}
+use crate::common::eem_sim::pearson_squared;
 
 fn tucker(u: &[f64], v: &[f64]) -> f64 {
     let d = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
