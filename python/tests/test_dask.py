@@ -54,16 +54,21 @@ def client():
     cluster.close(timeout=30)
 
 
-@pytest.fixture(scope="module")
-def scan(cli, tmp_path_factory):
-    """A synthetic bispectral EXR (3 fluorophores) and `fluorite fit-image`'s run on it."""
-    folder = tmp_path_factory.mktemp("scan")
-    made = run_cli(cli, "synth", "--image", "-q", "--size", SIZE, *GRID, "--out", folder, "--name", "scan", cwd=ROOT)
+def synth_and_fit(cli, folder, size, name):
+    """A synthetic bispectral EXR (3 fluorophores) of `size` in `folder` and `fluorite
+    fit-image`'s run on it (in folder/cli): (image, reference folder)."""
+    made = run_cli(cli, "synth", "--image", "-q", "--size", size, *GRID, "--out", folder, "--name", name, cwd=ROOT)
     assert made.returncode == 0, made.stderr
-    image = folder / "scan.exr"
+    image = folder / f"{name}.exr"
     fitted = run_cli(cli, "fit-image", image, "-o", folder / "cli", "--components", K, "-q")
     assert fitted.returncode == 0, fitted.stderr
     return image, folder / "cli"
+
+
+@pytest.fixture(scope="module")
+def scan(cli, tmp_path_factory):
+    """A synthetic bispectral EXR (3 fluorophores) and `fluorite fit-image`'s run on it."""
+    return synth_and_fit(cli, tmp_path_factory.mktemp("scan"), SIZE, "scan")
 
 
 def cells_of(path):
@@ -282,11 +287,7 @@ def test_output_tasks_take_the_records_the_workers_hold(client, cli, tmp_path):
     """A width that is a multiple of 64: each task's records are whole rows of tiles, and
     the tasks writing the outputs take theirs from the workers' memory (not Zarr); the
     same files as fit-image. 72 rows: two rows of tiles, the second 8 rows high."""
-    made = run_cli(cli, "synth", "--image", "-q", "--size", "128x72", *GRID, "--out", tmp_path, "--name", "wide", cwd=ROOT)
-    assert made.returncode == 0, made.stderr
-    image = tmp_path / "wide.exr"
-    fitted = run_cli(cli, "fit-image", image, "-o", tmp_path / "cli", "--components", K, "-q")
-    assert fitted.returncode == 0, fitted.stderr
+    image, reference = synth_and_fit(cli, tmp_path, "128x72", "wide")
     seen = []
     with distributed.get_task_stream(client) as stream:
         fdask.fit_image(
@@ -305,5 +306,5 @@ def test_output_tasks_take_the_records_the_workers_hold(client, cli, tmp_path):
     names = {str(task["key"]) for task in stream.data}
     assert any(n.startswith("_held_band_task-") for n in names), sorted(names)[:20]
     assert not any(n.startswith("_band_task-") for n in names), sorted(names)[:20]
-    assert_same_outputs(tmp_path / "dask", tmp_path / "cli")
+    assert_same_outputs(tmp_path / "dask", reference)
     assert_maps_hold_the_outputs(tmp_path / "dask")

@@ -15,6 +15,7 @@ use fluorite::colour::Light;
 use fluorite::evaluate::stability::material_delta_e;
 use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, fit};
 use fluorite::numeric::SplitMix64;
+use fluorite::numeric::median;
 use fluorite::synth::SynthSpec;
 
 const SEED: u64 = 2026;
@@ -29,16 +30,6 @@ fn material(outcome: FitOutcome) -> Material {
 
 fn lights(names: &[&str]) -> Vec<Light> {
     names.iter().map(|l| Light::builtin(l).unwrap()).collect()
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 #[test]
@@ -77,7 +68,7 @@ fn default_fit_follows_uv_tail_pigments_against_the_truth() {
     }
     // With the blue emitter the default fit comes at least twice as close to the truth
     // under uv as one fluorophore does, in the median.
-    let (grid, default) = (median(grid_uv.clone()), median(default_uv.clone()));
+    let (grid, default) = (median(&grid_uv), median(&default_uv));
     assert!(
         default <= 0.5 * grid,
         "uv against the truth, median: default {default:.2} vs grid {grid:.2} ({default_uv:.2?} vs {grid_uv:.2?})"
