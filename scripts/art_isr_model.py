@@ -14,8 +14,10 @@ furnace_exact.furnace_xyz(stokes_cell_nm=10, fold=True)) in CIEDE2000 and Y, per
 """
 
 import argparse
+import atexit
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -74,6 +76,7 @@ def main():
     args = p.parse_args()
     cmf = fx.observer(args.shared)
     work = tempfile.mkdtemp(prefix="art-isr-")
+    atexit.register(shutil.rmtree, work, ignore_errors=True)
     print("| material | light | Y exact (folded) | Y in 10 nm buckets | ΔE2000 |")
     print("|---|---|---|---|---|")
     for path in args.materials:

@@ -35,9 +35,11 @@ Run through scripts/verify-renderers.sh.
 """
 
 import argparse
+import atexit
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -287,6 +289,8 @@ def main():
     lights = args.lights.split(",")
     cmf = fx.observer(args.shared)
     work = args.keep or tempfile.mkdtemp(prefix="verify-renderers-")
+    if not args.keep:  # renders and exports: hundreds of MB a run
+        atexit.register(shutil.rmtree, work, ignore_errors=True)
     os.makedirs(work, exist_ok=True)
     args.log = os.path.join(work, "commands.log")
     white_json = os.path.join(work, "white.json")

@@ -51,11 +51,7 @@ fn the_library_refuses_searches_it_cannot_run() {
 
 #[test]
 fn the_command_names_its_flags() {
-    let dir = std::env::temp_dir().join(format!(
-        "fluorite-test-bands-options-{}",
-        std::process::id()
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::temp_dir("command");
     let (nm, values) = curve();
     let mut text = String::from("wavelength_nm,emission\n");
     for (l, v) in nm.iter().zip(&values) {

@@ -5,7 +5,7 @@
 
 use crate::common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn fluorite(args: &[&str]) -> Output {
@@ -292,7 +292,7 @@ fn a_pinned_yield_beyond_the_photon_limit_suggests_the_photon_form() {
 
 /// A temporary folder holding a copy of `data/green-dye.csv` fitted there (so the
 /// material records the relative path `green-dye.csv`); returns the folder.
-fn fitted_copy(tag: &str) -> PathBuf {
+fn fitted_copy(tag: &str) -> common::TempDir {
     let dir = common::temp_dir(tag);
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/green-dye.csv");
     std::fs::copy(&data, dir.join("green-dye.csv")).unwrap();

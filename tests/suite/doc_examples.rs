@@ -305,9 +305,10 @@ fn copy_dir(from: &Path, to: &Path) {
 
 /// A scratch folder laid out like the workspace: `repo/` holds copies of `data/` and
 /// `fits/`, `shared` links to the real `../shared` (read only by the examples), `bin/`
-/// holds `fluorite`. Returns the folder the commands run in and the PATH to give them.
+/// holds `fluorite`. Returns the scratch folder's guard, the folder the commands run in
+/// and the PATH to give them.
 #[cfg(unix)]
-fn scratch(tag: &str, shared: &Path) -> (PathBuf, String) {
+fn scratch(tag: &str, shared: &Path) -> (common::TempDir, PathBuf, String) {
     let root = common::temp_dir(tag);
     let repo_source = Path::new(env!("CARGO_MANIFEST_DIR"));
     let repo = root.join("repo");
@@ -323,7 +324,7 @@ fn scratch(tag: &str, shared: &Path) -> (PathBuf, String) {
         bin.display(),
         std::env::var("PATH").unwrap_or_default()
     );
-    (repo, path)
+    (root, repo, path)
 }
 
 /// Runs one example; None when it did what the page says, else what went wrong.
@@ -413,7 +414,7 @@ fn run_example(example: &Example, dir: &Path, path: &str) -> Option<String> {
 /// Runs every example of one page, in order, in its own scratch copy; returns the failures.
 #[cfg(unix)]
 fn run_page(tag: &str, name: &str, page: &Page, shared: &Path) -> Vec<String> {
-    let (dir, path) = scratch(tag, shared);
+    let (_scratch, dir, path) = scratch(tag, shared);
     eprintln!("{name}: {} commands", page.examples.len());
     let failures = page
         .examples
@@ -555,7 +556,7 @@ cargo test
             "runs the test suite (this test is part of it)"
         ]
     );
-    let (dir, path) = scratch("harness", &shared);
+    let (_scratch, dir, path) = scratch("harness", &shared);
     let outcomes: Vec<bool> = parsed
         .examples
         .iter()

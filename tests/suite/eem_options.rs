@@ -217,9 +217,7 @@ fn unusable_absorbance_spectra_are_errors_not_panics() {
 
 #[test]
 fn the_command_prints_the_library_messages() {
-    let dir =
-        std::env::temp_dir().join(format!("fluorite-test-eem-options-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::temp_dir("command");
     std::fs::write(
         dir.join("eem.csv"),
         write_wide_csv(&eem(), RowsAre::Excitation),

@@ -222,6 +222,8 @@ fn quantile(values: &[f64], q: f64) -> f64 {
 }
 
 struct Fitted {
+    /// Holds the scratch folder (removed when the test ends).
+    _scratch: crate::common::TempDir,
     dir: PathBuf,
     truth: Truth,
     truth_path: PathBuf,
@@ -246,6 +248,7 @@ fn fitted(tag: &str) -> Fitted {
     )
     .unwrap();
     Fitted {
+        _scratch: dir,
         dir: out,
         truth,
         truth_path,

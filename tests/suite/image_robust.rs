@@ -166,7 +166,7 @@ fn kill_when(command: &mut Command, what: &str, ready: impl Fn() -> bool) {
 
 /// A synthetic image and an uninterrupted run's outputs.
 struct Reference {
-    dir: PathBuf,
+    dir: common::TempDir,
     image: PathBuf,
     fitted: PathBuf,
 }

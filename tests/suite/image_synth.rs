@@ -21,7 +21,7 @@ fn repository() -> PathBuf {
 /// Runs `fluorite synth --image --out <fresh folder> ARGS` from the repository's root
 /// (so the default materials are found) and returns the folder.
 #[track_caller]
-fn generate(tag: &str, args: &[&str]) -> PathBuf {
+fn generate(tag: &str, args: &[&str]) -> common::TempDir {
     let out = common::temp_dir(tag);
     let out_text = out.display().to_string();
     let mut all = vec!["synth", "--image", "--quiet", "--out", &out_text];

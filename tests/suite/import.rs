@@ -120,9 +120,7 @@ fn cli_writes_a_checked_material_or_nothing() {
     let Some(dir) = common::shared("spectra") else {
         return;
     };
-    let out = std::env::temp_dir().join(format!("fluorite-test-import-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
-    std::fs::create_dir_all(&out).unwrap();
+    let out = common::temp_dir("dyes");
     let dye = dir.join(DYES[0]);
     let bin = env!("CARGO_BIN_EXE_fluorite");
     let target = out.join("fluorescein.json");

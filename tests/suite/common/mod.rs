@@ -36,16 +36,77 @@ pub fn skipped(reason: &str) {
 
 /// A fresh, empty folder for `tag` of the calling test file, under the system's temporary
 /// folder (named after the file, the tag and the process, so parallel tests never meet).
+/// Removed when the returned guard drops, unless the test is failing: a failed test's
+/// files stay for a look, and its path is printed.
 #[track_caller]
-pub fn temp_dir(tag: &str) -> PathBuf {
+pub fn temp_dir(tag: &str) -> TempDir {
     let file = Path::new(std::panic::Location::caller().file())
         .file_stem()
         .map_or_else(|| "test".to_string(), |s| s.to_string_lossy().to_string());
+    static SWEPT: std::sync::Once = std::sync::Once::new();
+    SWEPT.call_once(remove_stale_temp_dirs);
     let dir =
         std::env::temp_dir().join(format!("fluorite-test-{file}-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    dir
+    TempDir(dir)
+}
+
+/// Removes the scratch folders of test processes that have ended: those a failed test kept
+/// and those held in statics (shared fixtures, never dropped). Linux only (`/proc`).
+fn remove_stale_temp_dirs() {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().to_string();
+        let Some(pid) = name
+            .strip_prefix("fluorite-test-")
+            .and_then(|rest| rest.rsplit('-').next())
+            .and_then(|pid| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
+/// A test's scratch folder (see [`temp_dir`]); derefs to its path.
+#[derive(Debug)]
+pub struct TempDir(PathBuf);
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TempDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for TempDir {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("kept the failing test's files in {}", self.0.display());
+        } else {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }
 
 /// One file of `../shared/data/measured`.
