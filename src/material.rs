@@ -305,6 +305,10 @@ pub struct FitReport {
     /// filled cells carry.
     #[serde(default)]
     pub reference_filled_share: f64,
+    /// Per light, ΔE2000 between the reference patch with and without those filled
+    /// cells: what the model's guess in cells no one measured is worth in colour.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub reference_filled_delta_e2000: BTreeMap<String, f64>,
     /// Why the fluorophores' yield form was chosen (`fit --yield auto`).
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub yield_choice: String,

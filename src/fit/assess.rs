@@ -93,6 +93,29 @@ impl Accuracy {
         fit.delta_e2000 = self.delta_e2000.clone();
         fit.reference_filled_cells = self.filled.cells;
         fit.reference_filled_share = self.filled.light_share;
+        fit.reference_filled_delta_e2000 = self.filled.delta_e2000.clone();
+    }
+
+    /// Whether the off-diagonal residual exceeds [`RESIDUAL_NOISE_FACTOR`] × `noise_sigma`:
+    /// structure the model does not explain. The noise estimate of exact (synthetic) data
+    /// is rounding error, so a residual below 1e-9 of `m`'s largest value never counts.
+    pub fn leaves_structure(&self, noise_sigma: f64, m: &Measurement) -> bool {
+        let signal_floor = 1e-9
+            * m.values
+                .iter()
+                .filter(|v| v.is_finite())
+                .fold(0.0f64, |a, v| a.max(v.abs()));
+        self.rms_off_diagonal > (RESIDUAL_NOISE_FACTOR * noise_sigma).max(signal_floor)
+    }
+
+    /// [`unconfirmed_fill_warning`] for this fit of `m` at noise level `noise_sigma`.
+    pub fn unconfirmed_fill(
+        &self,
+        noise_sigma: f64,
+        m: &Measurement,
+        bound: f64,
+    ) -> Option<String> {
+        unconfirmed_fill_warning(&self.filled, self.leaves_structure(noise_sigma, m), bound)
     }
 }
 
@@ -169,14 +192,18 @@ pub fn measured_patch(m: &Measurement, fitted_per_bin: &Measurement) -> Measurem
     m.to_per_bin().filled_from(fitted_per_bin)
 }
 
-/// How much of the colour reference was not measured: the cells filled from the model
-/// and the largest share, over `lights`, of the reference patch's light they carry.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+/// How much of the colour reference was not measured: the cells filled from the model,
+/// the largest share, over `lights`, of the reference patch's light they carry, and what
+/// they are worth in colour.
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct FilledReference {
     /// Cells the file does not hold.
     pub cells: usize,
     /// Largest share over the lights of the patch's luminance (Y) those cells carry.
     pub light_share: f64,
+    /// Per light, ΔE2000 between the reference patch and the same patch with those cells
+    /// at zero: how far the model's guess in cells no one measured moves the colour.
+    pub delta_e2000: BTreeMap<String, f64>,
 }
 
 /// [`FilledReference`] of the patch [`measured_patch`] builds from `m` and
@@ -193,26 +220,73 @@ pub fn filled_reference(
     }
     let reference = measured_patch(m, fitted_per_bin);
     let mut filled_only = reference.clone();
-    for (v, &is_missing) in filled_only.values.iter_mut().zip(&missing) {
-        if !is_missing {
-            *v = 0.0;
+    let mut measured_only = reference.clone();
+    for ((f, o), &is_missing) in filled_only
+        .values
+        .iter_mut()
+        .zip(measured_only.values.iter_mut())
+        .zip(&missing)
+    {
+        if is_missing {
+            *o = 0.0;
+        } else {
+            *f = 0.0;
         }
     }
-    let light_share = lights
-        .iter()
-        .map(|light| {
-            let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
-            let total = pc.xyz(&reference)[1];
-            let filled = pc.xyz(&filled_only)[1];
-            if total.abs() > 0.0 {
-                (filled / total).abs()
-            } else {
-                0.0
-            }
-        })
-        .fold(0.0, f64::max);
-    FilledReference { cells, light_share }
+    let mut light_share = 0.0f64;
+    let mut delta_e = BTreeMap::new();
+    for light in lights {
+        let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
+        let total = pc.xyz(&reference)[1];
+        let filled = pc.xyz(&filled_only)[1];
+        if total.abs() > 0.0 {
+            light_share = light_share.max((filled / total).abs());
+        }
+        delta_e.insert(
+            light.name.clone(),
+            delta_e2000(pc.lab(&reference), pc.lab(&measured_only)),
+        );
+    }
+    FilledReference {
+        cells,
+        light_share,
+        delta_e2000: delta_e,
+    }
 }
+
+/// The warning for a fit whose colour rests on filled cells it cannot vouch for: the
+/// cells the file does not hold are worth more than `bound` ΔE2000 under some light, and
+/// the residual on the measured cells leaves structure (`leaves_structure`), so the model
+/// that fills them is known not to be the matrix's. A model that explains the measured
+/// cells to their noise predicts the rest from the same spectra (one fluorophore's
+/// a(λi)·e(λo) round-trips the spectral EXR layout within ΔE2000 0.25); one that does not
+/// may put any colour there (HERPICER's two fluorophores through that layout, refitted
+/// with one: ΔE2000 ≤ 0.3 on the measured cells, 5.9 off in full under D65). None when
+/// the fill is worth less or the model explains the measured cells.
+pub fn unconfirmed_fill_warning(
+    filled: &FilledReference,
+    leaves_structure: bool,
+    bound: f64,
+) -> Option<String> {
+    let worth: BTreeMap<String, f64> = filled
+        .delta_e2000
+        .iter()
+        .filter(|(_, de)| **de > bound)
+        .map(|(l, de)| (l.clone(), *de))
+        .collect();
+    if !leaves_structure || worth.is_empty() {
+        return None;
+    }
+    let listed: Vec<String> = worth.iter().map(|(l, de)| format!("{l} {de:.2}")).collect();
+    Some(format!(
+        "{UNCONFIRMED_FILL_WARNING}: the {} cells the file does not hold are worth ΔE2000 {} (the patch with and without them) and are filled from a model whose residual leaves structure above {RESIDUAL_NOISE_FACTOR} × the noise, so the colour in full may be off by that much although the ΔE2000 against the measured cells is small; measure those cells (a file or layout that holds them), or treat the material's colour as uncertain by that much",
+        filled.cells,
+        listed.join(", ")
+    ))
+}
+
+/// The words that open [`unconfirmed_fill_warning`]'s warning.
+pub const UNCONFIRMED_FILL_WARNING: &str = "colour unconfirmed in cells no one measured";
 
 /// Bayesian information criterion of a fit of `data` with `parameters` parameters whose
 /// matrix residual (off-diagonal and diagonal cells) sums to `rss`: BIC = RSS/σ² + p·ln n,

@@ -341,11 +341,28 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
             .collect();
         kept
     };
+    let unconfirmed = report
+        .warnings
+        .iter()
+        .any(|w| w.starts_with(assess::UNCONFIRMED_FILL_WARNING));
     let structure = structure.map(|_| {
         format!(
-            "its residual leaves structure above {} × the noise (fluorescence residual {:.1} %)",
+            "its residual leaves structure above {} × the noise (fluorescence residual {:.1} %){}",
             assess::RESIDUAL_NOISE_FACTOR,
-            100.0 * report.rel_residual_fluorescence
+            100.0 * report.rel_residual_fluorescence,
+            if unconfirmed {
+                format!(
+                    ", and its colour in the {} cells the file does not hold is unconfirmed (worth ΔE2000 up to {:.2}; no model can confirm cells no one measured)",
+                    report.reference_filled_cells,
+                    report
+                        .reference_filled_delta_e2000
+                        .values()
+                        .copied()
+                        .fold(0.0f64, f64::max)
+                )
+            } else {
+                String::new()
+            }
         )
     });
     let trigger = (!misses.is_empty()).then(|| {

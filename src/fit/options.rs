@@ -160,6 +160,15 @@ impl Default for FitOptions {
     }
 }
 
+impl FitOptions {
+    /// The ΔE2000 a colour difference must pass to count as visible: the search's bound
+    /// when set, else the default fit's ([`super::escalate::ESCALATION_BOUND`], 1).
+    pub fn colour_bound(&self) -> f64 {
+        self.max_delta_e
+            .unwrap_or(super::escalate::ESCALATION_BOUND)
+    }
+}
+
 /// What a fit produces.
 #[derive(Debug, Clone)]
 pub enum FitOutcome {

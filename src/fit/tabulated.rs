@@ -415,14 +415,7 @@ pub(super) fn fit_checked(
     if bootstrap {
         noise_colour_check(m, &material, noise_sigma, options, &mut warnings);
     }
-    // The noise estimate of exact (synthetic) data is rounding error; below a floor
-    // relative to the signal a residual is not worth a warning.
-    let signal_floor = 1e-9
-        * m.values
-            .iter()
-            .filter(|v| v.is_finite())
-            .fold(0.0f64, |a, v| a.max(v.abs()));
-    if accuracy.rms_off_diagonal > (assess::RESIDUAL_NOISE_FACTOR * noise_sigma).max(signal_floor) {
+    if accuracy.leaves_structure(noise_sigma, m) {
         warnings.push(format!(
             "off-diagonal residual RMS {:.2e} is {:.1}× the noise level σ = {:.2e} (anti-Stokes side): {}",
             accuracy.rms_off_diagonal,
@@ -431,6 +424,7 @@ pub(super) fn fit_checked(
             assess::STRUCTURE_WARNING
         ));
     }
+    warnings.extend(accuracy.unconfirmed_fill(noise_sigma, m, options.colour_bound()));
     let fit = material.fit.as_mut().expect("report set above");
     accuracy.record_in(fit);
     let rss = accuracy.rms_off_diagonal.powi(2) * data.off_diagonal.len() as f64

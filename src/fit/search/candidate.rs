@@ -243,13 +243,17 @@ pub(super) fn fit_candidate(
         .into(),
         rel_residual_fluorescence: accuracy.rel_residual_fluorescence,
         rmse_diagonal: accuracy.rmse_diagonal,
-        delta_e2000: accuracy.delta_e2000,
+        delta_e2000: accuracy.delta_e2000.clone(),
         cost_history: refined.cost_history,
         model: spec.name(),
         parameter_count: parameters,
         ..ctx.base.fit.clone().unwrap_or_default()
     };
+    report.reference_filled_cells = accuracy.filled.cells;
+    report.reference_filled_share = accuracy.filled.light_share;
+    report.reference_filled_delta_e2000 = accuracy.filled.delta_e2000.clone();
     report.warnings = Vec::new();
+    let unconfirmed = accuracy.unconfirmed_fill(report.noise_sigma, m, options.colour_bound());
     if !refined.converged {
         report.warnings.push(
             if refined.termination.to_lowercase().contains("line search") {
@@ -267,6 +271,7 @@ pub(super) fn fit_candidate(
             },
         );
     }
+    report.warnings.extend(unconfirmed);
     material.fit = Some(report);
     let worst = worst(&delta_e);
     Ok(Fitted {
