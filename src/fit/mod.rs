@@ -36,6 +36,7 @@ pub mod joint;
 pub mod objective;
 mod options;
 pub mod parametric;
+mod prune;
 pub mod representation;
 pub mod search;
 pub mod series;

@@ -104,7 +104,8 @@ fn refine_form<'a>(
         h
     };
     cost_history.retain(|c| c.is_finite());
-    let spectra = representation.spectra(&refined.theta);
+    let mut spectra = representation.spectra(&refined.theta);
+    prune::prune_insignificant(&objective, data, &mut spectra, data.noise_sigma());
     let cost = objective.cost_gradient(&spectra).0;
     Ok(FormFit {
         objective,
