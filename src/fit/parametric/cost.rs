@@ -117,19 +117,8 @@ impl<'a> Problem<'a> {
             cell_value,
             patches,
             colour_weight,
-            colour_noise: Vec::new(),
             reflectance_support,
         }
-    }
-
-    /// The same problem with a colour term that leaves to the matrix term the colour
-    /// difference the measurement's noise explains: per light, `noise` ΔE76 (the
-    /// reference's own noise, [`crate::fit::assess::colour_noise`]) cost nothing, and
-    /// only the excess is pulled on. Least squares is the right estimate under noise; a
-    /// colour term pulling on the noisy reference colour fits that noise.
-    pub fn with_colour_noise(mut self, noise: &[f64]) -> Self {
-        self.colour_noise = noise.to_vec();
-        self
     }
 
     /// The model's grid quantities at `theta`.
@@ -351,16 +340,7 @@ impl<'a> Problem<'a> {
         for (s, (r, _)) in self.diagonal.iter().zip(&diag) {
             cost += 0.5 * self.row_weight[s.row] * r * r;
         }
-        // Per light ΔE76 t beyond the noise's δ: ½·w·max(0, t − δ)², pulling with
-        // (t − δ)/t on the patch difference.
-        for (l, light) in patch.chunks_exact_mut(3).enumerate() {
-            let t = light.iter().map(|p| p * p).sum::<f64>().sqrt();
-            let delta = self.colour_noise.get(l).copied().unwrap_or(0.0);
-            let u = (t - delta).max(0.0);
-            cost += 0.5 * self.colour_weight * u * u;
-            let factor = if t > 0.0 { u / t } else { 1.0 };
-            light.iter_mut().for_each(|p| *p *= factor);
-        }
+        cost += 0.5 * self.colour_weight * patch.iter().map(|p| p * p).sum::<f64>();
         // The colour term's pull on residuals of column j: q (reradiated) and h (diagonal).
         let mut q = vec![0.0; n_lights * n_em];
         let mut h = vec![0.0; n_lights * n_em];

@@ -241,9 +241,6 @@ pub struct Problem<'a> {
     cell_value: Vec<f64>,
     patches: Vec<PatchLight>,
     colour_weight: f64,
-    /// Per light, the ΔE76 the measurement's noise alone explains: the colour term pulls
-    /// only on the difference beyond it (zero: on all of it).
-    colour_noise: Vec<f64>,
     /// The reflectance's Legendre support (nm).
     pub reflectance_support: [f64; 2],
 }

@@ -84,8 +84,6 @@ pub(super) struct CandidateContext<'a> {
     pub(super) data: &'a FitData,
     pub(super) options: &'a FitOptions,
     pub(super) reference: &'a [crate::colour::Xyz],
-    /// Per light, the RMS ΔE76 the reference's noise alone gives it.
-    pub(super) colour_noise: &'a [f64],
     pub(super) sigma: f64,
     pub(super) focus: &'a [f64],
     pub(super) tolerance: f64,
@@ -130,8 +128,7 @@ pub(super) fn fit_candidate(
         &options.lights,
         ctx.reference,
         options.colour_weight,
-    )
-    .with_colour_noise(ctx.colour_noise);
+    );
     let one_component: Vec<(ModelSpec, Vec<f64>)> = fitted
         .iter()
         .filter(|f| f.spec.components == 1 && f.spec.yield_form == spec.yield_form)

@@ -194,11 +194,6 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
     };
 
     let reference = measured_xyz(m, &base, lights);
-    // Per light, the RMS ΔE76 the measured colour's own noise explains: the candidates'
-    // colour term pulls only on the difference beyond it and leaves the rest to the
-    // matrix term (pulling on all of it fits the noise: `fluorite class` against the
-    // truth, median 0.76 → 0.67 and 90th percentile 1.84 → 1.57 ΔE2000).
-    let colour_noise = assess::colour_noise(&data, lights, &reference, sigma);
     // A fixed model gets the tolerance asked for; the search's candidates at most
     // SEARCH_TOLERANCE (the choice is made on ΔE, which the last digits of the cost do
     // not move).
@@ -248,7 +243,6 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
                     data: &data,
                     options,
                     reference: &reference,
-                    colour_noise: &colour_noise,
                     sigma,
                     focus: &focus,
                     tolerance,
