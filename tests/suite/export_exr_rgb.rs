@@ -266,7 +266,11 @@ fn exr_fits_back_to_the_synthetic_truth() {
         ];
         println!("{preset}: a, e, d, k relative errors {errors:?}");
         assert!((f2.concentration - f1.concentration).abs() < 1e-12);
-        assert!(errors.iter().all(|&e| e < 1e-6), "{preset}: {errors:?}");
+        // The EXR holds f32 (relative rounding 6·10⁻⁸ per cell): the faintest samples
+        // (absorption at the long end, emission far past its peak), estimated from a few
+        // faint cells, are within 2σ of zero, and the grid fit prunes them
+        // (src/fit/prune.rs): up to 10⁻⁵ of the peak, in a, e and the diagonal.
+        assert!(errors.iter().all(|&e| e < 1e-5), "{preset}: {errors:?}");
         for light in Light::standard() {
             let (x1, w) = material_xyz(&first, &light);
             let (x2, _) = material_xyz(&second, &light);

@@ -176,13 +176,44 @@ fn weak_fluorescence_that_shows_in_colour_is_fitted() {
     assert!(worst_plain > 2.0, "{worst_plain}");
 }
 
+/// Where noise leaves the fitted colour more than 1.5 ΔE2000 from the truth, the fit says
+/// that noise limits its colour. At σ = 2·10⁻³ and 3·10⁻³ the shapes are still within
+/// 10 %, but some seeds' colours are 2–3 off (seed 1); the pruning of unsupported samples
+/// brings others back (seed 2 at 2·10⁻³: 2.76 → 0.13), and those need no warning.
 #[test]
 fn fit_flags_noise_limited_colour() {
-    // σ = 2·10⁻³: the shapes are still within 10 %, but the colour error reaches ΔE ≈ 1.
-    for seed in [1, 2] {
-        let (w, _) = warnings_of(Sweep::Noise, 2e-3, seed, Solver::Lbfgs);
-        assert!(any_contains(&w, "noise limits the colour"), "{w:?}");
+    use fluorite::colour::{Light, delta_e2000, material_xyz, xyz_to_lab};
+    let mut exercised = 0;
+    for sigma in [2e-3, 3e-3] {
+        for seed in 0..4 {
+            let (m, truth, start) = case_data(Sweep::Noise, sigma, seed).unwrap();
+            let options = FitOptions {
+                start,
+                model: fluorite::fit::ModelChoice::Tabulated,
+                ..FitOptions::default()
+            };
+            let FitOutcome::Material(material) = fit(&m, &options).unwrap() else {
+                panic!("a material");
+            };
+            let off = Light::standard()
+                .iter()
+                .map(|light| {
+                    let (fitted, white) = material_xyz(&material, light);
+                    let (true_xyz, _) = material_xyz(&truth, light);
+                    delta_e2000(xyz_to_lab(fitted, white), xyz_to_lab(true_xyz, white))
+                })
+                .fold(0.0, f64::max);
+            let warnings = &material.fit.as_ref().unwrap().warnings;
+            if off > 1.5 {
+                exercised += 1;
+                assert!(
+                    any_contains(warnings, "noise limits the colour"),
+                    "σ {sigma} seed {seed}: {off:.2} from the truth, unflagged: {warnings:?}"
+                );
+            }
+        }
     }
+    assert!(exercised > 0, "no case left the colour 1.5 from the truth");
 }
 
 #[test]
@@ -337,3 +368,4 @@ fn recovery_compares_the_row_factor_whatever_the_yield_form() {
     energy_truth.fluorophores[0].yield_form = fluorite::YieldForm::Energy;
     assert!(stability::recovery_error(&fitted, &energy_truth) > 0.05);
 }
+
