@@ -368,4 +368,3 @@ fn recovery_compares_the_row_factor_whatever_the_yield_form() {
     energy_truth.fluorophores[0].yield_form = fluorite::YieldForm::Energy;
     assert!(stability::recovery_error(&fitted, &energy_truth) > 0.05);
 }
-
