@@ -336,3 +336,35 @@ pub fn unobservable_absorption(
         .map(|s| total > 0.0 && *s < threshold * total)
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn filled(worth: &[(&str, f64)]) -> FilledReference {
+        FilledReference {
+            cells: 120,
+            light_share: 0.05,
+            delta_e2000: worth.iter().map(|(l, v)| (l.to_string(), *v)).collect(),
+        }
+    }
+
+    /// Cells worth more than the bound warn only when the model leaves structure, and the
+    /// warning names every light past the bound with its worth.
+    #[test]
+    fn unconfirmed_fill_needs_both_worth_and_structure() {
+        let worth = filled(&[("d65", 5.02), ("a", 11.81), ("uv", 0.4)]);
+        assert!(unconfirmed_fill_warning(&worth, false, 1.0).is_none());
+        assert!(unconfirmed_fill_warning(&filled(&[("d65", 0.9)]), true, 1.0).is_none());
+        let w = unconfirmed_fill_warning(&worth, true, 1.0).unwrap();
+        assert!(w.starts_with(UNCONFIRMED_FILL_WARNING), "{w}");
+        assert!(
+            w.contains("a 11.81") && w.contains("d65 5.02") && !w.contains("uv"),
+            "{w}"
+        );
+        assert!(w.contains("120 cells"), "{w}");
+        // A looser bound (--max-delta-e 6) leaves only A.
+        let w = unconfirmed_fill_warning(&worth, true, 6.0).unwrap();
+        assert!(w.contains("a 11.81") && !w.contains("d65"), "{w}");
+    }
+}
