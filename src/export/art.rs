@@ -41,7 +41,7 @@ const ART_STEP_NM: f64 = 10.0;
 
 /// What the archive has been checked against, in its description (the archive holds no
 /// comments): the furnace renders of docs/renderers.md.
-const ART_CHECKED: &str = "RENDERED in ART 99c65c0 (render with artist -s46e: the default 8 bands of 40 nm shift saturated colours by up to 4 CIEDE2000) in a furnace under D65, A, F11 and a UV-rich light: the six materials of fluorite's fits/measured come out within 0.71 CIEDE2000 of the model's exact colour, except one under A (1.01-1.07), where the fold below costs 0.85, and one under UV (1.01), from ART's 10 nm spectral buckets (docs/renderers.md). ART renders Stokes shifts only (it zeroes the cells with excitation at or above emission, keeping the diagonal), so the model's anti-Stokes re-emission is folded into the diagonal of its emission wavelength and those cells are written as 0: exact under an equal-energy light.";
+const ART_CHECKED: &str = "RENDERED in ART 99c65c0 (render with artist -s46e: the default 8 bands of 40 nm shift saturated colours by up to 4 CIEDE2000) in a furnace under D65, A, F11 and a UV-rich light: the six materials of fluorite's fits/measured come out within 0.91 CIEDE2000 of the model's exact colour (the fold below costs up to 0.73), except one under UV (1.03), from ART's 10 nm spectral buckets (docs/renderers.md). ART renders Stokes shifts only (it zeroes the cells with excitation at or above emission, keeping the diagonal), so the model's anti-Stokes re-emission is folded into the diagonal of its emission wavelength and those cells are written as 0: exact under an equal-energy light.";
 
 /// What [`fold_anti_stokes`] moved, for the export's notes.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
