@@ -136,3 +136,40 @@ pub fn prune_insignificant(
     *sp = pruned_sp;
     pruned
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run of samples whose estimates are noise (z < 2 one by one and together) goes to
+    /// zero; a weak tail that is positive over many samples (each below 2σ, together far
+    /// above) stays; samples above 2σ stay.
+    #[test]
+    fn runs_below_two_sigma_are_pruned_and_consistent_tails_stay() {
+        let sigma = 1.0;
+        // direction 1 per sample: z = projection / σ.
+        let direction = vec![1.0; 12];
+        // Strongest at 0; samples 1–3 noise (z 0.5, −0.3, 1.2: together 0.81); 4 strong
+        // (z 5); 5–11 a tail at z 1.5 each (together 1.5·√7 = 3.97).
+        let projection = [10.0, 0.5, -0.3, 1.2, 5.0, 1.5, 1.5, 1.5, 1.5, 1.5, 1.5, 1.5];
+        let mut values = vec![1.0, 0.1, 0.05, 0.2, 0.5, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1];
+        let count = prune_axis(&mut values, &direction, &projection, sigma, true);
+        assert_eq!(count, 3);
+        assert_eq!(&values[1..4], &[0.0, 0.0, 0.0]);
+        assert_eq!(values[0], 1.0);
+        assert_eq!(values[4], 0.5);
+        assert!(values[5..].iter().all(|v| *v == 0.1));
+    }
+
+    /// With `both_sides` false only the samples past the strongest are tested (the
+    /// emission's blue side, shared between rows a rank-1 model cannot tell apart, stays).
+    #[test]
+    fn one_sided_pruning_keeps_the_short_side() {
+        let direction = vec![1.0; 5];
+        let projection = [0.1, 0.2, 9.0, 0.1, 0.2];
+        let mut values = vec![0.3, 0.3, 1.0, 0.3, 0.3];
+        let count = prune_axis(&mut values, &direction, &projection, 1.0, false);
+        assert_eq!(count, 2);
+        assert_eq!(values, vec![0.3, 0.3, 1.0, 0.0, 0.0]);
+    }
+}
