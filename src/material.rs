@@ -339,6 +339,17 @@ pub struct FitReport {
     pub preprocessing: Option<crate::eem::Preprocessing>,
 }
 
+impl FitReport {
+    /// The largest, over the lights, of [`FitReport::reference_filled_delta_e2000`]: what
+    /// the filled cells are worth in colour at most (0 when none were filled).
+    pub fn reference_filled_worth(&self) -> f64 {
+        self.reference_filled_delta_e2000
+            .values()
+            .copied()
+            .fold(0.0, f64::max)
+    }
+}
+
 fn is_zero(n: &usize) -> bool {
     *n == 0
 }

@@ -178,11 +178,7 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
         let reference = if report.reference_filled_cells == 0 {
             "against every cell as measured".to_string()
         } else {
-            let worth = report
-                .reference_filled_delta_e2000
-                .values()
-                .copied()
-                .fold(0.0f64, f64::max);
+            let worth = report.reference_filled_worth();
             format!(
                 "against the cells as measured; {} missing cells filled from the model carry {:.2} % of the patch's light, worth ΔE2000 up to {worth:.2}",
                 report.reference_filled_cells,

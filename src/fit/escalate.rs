@@ -354,11 +354,7 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
                 format!(
                     ", and its colour in the {} cells the file does not hold is unconfirmed (worth ΔE2000 up to {:.2}; no model can confirm cells no one measured)",
                     report.reference_filled_cells,
-                    report
-                        .reference_filled_delta_e2000
-                        .values()
-                        .copied()
-                        .fold(0.0f64, f64::max)
+                    report.reference_filled_worth()
                 )
             } else {
                 String::new()

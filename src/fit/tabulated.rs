@@ -45,7 +45,8 @@ struct FormFit<'a> {
     kappa_unbounded: f64,
 }
 
-/// Starts and refines the grid model in one yield form.
+/// Starts and refines the grid model in one yield form; `noise_sigma` (the cells' noise
+/// level, estimated once by the caller) scales the pruning of unsupported samples.
 #[allow(clippy::too_many_arguments)]
 fn refine_form<'a>(
     data: &'a FitData,
@@ -55,6 +56,7 @@ fn refine_form<'a>(
     colour: Option<objective::ColourTerm>,
     options: &FitOptions,
     total_energy: f64,
+    noise_sigma: f64,
 ) -> Result<FormFit<'a>> {
     let objective = Objective::new(data, form).with_colour(colour);
     let estimate = start_spectra(&objective, start);
@@ -105,7 +107,7 @@ fn refine_form<'a>(
     };
     cost_history.retain(|c| c.is_finite());
     let mut spectra = representation.spectra(&refined.theta);
-    prune::prune_insignificant(&objective, data, &mut spectra, data.noise_sigma());
+    prune::prune_insignificant(&objective, data, &mut spectra, noise_sigma);
     let cost = objective.cost_gradient(&spectra).0;
     Ok(FormFit {
         objective,
@@ -277,6 +279,7 @@ pub(super) fn fit_checked(
             colour.clone(),
             options,
             total_energy,
+            noise_sigma,
         )
     };
     // When the start already shows the energy form's photon law binding, both forms are

@@ -241,17 +241,13 @@ pub(super) fn fit_candidate(
             YieldForm::Photon => "smallest feasible c per component (Φ = 1 where the reflectance allows); only k = c·Φ is identified",
         }
         .into(),
-        rel_residual_fluorescence: accuracy.rel_residual_fluorescence,
-        rmse_diagonal: accuracy.rmse_diagonal,
-        delta_e2000: accuracy.delta_e2000.clone(),
         cost_history: refined.cost_history,
         model: spec.name(),
         parameter_count: parameters,
         ..ctx.base.fit.clone().unwrap_or_default()
     };
-    report.reference_filled_cells = accuracy.filled.cells;
-    report.reference_filled_share = accuracy.filled.light_share;
-    report.reference_filled_delta_e2000 = accuracy.filled.delta_e2000.clone();
+    // Its own residuals, ΔE2000 and filled-reference figures, not the grid fit's.
+    accuracy.record_in(&mut report);
     report.warnings = Vec::new();
     let unconfirmed = accuracy.unconfirmed_fill(report.noise_sigma, m, options.colour_bound());
     if !refined.converged {
