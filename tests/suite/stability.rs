@@ -182,7 +182,7 @@ fn weak_fluorescence_that_shows_in_colour_is_fitted() {
 /// brings others back (seed 2 at 2·10⁻³: 2.76 → 0.13), and those need no warning.
 #[test]
 fn fit_flags_noise_limited_colour() {
-    use fluorite::colour::{Light, delta_e2000, material_xyz, xyz_to_lab};
+    use fluorite::colour::Light;
     let mut exercised = 0;
     for sigma in [2e-3, 3e-3] {
         for seed in 0..4 {
@@ -195,14 +195,7 @@ fn fit_flags_noise_limited_colour() {
             let FitOutcome::Material(material) = fit(&m, &options).unwrap() else {
                 panic!("a material");
             };
-            let off = Light::standard()
-                .iter()
-                .map(|light| {
-                    let (fitted, white) = material_xyz(&material, light);
-                    let (true_xyz, _) = material_xyz(&truth, light);
-                    delta_e2000(xyz_to_lab(fitted, white), xyz_to_lab(true_xyz, white))
-                })
-                .fold(0.0, f64::max);
+            let off = stability::material_delta_e(&material, &truth, &Light::standard());
             let warnings = &material.fit.as_ref().unwrap().warnings;
             if off > 1.5 {
                 exercised += 1;
