@@ -309,6 +309,12 @@ pub struct FitReport {
     /// cells: what the model's guess in cells no one measured is worth in colour.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub reference_filled_delta_e2000: BTreeMap<String, f64>,
+    /// Per light, the RMS ΔE2000 that the cells' noise alone (σ = `noise_sigma`, white)
+    /// gives the measured patch colour: how well the measurement itself knows its colour.
+    /// A reported `delta_e2000` of this size is within what the measurement can tell, and
+    /// a fit that came closer would be fitting noise.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub delta_e2000_noise: BTreeMap<String, f64>,
     /// Why the fluorophores' yield form was chosen (`fit --yield auto`).
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub yield_choice: String,

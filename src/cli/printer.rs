@@ -190,6 +190,13 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
             "  ΔE2000: {}   ({reference})",
             per_light(&report.delta_e2000, "   ")
         );
+        if !report.delta_e2000_noise.is_empty() {
+            let _ = writeln!(
+                s,
+                "  the measured colour's own noise (σ alone, RMS ΔE2000): {}",
+                per_light(&report.delta_e2000_noise, "   ")
+            );
+        }
     }
     let _ = writeln!(
         s,

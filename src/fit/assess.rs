@@ -41,6 +41,77 @@ pub fn colour_noise(data: &FitData, lights: &[Light], reference: &[Xyz], sigma: 
     ColourTerm::new(data, lights, reference, 0.0, sigma).noise_delta_e
 }
 
+/// Per light, the RMS ΔE2000 that cell noise of level `sigma` alone gives the measured
+/// patch colour of `m` (the patch [`accuracy`] judges `material` against), on the grids
+/// of `data`: the noise's Lab covariance Σ (channel by channel, as [`colour_noise`]
+/// propagates it) through ΔE2000's local metric G at that colour, √trace(G·Σ). The noise
+/// does not spread evenly over L*, a* and b* (the cells' noise moves chroma, which
+/// ΔE2000 weighs less, more than lightness): taking it as even overstated green-dye's
+/// under A by 1.65× against noise draws (`tests/suite/colour_noise.rs`).
+pub fn colour_noise_delta_e2000(
+    m: &Measurement,
+    material: &Material,
+    data: &FitData,
+    lights: &[Light],
+    sigma: f64,
+) -> Vec<f64> {
+    let reference = patch_xyz(m, material, lights);
+    let term = ColourTerm::new(data, lights, &reference, 0.0, sigma);
+    let covariance = term.noise_covariance(data, sigma);
+    lights
+        .iter()
+        .zip(&reference)
+        .zip(&covariance)
+        .map(|((light, xyz), cov)| {
+            let white = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm).white;
+            let metric = delta_e2000_metric(crate::colour::xyz_to_lab(*xyz, white));
+            let trace: f64 = (0..3)
+                .flat_map(|a| (0..3).map(move |b| (a, b)))
+                .map(|(a, b)| metric[a][b] * cov[b][a])
+                .sum();
+            trace.max(0.0).sqrt()
+        })
+        .collect()
+}
+
+/// ΔE2000's local metric at `lab`: G with ΔE2000(lab, lab + d)² ≈ dᵀ·G·d for small d,
+/// by central differences (polarisation for the off-diagonal entries).
+fn delta_e2000_metric(lab: Lab) -> [[f64; 3]; 3] {
+    const STEP: f64 = 1e-3;
+    let squared = |d: [f64; 3]| {
+        let moved = [lab[0] + d[0], lab[1] + d[1], lab[2] + d[2]];
+        delta_e2000(lab, moved).powi(2)
+    };
+    let even = |d: [f64; 3]| 0.5 * (squared(d) + squared(d.map(|x| -x)));
+    let unit = |a: usize| {
+        let mut d = [0.0; 3];
+        d[a] = STEP;
+        d
+    };
+    let mut g = [[0.0; 3]; 3];
+    for a in 0..3 {
+        g[a][a] = even(unit(a)) / (STEP * STEP);
+        for b in 0..a {
+            let (ua, ub) = (unit(a), unit(b));
+            let plus = even([ua[0] + ub[0], ua[1] + ub[1], ua[2] + ub[2]]);
+            let minus = even([ua[0] - ub[0], ua[1] - ub[1], ua[2] - ub[2]]);
+            g[a][b] = (plus - minus) / (4.0 * STEP * STEP);
+            g[b][a] = g[a][b];
+        }
+    }
+    g
+}
+
+/// The measured patch's XYZ per light, as the accuracy report sees it.
+fn patch_xyz(m: &Measurement, material: &Material, lights: &[Light]) -> Vec<crate::colour::Xyz> {
+    let fitted = crate::model::predict_like(material, m).to_per_bin();
+    let measured = measured_patch(m, &fitted);
+    lights
+        .iter()
+        .map(|l| PatchColorimeter::cached(l, &m.excitation_nm, &m.emission_nm).xyz(&measured))
+        .collect()
+}
+
 /// Per light, the ΔE2000 a fit must stay within: `bound`, or the difference the
 /// reference's noise explains ([`NOISE_COVERAGE`] × `noise`) where that is larger. A
 /// colour difference the measurement's own noise explains is no evidence of a model

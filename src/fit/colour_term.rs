@@ -102,6 +102,37 @@ impl ColourTerm {
         term
     }
 
+    /// Per light, the covariance of (ΔL*, Δa*, Δb*) that independent cell noise of level
+    /// `noise_sigma` gives the patch colour on the cells of `data` (linearised, as
+    /// `noise_delta_e`, whose square is its trace).
+    pub(super) fn noise_covariance(&self, data: &FitData, noise_sigma: f64) -> Vec<[[f64; 3]; 3]> {
+        let sigma2 = if noise_sigma.is_finite() {
+            noise_sigma * noise_sigma
+        } else {
+            0.0
+        };
+        (0..self.n_lights)
+            .map(|l| {
+                let mut cov = [[0.0; 3]; 3];
+                let mut add = |coef: [f64; 3]| {
+                    for (a, row) in cov.iter_mut().enumerate() {
+                        for (b, v) in row.iter_mut().enumerate() {
+                            *v += sigma2 * coef[a] * coef[b];
+                        }
+                    }
+                };
+                for c in data.off_diagonal.iter().chain(&data.guard) {
+                    let w = self.row_lights[c.row * self.n_lights + l];
+                    add([0, 1, 2].map(|channel| w * self.emitted[l][channel][c.column]));
+                }
+                for c in &data.diagonal {
+                    add([0, 1, 2].map(|channel| self.reflected[l][channel][c.column]));
+                }
+                cov
+            })
+            .collect()
+    }
+
     /// The same term with light `l`'s weight scaled by `shares[l]` (clamped to [0, 1];
     /// lights beyond `shares` keep theirs).
     pub fn with_light_shares(mut self, shares: &[f64]) -> Self {

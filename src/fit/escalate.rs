@@ -317,20 +317,10 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
     } else {
         let data = data::FitData::new(m, report.guard_nm);
         let lights = lights_named(judged);
-        let reference = patch_xyz(m, material, &lights);
-        let noise = assess::colour_noise(&data, &lights, &reference, report.noise_sigma);
-        // The noise is an RMS ΔE76; the misses are ΔE2000, which weighs chroma less (under
-        // the UV-rich light an orange patch's noise is mostly chroma: RMS ΔE76 5.2 against
-        // ΔE2000 1.8 on a synthetic pigment), so the noise is taken to ΔE2000 first.
-        let noise: Vec<f64> = lights
-            .iter()
-            .zip(&reference)
-            .zip(&noise)
-            .map(|((light, xyz), delta)| {
-                let white = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm).white;
-                noise_in_delta_e2000(crate::colour::xyz_to_lab(*xyz, white), *delta)
-            })
-            .collect();
+        // In ΔE2000, as the misses are (under the UV-rich light an orange patch's noise is
+        // mostly chroma: RMS ΔE76 5.2 against ΔE2000 1.8 on a synthetic pigment).
+        let noise =
+            assess::colour_noise_delta_e2000(m, material, &data, &lights, report.noise_sigma);
         let bounds = assess::noise_aware_bounds(ESCALATION_BOUND, &lights, &noise);
         let (kept, noise_explained): (BTreeMap<_, _>, BTreeMap<_, _>) = misses
             .into_iter()
@@ -379,38 +369,6 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
         missed: misses.keys().cloned().collect(),
         excused,
     }
-}
-
-/// The RMS ΔE2000 at `lab` of a colour noise of RMS ΔE76 `delta`, spread evenly over L*,
-/// a* and b*: δ·√(mean over the axes of (ΔE2000 of a unit step)²), the steps taken at
-/// δ/√3 so the metric's curvature counts.
-fn noise_in_delta_e2000(lab: crate::colour::Lab, delta: f64) -> f64 {
-    if !(delta.is_finite() && delta > 0.0) {
-        return 0.0;
-    }
-    let step = delta / 3f64.sqrt();
-    let mean_square = (0..3)
-        .flat_map(|axis| [-1.0, 1.0].map(|sign| (axis, sign)))
-        .map(|(axis, sign)| {
-            let mut moved = lab;
-            moved[axis] += sign * step;
-            delta_e2000(lab, moved).powi(2)
-        })
-        .sum::<f64>()
-        / 2.0;
-    // Σ over the three axes of the mean over ± of (ΔE2000 of a δ/√3 step)².
-    let rms = mean_square.sqrt();
-    if rms.is_finite() { rms } else { delta }
-}
-
-/// The measured patch's XYZ per light, as the accuracy report sees it.
-fn patch_xyz(m: &Measurement, material: &Material, lights: &[Light]) -> Vec<crate::colour::Xyz> {
-    let fitted = crate::model::predict_like(material, m).to_per_bin();
-    let measured = assess::measured_patch(m, &fitted);
-    lights
-        .iter()
-        .map(|l| PatchColorimeter::cached(l, &m.excitation_nm, &m.emission_nm).xyz(&measured))
-        .collect()
 }
 
 /// The built-in lights `names`.

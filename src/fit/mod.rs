@@ -65,12 +65,49 @@ use tabulated::fit_checked;
 
 /// Fits the model to `m`.
 pub fn fit(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
-    match options.model {
+    let mut outcome = match options.model {
         ModelChoice::Tabulated => fit_checked(m, options, true),
         ModelChoice::AsNeeded => escalate::fit_as_needed(m, options),
         _ => {
             validate_options(options)?;
             search::fit_model(m, options)
         }
+    }?;
+    if let FitOutcome::Material(material) = &mut outcome {
+        record_colour_noise(m, material, &options.lights);
+    }
+    Ok(outcome)
+}
+
+/// Records in `material`'s report how well the measurement knows its own colour under
+/// each light the fit was judged under ([`assess::colour_noise_delta_e2000`]), so that a
+/// reported ΔE2000 can be read against it.
+fn record_colour_noise(m: &Measurement, material: &mut Material, given: &[Light]) {
+    let Some(report) = material.fit.as_ref() else {
+        return;
+    };
+    let sigma = report.noise_sigma;
+    if report.delta_e2000.is_empty() || !(sigma.is_finite() && sigma > 0.0) {
+        return;
+    }
+    let lights: Vec<Light> = report
+        .delta_e2000
+        .keys()
+        .filter_map(|name| {
+            given
+                .iter()
+                .find(|l| &l.name == name)
+                .cloned()
+                .or_else(|| Light::builtin(name))
+        })
+        .collect();
+    if lights.len() != report.delta_e2000.len() {
+        return;
+    }
+    let data = FitData::new(m, report.guard_nm);
+    let noise = assess::colour_noise_delta_e2000(m, material, &data, &lights, sigma);
+    let names = lights.iter().map(|l| l.name.clone());
+    if let Some(report) = material.fit.as_mut() {
+        report.delta_e2000_noise = names.zip(noise).collect();
     }
 }
