@@ -88,18 +88,18 @@ fn delta_e2000_metric(lab: Lab) -> [[f64; 3]; 3] {
         d[a] = STEP;
         d
     };
-    let mut g = [[0.0; 3]; 3];
-    for a in 0..3 {
-        g[a][a] = even(unit(a)) / (STEP * STEP);
-        for b in 0..a {
+    std::array::from_fn(|a| {
+        std::array::from_fn(|b| {
             let (ua, ub) = (unit(a), unit(b));
-            let plus = even([ua[0] + ub[0], ua[1] + ub[1], ua[2] + ub[2]]);
-            let minus = even([ua[0] - ub[0], ua[1] - ub[1], ua[2] - ub[2]]);
-            g[a][b] = (plus - minus) / (4.0 * STEP * STEP);
-            g[b][a] = g[a][b];
-        }
-    }
-    g
+            if a == b {
+                even(ua) / (STEP * STEP)
+            } else {
+                let plus = even([ua[0] + ub[0], ua[1] + ub[1], ua[2] + ub[2]]);
+                let minus = even([ua[0] - ub[0], ua[1] - ub[1], ua[2] - ub[2]]);
+                (plus - minus) / (4.0 * STEP * STEP)
+            }
+        })
+    })
 }
 
 /// The measured patch's XYZ per light, as the accuracy report sees it.
