@@ -20,6 +20,7 @@ pub fn quantile(values: &[f64], q: f64) -> f64 {
 
 /// Σ a_k·b_k with four partial sums, so the reduction vectorises (a single running sum
 /// fixes the order of the additions and stays scalar).
+#[inline(always)]
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut partial = [0.0; 4];
     let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
