@@ -57,11 +57,10 @@ pub fn colour_noise_delta_e2000(
 ) -> Vec<f64> {
     let reference = patch_xyz(m, material, lights);
     let term = ColourTerm::new(data, lights, &reference, 0.0, sigma);
-    let covariance = term.noise_covariance(data, sigma);
     lights
         .iter()
         .zip(&reference)
-        .zip(&covariance)
+        .zip(&term.noise_covariance)
         .map(|((light, xyz), cov)| {
             let white = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm).white;
             let metric = delta_e2000_metric(crate::colour::xyz_to_lab(*xyz, white));
@@ -104,8 +103,12 @@ fn delta_e2000_metric(lab: Lab) -> [[f64; 3]; 3] {
 
 /// The measured patch's XYZ per light, as the accuracy report sees it.
 fn patch_xyz(m: &Measurement, material: &Material, lights: &[Light]) -> Vec<crate::colour::Xyz> {
-    let fitted = crate::model::predict_like(material, m).to_per_bin();
-    let measured = measured_patch(m, &fitted);
+    // The model only fills cells the file does not hold: a full file needs no prediction.
+    let measured = if m.values.iter().all(|v| v.is_finite()) {
+        m.to_per_bin()
+    } else {
+        measured_patch(m, &crate::model::predict_like(material, m).to_per_bin())
+    };
     lights
         .iter()
         .map(|l| PatchColorimeter::cached(l, &m.excitation_nm, &m.emission_nm).xyz(&measured))

@@ -21,9 +21,13 @@ pub struct ColourTerm {
     pub(super) light_share: Vec<f64>,
     /// Number of lights.
     pub(super) n_lights: usize,
-    /// Per light: the RMS ΔE76 the measurement's noise alone gives the patch; the colour
-    /// term pulls only on the difference beyond it.
+    /// Per light: the RMS ΔE76 the measurement's noise alone gives the patch (the square
+    /// root of `noise_covariance`'s trace); the colour term pulls only on the difference
+    /// beyond it.
     pub(super) noise_delta_e: Vec<f64>,
+    /// Per light: the covariance of (ΔL*, Δa*, Δb*) that independent cell noise gives the
+    /// patch colour (linearised).
+    pub(super) noise_covariance: Vec<[[f64; 3]; 3]>,
     /// ∫L·h_i, row-major (excitation row × light).
     pub(super) row_lights: Vec<f64>,
     /// Per light and Lab channel: ∂Lab/∂(off-diagonal cell of column j) / L_i.
@@ -50,7 +54,8 @@ impl ColourTerm {
             weight,
             light_share: vec![1.0; n_lights],
             n_lights,
-            noise_delta_e: vec![0.0; n_lights],
+            noise_delta_e: Vec::new(),
+            noise_covariance: Vec::new(),
             row_lights: vec![0.0; data.n_excitation() * n_lights],
             emitted: Vec::with_capacity(n_lights),
             reflected: Vec::with_capacity(n_lights),
@@ -78,57 +83,48 @@ impl ColourTerm {
             term.reflected
                 .push([0, 1, 2].map(|channel| project(reflected, channel, false)));
         }
-        // Var(ΔLab) = σ²·Σ over measured cells of the squared coefficients.
-        let sigma2 = if noise_sigma.is_finite() {
-            noise_sigma * noise_sigma
-        } else {
-            0.0
-        };
-        for l in 0..n_lights {
-            let mut sum = 0.0;
-            for c in data.off_diagonal.iter().chain(&data.guard) {
-                let w = term.row_lights[c.row * n_lights + l];
-                for channel in 0..3 {
-                    sum += (w * term.emitted[l][channel][c.column]).powi(2);
-                }
-            }
-            for c in &data.diagonal {
-                for channel in 0..3 {
-                    sum += term.reflected[l][channel][c.column].powi(2);
-                }
-            }
-            term.noise_delta_e[l] = (sigma2 * sum).sqrt();
-        }
+        term.noise_covariance = term.covariance_of_noise(data, noise_sigma);
+        term.noise_delta_e = term
+            .noise_covariance
+            .iter()
+            .map(|cov| (cov[0][0] + cov[1][1] + cov[2][2]).max(0.0).sqrt())
+            .collect();
         term
     }
 
-    /// Per light, the covariance of (ΔL*, Δa*, Δb*) that independent cell noise of level
-    /// `noise_sigma` gives the patch colour on the cells of `data` (linearised, as
-    /// `noise_delta_e`, whose square is its trace).
-    pub(super) fn noise_covariance(&self, data: &FitData, noise_sigma: f64) -> Vec<[[f64; 3]; 3]> {
+    /// Per light, Cov(ΔLab) = σ²·Σ over the measured cells of the cell's coefficient
+    /// vector times itself. An off-diagonal cell (i, j)'s coefficients are L_li·e_lj, so
+    /// the off-diagonal part is Σ_j (Σ_i L_li²)·e_lj·e_ljᵀ over each column's measured
+    /// rows: one pass over the cells per light, then 9 products per column.
+    fn covariance_of_noise(&self, data: &FitData, noise_sigma: f64) -> Vec<[[f64; 3]; 3]> {
         let sigma2 = if noise_sigma.is_finite() {
             noise_sigma * noise_sigma
         } else {
             0.0
         };
+        let n_em = data.n_emission();
         (0..self.n_lights)
             .map(|l| {
-                let mut cov = [[0.0; 3]; 3];
-                let mut add = |coef: [f64; 3]| {
-                    for (a, row) in cov.iter_mut().enumerate() {
-                        for (b, v) in row.iter_mut().enumerate() {
-                            *v += sigma2 * coef[a] * coef[b];
-                        }
-                    }
-                };
+                let mut light_squared = vec![0.0; n_em];
                 for c in data.off_diagonal.iter().chain(&data.guard) {
-                    let w = self.row_lights[c.row * self.n_lights + l];
-                    add([0, 1, 2].map(|channel| w * self.emitted[l][channel][c.column]));
+                    light_squared[c.column] += self.row_lights[c.row * self.n_lights + l].powi(2);
                 }
+                let mut diagonal_count = vec![0.0; n_em];
                 for c in &data.diagonal {
-                    add([0, 1, 2].map(|channel| self.reflected[l][channel][c.column]));
+                    diagonal_count[c.column] += 1.0;
                 }
-                cov
+                let (emitted, reflected) = (&self.emitted[l], &self.reflected[l]);
+                std::array::from_fn(|a| {
+                    std::array::from_fn(|b| {
+                        let sum: f64 = (0..n_em)
+                            .map(|j| {
+                                light_squared[j] * emitted[a][j] * emitted[b][j]
+                                    + diagonal_count[j] * reflected[a][j] * reflected[b][j]
+                            })
+                            .sum();
+                        sigma2 * sum
+                    })
+                })
             })
             .collect()
     }

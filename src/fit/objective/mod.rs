@@ -83,8 +83,9 @@ pub struct Objective<'a> {
     pub form: YieldForm,
     /// x_i: 1 (energy form) or λ_i (photon form).
     row_factor: Vec<f64>,
-    /// The colour term, if any.
-    pub colour: Option<ColourTerm>,
+    /// The colour term, if any: set only by [`Objective::with_colour`], which also
+    /// stores its sums over the measured values (`colour_measured`).
+    colour: Option<ColourTerm>,
     /// The off-diagonal cells, dense (row-major, excitation × emission): 1 where the
     /// matrix term fits a cell, 0 elsewhere. Dense rows vectorise; cell lists did not
     /// (perf: the cell loops were 70 % of a default fit).
@@ -165,24 +166,17 @@ impl<'a> Objective<'a> {
         );
     }
 
-    /// Adds row `i` of the dense residuals to the colour term's column sums (light-major).
-    #[inline(always)]
-    fn add_column_sums(colour: &ColourTerm, i: usize, row: &[f64], column_sum: &mut [f64]) {
-        let n_em = row.len();
-        for (l, &w) in colour.lights_of_row(i).iter().enumerate() {
-            let sums = &mut column_sum[l * n_em..(l + 1) * n_em];
-            for j in 0..n_em {
-                sums[j] += w * row[j];
-            }
-        }
-    }
-
     /// The colour term's column sums Σ_i L_li·r_ij (light-major) of dense residuals.
     fn column_sums(&self, colour: &ColourTerm, residual: &[f64]) -> Vec<f64> {
         let n_em = self.data.n_emission();
         let mut column_sum = vec![0.0; colour.n_lights * n_em];
         for (i, row) in residual.chunks_exact(n_em).enumerate() {
-            Self::add_column_sums(colour, i, row, &mut column_sum);
+            for (l, &w) in colour.lights_of_row(i).iter().enumerate() {
+                let sums = &mut column_sum[l * n_em..(l + 1) * n_em];
+                for j in 0..n_em {
+                    sums[j] += w * row[j];
+                }
+            }
         }
         column_sum
     }
@@ -197,14 +191,9 @@ impl<'a> Objective<'a> {
         self
     }
 
-    /// Σ_i L_li·M_ij over the seen cells for `colour`: stored by
-    /// [`Objective::with_colour`], recomputed if the term was set otherwise.
-    fn colour_constant(&self, colour: &ColourTerm) -> std::borrow::Cow<'_, [f64]> {
-        if self.colour_measured.len() == colour.n_lights * self.data.n_emission() {
-            std::borrow::Cow::Borrowed(&self.colour_measured)
-        } else {
-            std::borrow::Cow::Owned(self.column_sums(colour, &self.dense_value))
-        }
+    /// The colour term, if any.
+    pub fn colour(&self) -> Option<&ColourTerm> {
+        self.colour.as_ref()
     }
 
     /// x_i, the excitation factor of row i (1, or λ_i in the photon form).
@@ -307,9 +296,9 @@ impl<'a> Objective<'a> {
             .collect()
     }
 
-    /// The colour term's ΔLab (measured − model) per light and channel: one pass over the
-    /// off-diagonal and guard cells (the colour sees every measured cell) for the column
-    /// sums, then the diagonal.
+    /// The colour term's ΔLab (measured − model) per light and channel for the spectra
+    /// `sp`: the column sums of the dense residuals (the colour sees every measured
+    /// off-diagonal cell), then the diagonal's residuals.
     fn colour_patch(
         &self,
         colour: &ColourTerm,
@@ -317,37 +306,25 @@ impl<'a> Objective<'a> {
         d: &Derived,
         diagonal: &[DiagonalFit],
     ) -> Vec<f64> {
-        let residual = self.dense_residuals(sp, d);
-        self.colour_patch_of(colour, &residual, diagonal)
-    }
-
-    /// [`Objective::colour_patch`] from dense residuals already computed.
-    fn colour_patch_of(
-        &self,
-        colour: &ColourTerm,
-        residual: &[f64],
-        diagonal: &[DiagonalFit],
-    ) -> Vec<f64> {
-        let column_sum = self.column_sums(colour, residual);
+        let column_sum = self.column_sums(colour, &self.dense_residuals(sp, d));
         self.colour_patch_from_sums(colour, &column_sum, diagonal)
     }
 
-    /// [`Objective::colour_patch`] from the column sums already computed.
+    /// [`Objective::colour_patch`] from the residuals' column sums Σ_i L_li·r_ij.
     fn colour_patch_from_sums(
         &self,
         colour: &ColourTerm,
         column_sum: &[f64],
         diagonal: &[DiagonalFit],
     ) -> Vec<f64> {
-        let data = self.data;
-        let n_em = data.n_emission();
-        let diagonal: Vec<(usize, f64)> = data
+        let diagonal: Vec<(usize, f64)> = self
+            .data
             .diagonal
             .iter()
             .zip(diagonal)
             .map(|(c, f)| (c.column, f.residual))
             .collect();
-        colour.patch(column_sum, &diagonal, n_em)
+        colour.patch(column_sum, &diagonal, self.data.n_emission())
     }
 
     /// ½‖r‖² (plus the colour term) and its gradient with respect to (κ, a, v).
@@ -400,7 +377,7 @@ impl<'a> Objective<'a> {
         let (h, colour_along) = match &self.colour {
             Some(colour) => {
                 let n_l = colour.n_lights;
-                let constant = self.colour_constant(colour);
+                let constant = &self.colour_measured;
                 // Σ_i L_li·u_i over the seen cells of each column, then the column sums
                 // Σ_i L_li·r_ij = Σ_i L_li·M_ij − v_j·Σ_i L_li·u_i.
                 let mut lit = vec![0.0; n_l];
@@ -723,122 +700,4 @@ pub fn shortest_positive(absorption: &[f64], grid: &[f64]) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::colour::{Light, Xyz};
-    use crate::measurement::{Measurement, Units};
-
-    /// A small noisy-looking matrix with a diagonal, for derivative checks.
-    fn data() -> FitData {
-        let excitation_nm: Vec<f64> = (0..9).map(|i| 360.0 + 20.0 * i as f64).collect();
-        let emission_nm: Vec<f64> = (0..8).map(|i| 380.0 + 20.0 * i as f64).collect();
-        let mut values = Vec::new();
-        for (i, &li) in excitation_nm.iter().enumerate() {
-            for (j, &lo) in emission_nm.iter().enumerate() {
-                let a = (-(li - 420.0f64).powi(2) / 800.0).exp();
-                let e = (-(lo - 500.0f64).powi(2) / 1500.0).exp();
-                let wobble = 0.003 * ((i * 7 + j * 3) % 5) as f64 - 0.006;
-                let diag = if (li - lo).abs() < 1e-9 {
-                    0.5 + 0.001 * j as f64
-                } else {
-                    0.0
-                };
-                values.push(0.08 * a * e + wobble + diag);
-            }
-        }
-        let m = Measurement {
-            name: "t".into(),
-            source: None,
-            source_sha256: None,
-            excitation_nm,
-            emission_nm,
-            values,
-            units: Units::PerBin,
-            has_diagonal: true,
-            arbitrary_scale: false,
-            notes: Vec::new(),
-        };
-        FitData::new(&m, 0.0)
-    }
-
-    fn spectra(data: &FitData, kappa: f64) -> GridSpectra {
-        GridSpectra {
-            kappa,
-            absorption: data
-                .excitation_nm
-                .iter()
-                .map(|l| 0.05 + 0.9 * (-(l - 430.0f64).powi(2) / 900.0).exp())
-                .collect(),
-            emission: data
-                .emission_nm
-                .iter()
-                .map(|l| 0.01 + 0.2 * (-(l - 510.0f64).powi(2) / 1200.0).exp())
-                .collect(),
-        }
-    }
-
-    /// The analytic gradient against central differences, both forms, with and without
-    /// the colour term, with κ large enough that diagonal cells hit their cap.
-    #[test]
-    fn gradient_matches_central_differences() {
-        let data = data();
-        let lights = Light::standard();
-        let reference: Vec<Xyz> = lights.iter().map(|_| [40.0, 45.0, 30.0]).collect();
-        for (form, noise) in [
-            (YieldForm::Energy, 0.0),
-            (YieldForm::Photon, 0.0),
-            (YieldForm::Energy, 0.002),
-            (YieldForm::Photon, 0.002),
-        ] {
-            for colour in [false, true] {
-                for kappa in [0.3, 0.99] {
-                    let objective = Objective::new(&data, form).with_colour(
-                        colour.then(|| ColourTerm::new(&data, &lights, &reference, 0.01, noise)),
-                    );
-                    let sp = spectra(&data, kappa);
-                    let (cost, gk, ga, gv) = objective.cost_gradient(&sp);
-                    // The residual vector gives the same cost.
-                    let r = objective.residuals(&sp);
-                    let half: f64 = 0.5 * r.iter().map(|x| x * x).sum::<f64>();
-                    assert!(
-                        (half - cost).abs() <= 1e-12 * cost.max(1e-12),
-                        "{form:?} {colour}"
-                    );
-                    let jac = objective.jacobian(&sp);
-                    let h = 1e-6;
-                    let cost_at = |sp: &GridSpectra| objective.cost_gradient(sp).0;
-                    let mut analytic = vec![gk];
-                    analytic.extend(&ga);
-                    analytic.extend(&gv);
-                    for k in 0..analytic.len() {
-                        let bump = |delta: f64| {
-                            let mut s = sp.clone();
-                            if k == 0 {
-                                s.kappa += delta;
-                            } else if k <= s.absorption.len() {
-                                s.absorption[k - 1] += delta;
-                            } else {
-                                s.emission[k - 1 - data.n_excitation()] += delta;
-                            }
-                            s
-                        };
-                        let numeric = (cost_at(&bump(h)) - cost_at(&bump(-h))) / (2.0 * h);
-                        let scale = analytic[k].abs().max(numeric.abs()).max(1e-6);
-                        assert!(
-                            (analytic[k] - numeric).abs() <= 1e-4 * scale,
-                            "{form:?} colour {colour} κ {kappa} parameter {k}: analytic {} numeric {numeric}",
-                            analytic[k]
-                        );
-                        // Jᵀr is the gradient too.
-                        let jtr: f64 = (0..r.len()).map(|row| jac[(row, k)] * r[row]).sum::<f64>();
-                        assert!(
-                            (jtr - analytic[k]).abs() <= 1e-6 * scale.max(1e-3),
-                            "{form:?} colour {colour} κ {kappa} parameter {k}: Jᵀr {jtr} gradient {}",
-                            analytic[k]
-                        );
-                    }
-                }
-            }
-        }
-    }
-}
+mod tests;
