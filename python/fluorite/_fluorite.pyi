@@ -188,6 +188,9 @@ class Fit:
     @property
     def delta_e(self) -> Dict[str, float]: ...
     @property
+    def delta_e_noise(self) -> Dict[str, float]:
+        """Per light, the RMS ΔE2000 the cells' noise alone gives the measured colour."""
+    @property
     def report(self) -> Dict[str, Any]: ...
     @property
     def warnings(self) -> List[str]: ...

@@ -60,6 +60,16 @@ impl PyFit {
         to_py(py, &self.outcome.report().delta_e2000)
     }
 
+    /// Per light (name → value), the RMS ΔE2000 that the cells' noise alone (σ from the
+    /// anti-Stokes side, the report's ``noise_sigma``) gives the measured patch colour:
+    /// how well the measurement knows its own colour. A ``delta_e`` of this size is within
+    /// what the measurement can tell. The report's ``delta_e2000_noise``; empty when the
+    /// fit judged no colour or found no noise.
+    #[getter]
+    fn delta_e_noise<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_py(py, &self.outcome.report().delta_e2000_noise)
+    }
+
     /// The fit report, the JSON ``fit`` block as a dict (solver, convergence, residuals,
     /// ΔE2000, warnings, model, search, escalation, preprocessing, …).
     #[getter]
