@@ -150,11 +150,12 @@ impl ColourTerm {
 
     /// ΔLab (measured − model, linearised) per light and channel, from the column sums
     /// Σ_i L_li·r_ij of the off-diagonal residuals (light-major) and the diagonal
-    /// residuals (column, r).
+    /// residuals (column, r). An iterator, not a list: the objective calls this every
+    /// evaluation (perf: building the pairs was a third of it).
     pub(super) fn patch(
         &self,
         column_sum: &[f64],
-        diagonal: &[(usize, f64)],
+        diagonal: impl Iterator<Item = (usize, f64)> + Clone,
         n_em: usize,
     ) -> Vec<f64> {
         let mut patch = vec![0.0; 3 * self.n_lights];
@@ -163,7 +164,7 @@ impl ColourTerm {
             for channel in 0..3 {
                 let re = &self.reflected[l][channel];
                 patch[3 * l + channel] = dot(&self.emitted[l][channel], sums)
-                    + diagonal.iter().map(|&(j, r)| re[j] * r).sum::<f64>();
+                    + diagonal.clone().map(|(j, r)| re[j] * r).sum::<f64>();
             }
         }
         patch
@@ -225,13 +226,17 @@ impl ColourTerm {
     pub(super) fn pulls(&self, pull_patch: &[f64], n_em: usize) -> (Vec<f64>, Vec<f64>) {
         let mut q = vec![0.0; self.n_lights * n_em];
         let mut h = vec![0.0; n_em];
-        for l in 0..self.n_lights {
+        // Zipped slices, same order of additions per element as indexed loops: those kept
+        // their bounds checks and stayed scalar (perf: 4 % of a grid fit).
+        for (l, q_l) in q.chunks_exact_mut(n_em).enumerate() {
             for channel in 0..3 {
                 let p = self.weight * pull_patch[3 * l + channel];
                 let (em, re) = (&self.emitted[l][channel], &self.reflected[l][channel]);
-                for j in 0..n_em {
-                    q[l * n_em + j] += p * em[j];
-                    h[j] += p * re[j];
+                for (qj, e) in q_l.iter_mut().zip(em) {
+                    *qj += p * e;
+                }
+                for (hj, r) in h.iter_mut().zip(re) {
+                    *hj += p * r;
                 }
             }
         }

@@ -317,14 +317,13 @@ impl<'a> Objective<'a> {
         column_sum: &[f64],
         diagonal: &[DiagonalFit],
     ) -> Vec<f64> {
-        let diagonal: Vec<(usize, f64)> = self
+        let diagonal = self
             .data
             .diagonal
             .iter()
             .zip(diagonal)
-            .map(|(c, f)| (c.column, f.residual))
-            .collect();
-        colour.patch(column_sum, &diagonal, self.data.n_emission())
+            .map(|(c, f)| (c.column, f.residual));
+        colour.patch(column_sum, diagonal, self.data.n_emission())
     }
 
     /// ½‖r‖² (plus the colour term) and its gradient with respect to (κ, a, v).
