@@ -11,9 +11,10 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use fluorite::colour::{Light, PatchColorimeter};
+use fluorite::fit::assess::colour_noise_delta_e2000;
 use fluorite::fit::data::FitData;
 use fluorite::fit::parametric::{Layout, ModelSpec, Problem, ReflectanceForm};
-use fluorite::fit::{FitOptions, ModelChoice, Solver, fit};
+use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, Solver, fit};
 use fluorite::formats::{ReadOptions, read};
 use fluorite::measurement::Measurement;
 use fluorite::parametric::BandDomain;
@@ -44,6 +45,10 @@ fn measured(files: &[&str]) -> Vec<Measurement> {
 
 fn bench_fit(c: &mut Criterion) {
     let mut group = c.benchmark_group("fit");
+    let tabulated = FitOptions {
+        model: ModelChoice::Tabulated,
+        ..FitOptions::default()
+    };
     for m in inputs() {
         for solver in [Solver::Init, Solver::Lbfgs, Solver::GaussNewton] {
             // The grid (tabulated) fit: colour term and ΔE2000 report under the four
@@ -62,6 +67,24 @@ fn bench_fit(c: &mut Criterion) {
             }
             group.bench_function(format!("{}/{}", m.name, solver.name()), |b| {
                 b.iter(|| fit(black_box(&m), &options).unwrap())
+            });
+        }
+        // The report's colour-noise figure alone (`fit` adds it to every fitted material):
+        // how well the measurement knows its own colour under the four standard lights.
+        if let Ok(FitOutcome::Material(material)) = fit(&m, &tabulated) {
+            let report = material.fit.clone().unwrap_or_default();
+            let data = FitData::new(&m, report.guard_nm);
+            let lights = FitOptions::default().lights;
+            group.bench_function(format!("{}/colour-noise", m.name), |b| {
+                b.iter(|| {
+                    colour_noise_delta_e2000(
+                        black_box(&m),
+                        &material,
+                        &data,
+                        &lights,
+                        report.noise_sigma,
+                    )
+                })
             });
         }
         // The matrix alone: no lights, so no colour term and no report.

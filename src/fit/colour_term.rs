@@ -103,15 +103,15 @@ impl ColourTerm {
             0.0
         };
         let n_em = data.n_emission();
+        let mut diagonal_count = vec![0.0; n_em];
+        for c in &data.diagonal {
+            diagonal_count[c.column] += 1.0;
+        }
         (0..self.n_lights)
             .map(|l| {
                 let mut light_squared = vec![0.0; n_em];
                 for c in data.off_diagonal.iter().chain(&data.guard) {
                     light_squared[c.column] += self.row_lights[c.row * self.n_lights + l].powi(2);
-                }
-                let mut diagonal_count = vec![0.0; n_em];
-                for c in &data.diagonal {
-                    diagonal_count[c.column] += 1.0;
                 }
                 let (emitted, reflected) = (&self.emitted[l], &self.reflected[l]);
                 std::array::from_fn(|a| {

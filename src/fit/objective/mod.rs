@@ -191,11 +191,6 @@ impl<'a> Objective<'a> {
         self
     }
 
-    /// The colour term, if any.
-    pub fn colour(&self) -> Option<&ColourTerm> {
-        self.colour.as_ref()
-    }
-
     /// x_i, the excitation factor of row i (1, or λ_i in the photon form).
     pub fn row_factor(&self, row: usize) -> f64 {
         self.row_factor[row]
