@@ -343,6 +343,37 @@ pub struct FitReport {
     /// scatter masked); absent for radiance-factor matrices.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub preprocessing: Option<crate::eem::Preprocessing>,
+    /// Crosstalk found next to the diagonal (the instrument's, not the material's) and
+    /// whether the fit took it out of the cells; absent where none rose above the noise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crosstalk: Option<CrosstalkCorrection>,
+}
+
+/// Crosstalk next to the diagonal: per side, the fraction of the diagonal found one step
+/// off it in the rows without fluorescence (file units: per bin, or per nm), and whether
+/// the fit used the cells without it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct CrosstalkCorrection {
+    /// Fraction one step below the diagonal (λo = λi − step); 0 where not significant.
+    pub below: f64,
+    /// Fraction one step above the diagonal (λo = λi + step); 0 where not significant.
+    pub above: f64,
+    /// Standard error of `below` (noise σ over the quiet rows' diagonal).
+    pub below_error: f64,
+    /// Standard error of `above`.
+    pub above_error: f64,
+    /// Rows without fluorescence the estimate used.
+    pub quiet_rows: usize,
+    /// Per light, ΔE2000 between the measured patch with and without the crosstalk: what
+    /// it is worth in the colour every reported ΔE2000 is measured against.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub delta_e2000: BTreeMap<String, f64>,
+    /// True when the fit's cells were taken without it (its net energy given back to the
+    /// diagonal); false when it was kept as measured (`note` says why).
+    pub removed: bool,
+    /// Why it was kept as measured, when it was.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub note: String,
 }
 
 impl FitReport {

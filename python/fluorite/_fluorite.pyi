@@ -191,6 +191,9 @@ class Fit:
     def delta_e_noise(self) -> Dict[str, float]:
         """Per light, the RMS ΔE2000 the cells' noise alone gives the measured colour."""
     @property
+    def crosstalk(self) -> Optional[Dict[str, Any]]:
+        """Crosstalk next to the diagonal: fractions below/above, errors, worth, removed, note."""
+    @property
     def report(self) -> Dict[str, Any]: ...
     @property
     def warnings(self) -> List[str]: ...

@@ -70,6 +70,17 @@ impl PyFit {
         to_py(py, &self.outcome.report().delta_e2000_noise)
     }
 
+    /// Crosstalk found next to the diagonal (the instrument's, not the material's), as a
+    /// dict: per side the fraction of the diagonal one step ``below`` and ``above`` it (with
+    /// ``below_error``, ``above_error``, ``quiet_rows``), what it is worth in the measured
+    /// colour per light (``delta_e2000``), and whether the fit took it out of the cells
+    /// (``removed``; ``note`` says why not). ``None`` when no cell shows it above the noise.
+    /// The report's ``crosstalk``.
+    #[getter]
+    fn crosstalk<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_py(py, &self.outcome.report().crosstalk)
+    }
+
     /// The fit report, the JSON ``fit`` block as a dict (solver, convergence, residuals,
     /// ΔE2000, warnings, model, search, escalation, preprocessing, …).
     #[getter]

@@ -174,6 +174,9 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
         100.0 * report.rel_residual_fluorescence,
         report.noise_sigma,
     );
+    if let Some(crosstalk) = &report.crosstalk {
+        let _ = writeln!(s, "  {}", fluorite::fit::crosstalk::describe(crosstalk));
+    }
     if !report.delta_e2000.is_empty() {
         let reference = if report.reference_filled_cells == 0 {
             "against every cell as measured".to_string()

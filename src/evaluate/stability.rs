@@ -129,7 +129,7 @@ impl Sweep {
                 "With a small Stokes shift most of the fluorescence lies on the diagonal, where it adds to the reflectance and the fit cannot tell them apart, and in the cells next to it; a and e near the diagonal rest on those neighbouring cells (fitted by default) and on their tails."
             }
             Sweep::Crosstalk => {
-                "The cells next to the diagonal are fitted as fluorescence (they mostly are, model.md §5). A monochromator offset puts a signed band along the diagonal there, which is not rank 1: a few per cent of the diagonal (POLGREE and TEXTYELL show 4 %) bias a and e near the diagonal and leave a residual concentrated next to it, which `fit` flags; `--guard` sets those cells aside."
+                "The cells next to the diagonal are fitted as fluorescence (they mostly are, model.md §5). A monochromator offset puts a signed band along the diagonal there, which is not rank 1: a few per cent of the diagonal (POLGREE and TEXTYELL show 4 %) would bias a and e near the diagonal. `fit` measures it in the rows without fluorescence and fits the cells without it (fitting.md); where that would move the fit to another optimum it fits them as measured and flags the residual next to the diagonal, which `--guard` sets aside."
             }
             Sweep::ExcitationStep => {
                 "With few excitation rows the absorption band is sampled by one or two points; the material interpolates between them, so the absorbed energy under lights with structure (UV LED, F11) is wrong even though the fit matches every measured cell."

@@ -4,6 +4,9 @@ use crate::error::{Error, Result};
 use crate::measurement::{CellKind, Measurement, Units};
 use crate::spectrum::{Spectrum, bin_widths};
 
+use super::crosstalk;
+use crate::material::CrosstalkCorrection;
+
 /// One matrix cell used by the fit.
 #[derive(Debug, Clone, Copy)]
 pub struct Cell {
@@ -41,10 +44,37 @@ pub struct FitData {
     pub emission_weight: Vec<f64>,
     /// Guard band used (nm).
     pub guard_nm: f64,
+    /// The crosstalk next to the diagonal taken out of the cells above (`None`: none was
+    /// significant, the cells are as measured).
+    pub crosstalk: Option<CrosstalkCorrection>,
 }
 
 impl FitData {
-    /// Gathers the cells of `m` for a guard band of `guard_nm` around the diagonal.
+    /// The cells a fit reported in `report` used: as measured, or less the crosstalk next
+    /// to the diagonal it removed ([`super::crosstalk`]).
+    pub fn as_fitted(m: &Measurement, report: &crate::material::FitReport) -> Self {
+        Self::with_crosstalk(m, report.guard_nm, report.crosstalk.as_ref())
+    }
+
+    /// The cells of `m` less `crosstalk` where it was removed (its `removed` flag), else as
+    /// measured.
+    pub fn with_crosstalk(
+        m: &Measurement,
+        guard_nm: f64,
+        crosstalk: Option<&CrosstalkCorrection>,
+    ) -> Self {
+        match crosstalk.filter(|c| c.removed) {
+            Some(c) => {
+                let mut data = Self::new(&crosstalk::remove(m, c), guard_nm);
+                data.crosstalk = Some(c.clone());
+                data
+            }
+            None => Self::new(m, guard_nm),
+        }
+    }
+
+    /// Gathers the cells of `m` as measured, for a guard band of `guard_nm` around the
+    /// diagonal.
     pub fn new(m: &Measurement, guard_nm: f64) -> Self {
         let mut data = FitData {
             excitation_nm: m.excitation_nm.clone(),
@@ -58,6 +88,7 @@ impl FitData {
             emission_bin_widths: bin_widths(&m.emission_nm),
             emission_weight: Vec::new(),
             guard_nm,
+            crosstalk: None,
         };
         data.emission_weight = match m.units {
             Units::PerBin => vec![1.0; m.n_emission()],

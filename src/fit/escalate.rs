@@ -240,7 +240,10 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
     let mut searched = *searched;
     // Report the chosen model under the lights asked for (the search judged it under
     // the judged lights only).
-    let data = data::FitData::new(m, options.guard_nm.unwrap_or(0.0));
+    let data = match searched.fit.as_ref() {
+        Some(f) => data::FitData::as_fitted(m, f),
+        None => data::FitData::new(m, options.guard_nm.unwrap_or(0.0)),
+    };
     let accuracy = assess::accuracy(&searched, m, &data, &options.lights);
     let fit = searched
         .fit
@@ -297,7 +300,7 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
         .filter_map(|l| report.delta_e2000.get(*l).map(|de| (l.to_string(), *de)))
         .collect();
     if grid_delta_e2000.len() < judged.len() {
-        let data = data::FitData::new(m, report.guard_nm);
+        let data = data::FitData::as_fitted(m, report);
         grid_delta_e2000 = assess::accuracy(material, m, &data, &lights_named(judged)).delta_e2000;
     }
     let structure = report
@@ -315,7 +318,7 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
     let misses = if misses.is_empty() {
         misses
     } else {
-        let data = data::FitData::new(m, report.guard_nm);
+        let data = data::FitData::as_fitted(m, report);
         let lights = lights_named(judged);
         // In ΔE2000, as the misses are (under the UV-rich light an orange patch's noise is
         // mostly chroma: RMS ΔE76 5.2 against ΔE2000 1.8 on a synthetic pigment).

@@ -28,6 +28,7 @@
 pub mod assess;
 pub mod checks;
 mod colour_term;
+pub mod crosstalk;
 pub mod data;
 pub mod escalate;
 mod grid_material;
@@ -104,7 +105,7 @@ fn record_colour_noise(m: &Measurement, material: &mut Material, given: &[Light]
     if lights.len() != report.delta_e2000.len() {
         return;
     }
-    let data = FitData::new(m, report.guard_nm);
+    let data = FitData::as_fitted(m, report);
     let noise = assess::colour_noise_delta_e2000(m, material, &data, &lights, sigma);
     let names = lights.iter().map(|l| l.name.clone());
     if let Some(report) = material.fit.as_mut() {

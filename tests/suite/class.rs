@@ -8,7 +8,7 @@ use std::process::Command;
 
 use fluorite::colour::{Light, delta_e2000, material_xyz, xyz_to_lab};
 use fluorite::evaluate::class::{self, ClassConfig, ClassSweep, GRID_FIT, SEARCH};
-use fluorite::fit::{FitOptions, FitOutcome, fit};
+use fluorite::fit::{FitOutcome, fit};
 
 const SMALL: ClassConfig = ClassConfig {
     cases: 8,
@@ -59,7 +59,8 @@ fn small_sweep_is_deterministic_complete_and_adds_up() {
 }
 
 /// The grid fit's ΔE2000 against the truth of one case, recomputed from the drawn spec
-/// with the colour functions (largest over the four standard lights).
+/// with the colour functions (largest over the four standard lights), refitting with the
+/// grid method's options (`--model tabulated`).
 #[test]
 fn delta_e_against_the_truth_matches_a_recomputation() {
     let config = ClassConfig { cases: 3, seed: 11 };
@@ -68,7 +69,7 @@ fn delta_e_against_the_truth_matches_a_recomputation() {
     for (case, spec) in sweep.cases.iter().zip(&specs) {
         let (m, truth) = spec.generate().unwrap();
         assert_eq!(case.true_fluorophores, truth.fluorophores.len());
-        let FitOutcome::Material(fitted) = fit(&m, &FitOptions::default()).unwrap() else {
+        let FitOutcome::Material(fitted) = fit(&m, &class::grid_options()).unwrap() else {
             panic!("{}: expected a material", case.name);
         };
         let expected = Light::standard()

@@ -12,6 +12,16 @@ use fluorite::fit::{FitOptions, FitOutcome, Solver, fit};
 use fluorite::formats::{ReadOptions, read};
 use fluorite::synth::{MEASURED_NOISE_SIGMA, SynthSpec};
 
+/// The grid fit's options (the default fit would escalate on crosstalk's colour miss and
+/// report the search's model instead).
+fn grid_options() -> FitOptions {
+    FitOptions {
+        model: fluorite::fit::ModelChoice::Tabulated,
+        max_iterations: 500,
+        ..FitOptions::default()
+    }
+}
+
 /// Warnings (and convergence) of the default fit of one sweep case.
 fn warnings_of(sweep: Sweep, value: f64, seed: usize, solver: Solver) -> (Vec<String>, bool) {
     let (m, _, start) = case_data(sweep, value, seed).unwrap();
@@ -98,19 +108,43 @@ fn small_sweep_succeeds_at_the_bfc_noise_level_and_flags_wide_crosstalk() {
     assert!(report.contains("## crosstalk (fraction of the diagonal)\n"));
 }
 
+/// Crosstalk next to the diagonal (the synthesiser's: +f one step below, −f one step
+/// above) is measured in the rows without fluorescence and the report says so. At the
+/// real files' level (POLGREE and TEXTYELL: about 4 %) it is taken out of the cells; at
+/// twice that the fit without it may miss its own cells' colour by more than the fit of
+/// the cells as measured, and then those are fitted, with the note why and the warning
+/// of a residual next to the diagonal. At the
+/// smallest real level (0.1 %) no cell shows it above the noise: nothing is reported.
 #[test]
-fn fit_flags_crosstalk_next_to_the_diagonal() {
+fn fit_removes_crosstalk_next_to_the_diagonal_and_says_so() {
     for seed in 0..3 {
-        let (w, _) = warnings_of(Sweep::Crosstalk, 0.08, seed, Solver::Lbfgs);
-        assert!(
-            any_contains(
-                &w,
-                "residual concentrated in the cells next to the diagonal"
-            ),
-            "{w:?}"
-        );
-        let (w, _) = warnings_of(Sweep::Crosstalk, 0.001, seed, Solver::Lbfgs);
-        assert!(!any_contains(&w, "residual concentrated"), "{w:?}");
+        for fraction in [0.04, 0.08] {
+            let (m, _, _) = case_data(Sweep::Crosstalk, fraction, seed).unwrap();
+            let outcome = fit(&m, &grid_options()).unwrap();
+            let report = outcome.report();
+            let found = report.crosstalk.as_ref().expect("crosstalk reported");
+            for (got, error) in [
+                (found.below, found.below_error),
+                (-found.above, found.above_error),
+            ] {
+                assert!(
+                    (got - fraction).abs() <= 4.0 * error + 0.02 * fraction,
+                    "seed {seed}: {got} against {fraction} (± {error})"
+                );
+            }
+            assert!(found.removed || fraction > 0.04, "seed {seed}: {found:?}");
+            assert_eq!(found.note.is_empty(), found.removed, "{found:?}");
+            if !found.removed {
+                assert!(any_contains(&report.warnings, "residual concentrated"));
+            }
+        }
+        let (m, _, _) = case_data(Sweep::Crosstalk, 0.001, seed).unwrap();
+        let outcome = fit(&m, &grid_options()).unwrap();
+        assert_eq!(outcome.report().crosstalk, None);
+        assert!(!any_contains(
+            &outcome.report().warnings,
+            "residual concentrated"
+        ));
     }
 }
 

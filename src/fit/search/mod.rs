@@ -137,7 +137,7 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         }
         return Ok(FitOutcome::Material(Box::new(material)));
     }
-    let data = FitData::new(m, base_report.guard_nm);
+    let data = FitData::as_fitted(m, &base_report);
     let sigma = data.noise_sigma().max(1e-12);
     let lights = &options.lights;
     let budget = options.max_delta_e;
@@ -421,6 +421,7 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         ));
     }
     fit.yield_choice = yield_reason;
+    fit.crosstalk = base_report.crosstalk.clone();
     fit.model_search = Some(ModelSearch {
         rule,
         max_delta_e: budget,
