@@ -5,7 +5,7 @@
 use crate::colour::{Light, PatchColorimeter, Xyz};
 
 use super::data::FitData;
-use crate::numeric::dot;
+use crate::numeric::{dot, zeros};
 
 /// τ of the colour term's robust loss (ΔE76 units): about the difference a person sees.
 pub const COLOUR_SCALE: f64 = 1.0;
@@ -181,7 +181,7 @@ impl ColourTerm {
                 *sum += c * r;
             }
         }
-        let mut patch = vec![0.0; n];
+        let mut patch = zeros(n);
         for l in 0..self.n_lights {
             let sums = &column_sum[l * n_em..(l + 1) * n_em];
             for channel in 0..3 {
@@ -247,8 +247,8 @@ impl ColourTerm {
     /// column h_j (a diagonal cell's pull).
     #[inline(always)]
     pub(super) fn pulls(&self, pull_patch: &[f64], n_em: usize) -> (Vec<f64>, Vec<f64>) {
-        let mut q = vec![0.0; self.n_lights * n_em];
-        let mut h = vec![0.0; n_em];
+        let mut q = zeros(self.n_lights * n_em);
+        let mut h = zeros(n_em);
         // Zipped slices, same order of additions per element as indexed loops: those kept
         // their bounds checks and stayed scalar (perf: 4 % of a grid fit).
         // q in one pass per light: ((0 + p₀·e₀) + p₁·e₁) + p₂·e₂, the additions in the
