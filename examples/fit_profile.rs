@@ -8,7 +8,7 @@
 //! the fit's `rayon::join` of the two yield forms runs in turn on one thread and every
 //! instruction of a fit counts under `fluorite::fit::fit`:
 //!
-//! ```sh no-run
+//! ```sh no-run: runs the fits under valgrind
 //! valgrind --tool=callgrind --callgrind-out-file=cg.out \
 //!   target/release/examples/fit_profile ../shared/data/measured/HERPICER.BFC 5
 //! callgrind_annotate --inclusive=yes cg.out | grep -E 'fluorite::fit::fit |PatchColorimeter::new '
