@@ -38,6 +38,16 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     partial.iter().sum::<f64>() + tail
 }
 
+/// `n` zeros, allocated through `malloc` and filled: `vec![0.0; n]` asks for zeroed
+/// memory, and glibc's `calloc` bypasses its thread cache (callgrind: ~360 instructions a
+/// call against ~60 for `malloc` and the fill, on the grid objective's small buffers).
+#[inline]
+pub fn zeros(n: usize) -> Vec<f64> {
+    let mut v = Vec::with_capacity(n);
+    v.resize(n, 0.0);
+    v
+}
+
 /// The median spacing |g_k+1 − g_k| of a grid (0 for a single sample).
 pub fn median_step(grid: &[f64]) -> f64 {
     let steps: Vec<f64> = grid.windows(2).map(|w| (w[1] - w[0]).abs()).collect();

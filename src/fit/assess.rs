@@ -57,10 +57,21 @@ pub fn colour_noise_delta_e2000(
 ) -> Vec<f64> {
     let reference = patch_xyz(m, material, lights);
     let term = ColourTerm::new(data, lights, &reference, 0.0, sigma);
+    noise_delta_e2000(m, lights, &reference, &term.noise_covariance)
+}
+
+/// [`colour_noise_delta_e2000`] from the patch colours `reference` (XYZ per light) and
+/// the noise's Lab covariance per light ([`ColourTerm`]'s), for a caller that has them.
+pub(super) fn noise_delta_e2000(
+    m: &Measurement,
+    lights: &[Light],
+    reference: &[Xyz],
+    covariance: &[[[f64; 3]; 3]],
+) -> Vec<f64> {
     lights
         .iter()
-        .zip(&reference)
-        .zip(&term.noise_covariance)
+        .zip(reference)
+        .zip(covariance)
         .map(|((light, xyz), cov)| {
             let white = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm).white;
             let metric = delta_e2000_metric(crate::colour::xyz_to_lab(*xyz, white));

@@ -5,7 +5,7 @@
 use crate::colour::{Light, PatchColorimeter, Xyz};
 
 use super::data::FitData;
-use crate::numeric::dot;
+use crate::numeric::{dot, zeros};
 
 /// τ of the colour term's robust loss (ΔE76 units): about the difference a person sees.
 pub const COLOUR_SCALE: f64 = 1.0;
@@ -34,6 +34,10 @@ pub struct ColourTerm {
     pub(super) emitted: Vec<[Vec<f64>; 3]>,
     /// Per light and Lab channel: ∂Lab/∂(diagonal cell of column j).
     pub(super) reflected: Vec<[Vec<f64>; 3]>,
+    /// `reflected` by column: the 3·lights coefficients (light-major, then channel) of
+    /// column j at `3·lights·j`, so that a diagonal cell's pulls on every channel are
+    /// contiguous.
+    reflected_by_column: Vec<f64>,
 }
 
 impl ColourTerm {
@@ -59,6 +63,7 @@ impl ColourTerm {
             row_lights: vec![0.0; data.n_excitation() * n_lights],
             emitted: Vec::with_capacity(n_lights),
             reflected: Vec::with_capacity(n_lights),
+            reflected_by_column: Vec::new(),
         };
         for (l, (light, xyz)) in lights.iter().zip(reference).enumerate() {
             let pc = PatchColorimeter::cached(light, &data.excitation_nm, &data.emission_nm);
@@ -83,6 +88,13 @@ impl ColourTerm {
             term.reflected
                 .push([0, 1, 2].map(|channel| project(reflected, channel, false)));
         }
+        term.reflected_by_column = (0..data.n_emission())
+            .flat_map(|j| {
+                term.reflected
+                    .iter()
+                    .flat_map(move |light| light.each_ref().map(|c| c[j]))
+            })
+            .collect();
         term.noise_covariance = term.covariance_of_noise(data, noise_sigma);
         term.noise_delta_e = term
             .noise_covariance
@@ -152,19 +164,29 @@ impl ColourTerm {
     /// Σ_i L_li·r_ij of the off-diagonal residuals (light-major) and the diagonal
     /// residuals (column, r). An iterator, not a list: the objective calls this every
     /// evaluation (perf: building the pairs was a third of it).
+    #[inline(always)]
     pub(super) fn patch(
         &self,
         column_sum: &[f64],
-        diagonal: impl Iterator<Item = (usize, f64)> + Clone,
+        diagonal: impl Iterator<Item = (usize, f64)>,
         n_em: usize,
     ) -> Vec<f64> {
-        let mut patch = vec![0.0; 3 * self.n_lights];
+        // The diagonal's share of every channel at once, cell by cell: each channel's
+        // running sum (from −0.0, as `sum` does) takes the cells in their order.
+        let n = 3 * self.n_lights;
+        let mut reflected = vec![-0.0; n];
+        for (j, r) in diagonal {
+            let coefficients = &self.reflected_by_column[j * n..(j + 1) * n];
+            for (sum, c) in reflected.iter_mut().zip(coefficients) {
+                *sum += c * r;
+            }
+        }
+        let mut patch = zeros(n);
         for l in 0..self.n_lights {
             let sums = &column_sum[l * n_em..(l + 1) * n_em];
             for channel in 0..3 {
-                let re = &self.reflected[l][channel];
-                patch[3 * l + channel] = dot(&self.emitted[l][channel], sums)
-                    + diagonal.clone().map(|(j, r)| re[j] * r).sum::<f64>();
+                let k = 3 * l + channel;
+                patch[k] = dot(&self.emitted[l][channel], sums) + reflected[k];
             }
         }
         patch
@@ -223,18 +245,22 @@ impl ColourTerm {
     /// The colour cost's pull on the residuals, given ∂cost/∂ΔLab / w: per light and
     /// column q_lj (light-major; an off-diagonal cell's pull is Σ_l L_li·q_lj) and per
     /// column h_j (a diagonal cell's pull).
+    #[inline(always)]
     pub(super) fn pulls(&self, pull_patch: &[f64], n_em: usize) -> (Vec<f64>, Vec<f64>) {
-        let mut q = vec![0.0; self.n_lights * n_em];
-        let mut h = vec![0.0; n_em];
+        let mut q = zeros(self.n_lights * n_em);
+        let mut h = zeros(n_em);
         // Zipped slices, same order of additions per element as indexed loops: those kept
         // their bounds checks and stayed scalar (perf: 4 % of a grid fit).
+        // q in one pass per light: ((0 + p₀·e₀) + p₁·e₁) + p₂·e₂, the additions in the
+        // order three passes made them.
         for (l, q_l) in q.chunks_exact_mut(n_em).enumerate() {
-            for channel in 0..3 {
-                let p = self.weight * pull_patch[3 * l + channel];
-                let (em, re) = (&self.emitted[l][channel], &self.reflected[l][channel]);
-                for (qj, e) in q_l.iter_mut().zip(em) {
-                    *qj += p * e;
-                }
+            let p: [f64; 3] = std::array::from_fn(|c| self.weight * pull_patch[3 * l + c]);
+            let [e0, e1, e2] = &self.emitted[l];
+            for (((qj, e0), e1), e2) in q_l.iter_mut().zip(e0).zip(e1).zip(e2) {
+                *qj = 0.0 + p[0] * e0 + p[1] * e1 + p[2] * e2;
+            }
+            for (channel, re) in self.reflected[l].iter().enumerate() {
+                let p = p[channel];
                 for (hj, r) in h.iter_mut().zip(re) {
                     *hj += p * r;
                 }

@@ -76,7 +76,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         model: ModelChoice::Tabulated,
         ..options.clone()
     };
-    let mut grid = tabulated::fit_checked(m, &grid_options, true)?;
+    let mut grid = tabulated::fit_checked(m, &grid_options, true, false)?;
     // Shapes (raw or arbitrary-scale EEMs) have no colour to judge and no reflectance for
     // a parametric model; a plain reflector was already judged on its colour.
     let FitOutcome::Material(material) = &mut grid else {

@@ -67,7 +67,7 @@ use tabulated::fit_checked;
 /// Fits the model to `m`.
 pub fn fit(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
     let mut outcome = match options.model {
-        ModelChoice::Tabulated => fit_checked(m, options, true),
+        ModelChoice::Tabulated => fit_checked(m, options, true, true),
         ModelChoice::AsNeeded => escalate::fit_as_needed(m, options),
         _ => {
             validate_options(options)?;
@@ -75,7 +75,15 @@ pub fn fit(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
         }
     }?;
     if let FitOutcome::Material(material) = &mut outcome {
-        record_colour_noise(m, material, &options.lights);
+        // The grid fit records it itself from its own cells and colour term, when it can.
+        let recorded = options.model == ModelChoice::Tabulated
+            && material
+                .fit
+                .as_ref()
+                .is_some_and(|r| !r.delta_e2000_noise.is_empty());
+        if !recorded {
+            record_colour_noise(m, material, &options.lights);
+        }
     }
     Ok(outcome)
 }
@@ -84,12 +92,25 @@ pub fn fit(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
 /// each light the fit was judged under ([`assess::colour_noise_delta_e2000`]), so that a
 /// reported ΔE2000 can be read against it.
 fn record_colour_noise(m: &Measurement, material: &mut Material, given: &[Light]) {
-    let Some(report) = material.fit.as_ref() else {
+    let Some((lights, sigma)) = noise_lights(material, given) else {
         return;
     };
+    let data = match material.fit.as_ref() {
+        Some(report) => FitData::as_fitted(m, report),
+        None => FitData::new(m, 0.0),
+    };
+    let noise = assess::colour_noise_delta_e2000(m, material, &data, &lights, sigma);
+    set_colour_noise(material, &lights, noise);
+}
+
+/// The lights [`record_colour_noise`] judges `material`'s colour noise under (those of its
+/// report's ΔE2000, found in `given` or built in) and the noise σ, or None when there is
+/// nothing to record.
+fn noise_lights(material: &Material, given: &[Light]) -> Option<(Vec<Light>, f64)> {
+    let report = material.fit.as_ref()?;
     let sigma = report.noise_sigma;
     if report.delta_e2000.is_empty() || !(sigma.is_finite() && sigma > 0.0) {
-        return;
+        return None;
     }
     let lights: Vec<Light> = report
         .delta_e2000
@@ -102,11 +123,11 @@ fn record_colour_noise(m: &Measurement, material: &mut Material, given: &[Light]
                 .or_else(|| Light::builtin(name))
         })
         .collect();
-    if lights.len() != report.delta_e2000.len() {
-        return;
-    }
-    let data = FitData::as_fitted(m, report);
-    let noise = assess::colour_noise_delta_e2000(m, material, &data, &lights, sigma);
+    (lights.len() == report.delta_e2000.len()).then_some((lights, sigma))
+}
+
+/// Stores `noise` (per light of `lights`) as the report's `delta_e2000_noise`.
+fn set_colour_noise(material: &mut Material, lights: &[Light], noise: Vec<f64>) {
     let names = lights.iter().map(|l| l.name.clone());
     if let Some(report) = material.fit.as_mut() {
         report.delta_e2000_noise = names.zip(noise).collect();

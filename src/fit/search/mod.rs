@@ -113,7 +113,7 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         model: ModelChoice::Tabulated,
         ..options.clone()
     };
-    let base = match super::tabulated::fit_checked(m, &base_options, false)? {
+    let base = match super::tabulated::fit_checked(m, &base_options, false, false)? {
         FitOutcome::Material(material) => *material,
         FitOutcome::Shapes(_) => {
             return Err(Error::Fit(format!(
