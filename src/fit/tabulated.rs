@@ -3,8 +3,6 @@
 //! outcome of matrices without a calibrated diagonal.
 
 use super::grid_material::*;
-use std::collections::BTreeMap;
-
 use super::*;
 use crate::material::CrosstalkCorrection;
 
@@ -154,21 +152,14 @@ pub(super) fn fit_checked(
         return fit_cells(m, options, bootstrap, record_noise, None);
     };
     let started = Instant::now();
-    // Side by side: two cores halve the wait for one file.
-    let (cleaned, as_measured) = rayon::join(
-        || fit_cells(m, options, bootstrap, record_noise, Some(&found)),
-        || fit_cells(m, options, bootstrap, record_noise, None),
-    );
-    let (cleaned, as_measured) = (cleaned?, as_measured?);
-    // Shapes (no diagonal, arbitrary scale) carry no crosstalk estimate; kept as a guard.
-    let (FitOutcome::Material(cleaned), FitOutcome::Material(mut as_measured)) =
-        (cleaned, as_measured)
-    else {
-        return fit_cells(m, options, bootstrap, record_noise, None);
+    let cleaned = match fit_cells(m, options, bootstrap, record_noise, Some(&found))? {
+        FitOutcome::Material(material) => material,
+        // Shapes (no diagonal, arbitrary scale) carry no crosstalk estimate.
+        shapes => return Ok(shapes),
     };
-    // Each fit against the colour of the cells it fitted: the cleaned cells' patch (its
-    // missing cells filled from the fit, as the report's reference is), and the report's
-    // figures for the cells as measured.
+    // The cleaned fit against the colour of the cells it fitted (its missing cells
+    // filled from the fit, as the report's reference is). Within the bound it is kept
+    // without fitting the cells as measured: the common case costs one fit.
     let predicted = crate::model::predict(
         &cleaned,
         &m.name,
@@ -180,7 +171,7 @@ pub(super) fn fit_checked(
     let cleaned_cells = super::crosstalk::remove(m, &found)
         .to_per_bin()
         .filled_from(&predicted);
-    let own_colour: BTreeMap<String, f64> = options
+    let misses: Vec<(String, f64)> = options
         .lights
         .iter()
         .map(|light| {
@@ -191,16 +182,24 @@ pub(super) fn fit_checked(
                 delta_e2000(reference, pc.lab(&predicted)),
             )
         })
+        .filter(|(_, de)| *de > CROSSTALK_OWN_COLOUR_BOUND)
         .collect();
+    if misses.is_empty() {
+        return Ok(FitOutcome::Material(cleaned));
+    }
+    let mut as_measured = match fit_cells(m, options, bootstrap, record_noise, None)? {
+        FitOutcome::Material(material) => material,
+        FitOutcome::Shapes(_) => return Ok(FitOutcome::Material(cleaned)),
+    };
     let measured_de = as_measured
         .fit
         .as_ref()
         .map(|f| f.delta_e2000.clone())
         .unwrap_or_default();
-    let moved = own_colour.iter().find(|(light, de)| {
-        let worth = found.delta_e2000.get(*light).copied().unwrap_or(0.0);
-        let before = measured_de.get(*light).copied().unwrap_or(f64::INFINITY);
-        **de > CROSSTALK_OWN_COLOUR_BOUND && **de > before + worth
+    let moved = misses.iter().find(|(light, de)| {
+        let worth = found.delta_e2000.get(light).copied().unwrap_or(0.0);
+        let before = measured_de.get(light).copied().unwrap_or(f64::INFINITY);
+        *de > before + worth
     });
     let Some((light, de)) = moved else {
         return Ok(FitOutcome::Material(cleaned));
