@@ -126,7 +126,8 @@ fn refine_form<'a>(
 
 /// ΔE2000 from its own cells' colour beyond which the fit without the crosstalk counts
 /// as another optimum (where the fit of the cells as measured came closer to theirs by
-/// more than the crosstalk is worth): the bound the default fit holds a grid fit to.
+/// more than the crosstalk is worth): the bound the default fit holds a grid fit to,
+/// or 3 × the RMS ΔE2000 the colour's own noise gives, if larger.
 const CROSSTALK_OWN_COLOUR_BOUND: f64 = 1.0;
 
 /// [`fit`], with or without the noise bootstrap (its own refits skip it). Where the
@@ -157,33 +158,17 @@ pub(super) fn fit_checked(
         // Shapes (no diagonal, arbitrary scale) carry no crosstalk estimate.
         shapes => return Ok(shapes),
     };
-    // The cleaned fit against the colour of the cells it fitted (its missing cells
-    // filled from the fit, as the report's reference is). Within the bound it is kept
-    // without fitting the cells as measured: the common case costs one fit.
-    let predicted = crate::model::predict(
+    // Within the bound of its own cells' colour the cleaned fit is kept without fitting
+    // the cells as measured: the common case costs one fit.
+    let misses = super::crosstalk::own_colour_misses(
+        m,
         &cleaned,
-        &m.name,
-        &m.excitation_nm,
-        &m.emission_nm,
-        Units::PerBin,
-        true,
+        &found,
+        &options.lights,
+        sigma,
+        guard_nm,
+        CROSSTALK_OWN_COLOUR_BOUND,
     );
-    let cleaned_cells = super::crosstalk::remove(m, &found)
-        .to_per_bin()
-        .filled_from(&predicted);
-    let misses: Vec<(String, f64)> = options
-        .lights
-        .iter()
-        .map(|light| {
-            let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
-            let reference = pc.lab(&cleaned_cells);
-            (
-                light.name.clone(),
-                delta_e2000(reference, pc.lab(&predicted)),
-            )
-        })
-        .filter(|(_, de)| *de > CROSSTALK_OWN_COLOUR_BOUND)
-        .collect();
     if misses.is_empty() {
         return Ok(FitOutcome::Material(cleaned));
     }
