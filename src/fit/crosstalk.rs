@@ -87,7 +87,7 @@ fn neighbours(m: &Measurement, step: f64) -> Vec<(usize, usize, Option<usize>, O
 /// Estimates the crosstalk of `m` (noise level `noise_sigma` in the file's units), with
 /// what it is worth in the measured colour under `lights`. `None` where there is nothing
 /// to remove: without a diagonal, on an arbitrary scale, with fewer than
-/// [`MIN_QUIET_ROWS`] rows free of fluorescence to measure it in, or when neither side is
+/// three rows free of fluorescence to measure it in, or when neither side is
 /// significant and visible above the noise.
 pub fn estimate(
     m: &Measurement,
