@@ -12,12 +12,8 @@
 //! back to the diagonal (the reflectance it came from).
 
 use crate::colour::{Light, PatchColorimeter, delta_e2000};
-use crate::material::{CrosstalkCorrection, Material};
+use crate::material::CrosstalkCorrection;
 use crate::measurement::{Measurement, Units};
-use crate::model::predict;
-
-use super::assess;
-use super::data::FitData;
 
 /// A row counts as free of fluorescence when its cells beyond the first step off the
 /// diagonal have an RMS within this many noise σ.
@@ -30,43 +26,6 @@ const SIGNIFICANCE_FACTOR: f64 = 3.0;
 const VISIBLE_FACTOR: f64 = 3.0;
 /// Fewest quiet rows with both the diagonal and the neighbour measured for an estimate.
 const MIN_QUIET_ROWS: usize = 3;
-
-/// The lights under which `cleaned`, fitted to the cells of `m` less `found`, misses
-/// those cells' colour by more than `bound`, or 3 × what the colour's own noise (cells'
-/// σ `sigma`) explains if larger (the default fit's noise-aware bound: a miss of that
-/// size is no sign of another optimum), with its ΔE2000. The cells' patch has its
-/// missing cells filled from the fit, as the report's reference has.
-pub fn own_colour_misses(
-    m: &Measurement,
-    cleaned: &Material,
-    found: &CrosstalkCorrection,
-    lights: &[Light],
-    sigma: f64,
-    guard_nm: f64,
-    bound: f64,
-) -> Vec<(String, f64)> {
-    let predicted = predict(
-        cleaned,
-        &m.name,
-        &m.excitation_nm,
-        &m.emission_nm,
-        Units::PerBin,
-        true,
-    );
-    let cells = remove(m, found).to_per_bin().filled_from(&predicted);
-    let data = FitData::with_crosstalk(m, guard_nm, Some(found));
-    let noise = assess::colour_noise_delta_e2000(m, cleaned, &data, lights, sigma);
-    let bounds = assess::noise_aware_bounds(bound, lights, &noise);
-    lights
-        .iter()
-        .filter_map(|light| {
-            let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
-            let de = delta_e2000(pc.lab(&cells), pc.lab(&predicted));
-            let allowed = bounds.get(&light.name).copied().unwrap_or(bound);
-            (de > allowed).then(|| (light.name.clone(), de))
-        })
-        .collect()
-}
 
 /// The neighbours of a diagonal cell: (row, diagonal column, below column, above column).
 fn neighbours(m: &Measurement, step: f64) -> Vec<(usize, usize, Option<usize>, Option<usize>)> {
@@ -219,10 +178,11 @@ pub fn remove(m: &Measurement, crosstalk: &CrosstalkCorrection) -> Measurement {
             if let Some(c) = column.filter(|_| fraction != 0.0) {
                 let moved = fraction * d;
                 let v = out.get_mut(i, c);
+                // Energy goes back only where it was taken out (a missing neighbour gave none).
                 if v.is_finite() {
                     *v -= moved;
+                    returned += moved * weight(c);
                 }
-                returned += moved * weight(c);
             }
         }
         *out.get_mut(i, j) += returned;

@@ -29,6 +29,7 @@ pub mod assess;
 pub mod checks;
 mod colour_term;
 pub mod crosstalk;
+mod crosstalk_check;
 pub mod data;
 pub mod escalate;
 mod grid_material;

@@ -160,7 +160,7 @@ pub(super) fn fit_checked(
     };
     // Within the bound of its own cells' colour the cleaned fit is kept without fitting
     // the cells as measured: the common case costs one fit.
-    let misses = super::crosstalk::own_colour_misses(
+    let misses = super::crosstalk_check::own_colour_misses(
         m,
         &cleaned,
         &found,

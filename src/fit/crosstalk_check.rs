@@ -1,0 +1,50 @@
+//! Whether a fit of the cells less their crosstalk ([`super::crosstalk`]) still holds
+//! the colour of the cells it fitted: where it misses by far more than their noise
+//! explains, removing the crosstalk may have tipped the fit to another optimum, and the
+//! grid fit (`tabulated`) compares it with the fit of the cells as measured.
+
+use crate::colour::{Light, PatchColorimeter, delta_e2000};
+use crate::material::{CrosstalkCorrection, Material};
+use crate::measurement::{Measurement, Units};
+use crate::model::predict;
+
+use super::assess;
+use super::crosstalk::remove;
+use super::data::FitData;
+
+/// The lights under which `cleaned`, fitted to the cells of `m` less `found`, misses
+/// those cells' colour by more than `bound`, or 3 × what the colour's own noise (cells'
+/// σ `sigma`) explains if larger (the default fit's noise-aware bound: a miss of that
+/// size is no sign of another optimum), with its ΔE2000. The cells' patch has its
+/// missing cells filled from the fit, as the report's reference has.
+pub(super) fn own_colour_misses(
+    m: &Measurement,
+    cleaned: &Material,
+    found: &CrosstalkCorrection,
+    lights: &[Light],
+    sigma: f64,
+    guard_nm: f64,
+    bound: f64,
+) -> Vec<(String, f64)> {
+    let predicted = predict(
+        cleaned,
+        &m.name,
+        &m.excitation_nm,
+        &m.emission_nm,
+        Units::PerBin,
+        true,
+    );
+    let cells = remove(m, found).to_per_bin().filled_from(&predicted);
+    let data = FitData::with_crosstalk(m, guard_nm, Some(found));
+    let noise = assess::colour_noise_delta_e2000(m, cleaned, &data, lights, sigma);
+    let bounds = assess::noise_aware_bounds(bound, lights, &noise);
+    lights
+        .iter()
+        .filter_map(|light| {
+            let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
+            let de = delta_e2000(pc.lab(&cells), pc.lab(&predicted));
+            let allowed = bounds.get(&light.name).copied().unwrap_or(bound);
+            (de > allowed).then(|| (light.name.clone(), de))
+        })
+        .collect()
+}
