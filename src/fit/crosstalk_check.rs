@@ -34,7 +34,7 @@ pub(super) fn own_colour_misses(
         Units::PerBin,
         true,
     );
-    let cells = remove(m, found).to_per_bin().filled_from(&predicted);
+    let cells = assess::measured_patch(&remove(m, found), &predicted);
     let data = FitData::with_crosstalk(m, guard_nm, Some(found));
     let noise = assess::colour_noise_delta_e2000(m, cleaned, &data, lights, sigma);
     let bounds = assess::noise_aware_bounds(bound, lights, &noise);

@@ -421,7 +421,6 @@ pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutc
         ));
     }
     fit.yield_choice = yield_reason;
-    fit.crosstalk = base_report.crosstalk.clone();
     fit.model_search = Some(ModelSearch {
         rule,
         max_delta_e: budget,
