@@ -130,8 +130,12 @@ fn every_shipped_example_meets_the_bound_by_default() {
 }
 
 /// Two-dye matrices other than the shipped one: different dyes, concentrations, noise
-/// and seeds. The default fit escalates, meets the bound against the matrix and comes
-/// within ΔE2000 1 of the generating material under d65, a and f11.
+/// and seeds. The default fit escalates. Where a model meets every judged light (d65, a,
+/// f11 and uv: the grids start at 300 nm), it meets the bound against the matrix and
+/// comes within ΔE2000 1 of the generating material under d65, a and f11. Where none does
+/// (red-pigment+440nm: the search's closest misses f11 by 0.40), the report says so, and
+/// in its worst light the kept model is closer to the truth than the search under d65, a
+/// and f11 alone, which ignores uv (there 11.9 from the truth).
 #[test]
 fn two_dye_matrices_escalate_to_two_fluorophores() {
     let band = |centre_nm: f64, width_nm: f64, weight: f64| Band {
@@ -162,14 +166,51 @@ fn two_dye_matrices_escalate_to_two_fluorophores() {
         let report = fitted.fit.as_ref().unwrap();
         let escalation = report.escalation.as_ref().unwrap();
         assert!(escalation.escalated, "{}: {escalation:?}", spec.name);
-        assert_within_bound(&spec.name, &fitted, &m);
-        let to_truth = material_delta_e(&fitted, &truth, &lights());
-        assert!(
-            to_truth <= BOUND,
-            "{}: ΔE2000 {to_truth:.3} to the truth ({})",
-            spec.name,
-            report.model
-        );
+        let met = report.model_search.as_ref().is_some_and(|s| s.met);
+        if met {
+            assert_within_bound(&spec.name, &fitted, &m);
+            let to_truth = material_delta_e(&fitted, &truth, &lights());
+            assert!(
+                to_truth <= BOUND,
+                "{}: ΔE2000 {to_truth:.3} to the truth ({})",
+                spec.name,
+                report.model
+            );
+        } else {
+            assert!(
+                escalation.reason.contains("exceeds the bounds least"),
+                "{}: {escalation:?}",
+                spec.name
+            );
+            let daylight = material(
+                fit(
+                    &m,
+                    &FitOptions {
+                        model: ModelChoice::Auto,
+                        max_delta_e: Some(BOUND),
+                        lights: lights(),
+                        ..FitOptions::default()
+                    },
+                )
+                .unwrap(),
+            );
+            let every = [lights(), vec![Light::builtin("uv").unwrap()]].concat();
+            let (kept, alone) = (
+                material_delta_e(&fitted, &truth, &every),
+                material_delta_e(&daylight, &truth, &every),
+            );
+            assert!(
+                kept < alone,
+                "{}: worst ΔE2000 to the truth {kept:.2} ({}) against {alone:.2} ({}) for the search under d65, a, f11 alone",
+                spec.name,
+                report.model,
+                daylight
+                    .fit
+                    .as_ref()
+                    .map(|f| f.model.as_str())
+                    .unwrap_or("")
+            );
+        }
     }
 }
 

@@ -67,8 +67,18 @@ fn default_fit_follows_uv_tail_pigments_against_the_truth() {
         }
     }
     // With the blue emitter the default fit comes at least twice as close to the truth
-    // under uv as one fluorophore does, in the median.
+    // under uv as one fluorophore does, in the median, and never ends farther from it
+    // than the farthest grid fit (a three-light search that traded F11 1.27 for uv 7.6
+    // against the matrix ended 7.27 from the truth, the grid fits at most 4.17).
     let (grid, default) = (median(&grid_uv), median(&default_uv));
+    let (grid_max, default_max) = (
+        grid_uv.iter().copied().fold(0.0, f64::max),
+        default_uv.iter().copied().fold(0.0, f64::max),
+    );
+    assert!(
+        default_max <= grid_max,
+        "uv against the truth, largest: default {default_max:.2} vs grid {grid_max:.2} ({default_uv:.2?} vs {grid_uv:.2?})"
+    );
     assert!(
         default <= 0.5 * grid,
         "uv against the truth, median: default {default:.2} vs grid {grid:.2} ({default_uv:.2?} vs {grid_uv:.2?})"
