@@ -95,8 +95,8 @@ pub struct FitArgs {
     /// and uv where the excitation grid holds the 365 nm LED's rows (or within the
     /// colour's noise); otherwise the smallest parametric model meeting that bound under
     /// those lights (as `auto --max-delta-e 1 --lights d65,a,f11,uv`; when none meets them
-    /// all, the grid fit if uv alone missed, else the search under d65, a and f11), or the
-    /// closest with a warning; the summary and the JSON (`fit.escalation`) say which and why. Raw or
+    /// all, whichever of the grid fit, the search's closest and the search under d65, a
+    /// and f11 alone exceeds the bounds least in total, with a warning); the summary and the JSON (`fit.escalation`) say which and why. Raw or
     /// arbitrary-scale EEMs, --quantum-yield/--concentration and --solver other than
     /// lbfgs keep one fluorophore. `tabulated`: one fluorophore, never escalated (the
     /// default before as-needed). `auto`: search from the smallest parametric model up.
