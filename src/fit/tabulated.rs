@@ -473,7 +473,9 @@ fn fit_cells(
         gauge: String::new(),
         noise_sigma: noise_sigma * data_scale,
         guard_signal_fraction: guard_fraction(&data),
-        crosstalk: crosstalk.cloned(),
+        // The cells' own record of what was taken out of them: the one source of the
+        // report's crosstalk (the plain reflector's report reads it too).
+        crosstalk: data.crosstalk.clone(),
         cost_history,
         model: "tabulated".into(),
         yield_choice: yield_reason,
