@@ -13,7 +13,7 @@
 
 use crate::colour::{Light, PatchColorimeter, delta_e2000};
 use crate::material::CrosstalkCorrection;
-use crate::measurement::{Measurement, Units};
+use crate::measurement::{CellKind, Measurement, Units};
 
 /// A row counts as free of fluorescence when its cells beyond the first step off the
 /// diagonal have an RMS within this many noise σ.
@@ -27,12 +27,11 @@ const VISIBLE_FACTOR: f64 = 3.0;
 /// Fewest quiet rows with both the diagonal and the neighbour measured for an estimate.
 const MIN_QUIET_ROWS: usize = 3;
 
-/// The neighbours of a diagonal cell: (row, diagonal column, below column, above column).
+/// The neighbours of a diagonal cell: (row, diagonal column, below column, above column),
+/// a neighbour where the cell one step off the diagonal is measured
+/// ([`CellKind::Guard`] for a guard of `step`: the classification the fit's cells use).
 fn neighbours(m: &Measurement, step: f64) -> Vec<(usize, usize, Option<usize>, Option<usize>)> {
-    let near = |i: usize, j: usize| {
-        let offset = (m.emission_nm[j] - m.excitation_nm[i]).abs();
-        offset > 1e-6 && offset <= step + 1e-6
-    };
+    let near = |i: usize, j: usize| m.cell_kind(i, j, step) == CellKind::Guard;
     m.diagonal()
         .into_iter()
         .map(|(i, j)| {
@@ -60,10 +59,12 @@ pub fn estimate(
     let rows = neighbours(m, step);
     let quiet = |i: usize| {
         let (mut sum, mut n) = (0.0, 0usize);
-        for (j, &l) in m.emission_nm.iter().enumerate() {
-            let offset = (l - m.excitation_nm[i]).abs();
-            let v = m.get(i, j);
-            if offset > step + 1e-6 && v.is_finite() {
+        for j in 0..m.n_emission() {
+            if matches!(
+                m.cell_kind(i, j, step),
+                CellKind::Stokes | CellKind::AntiStokes
+            ) {
+                let v = m.get(i, j);
                 sum += v * v;
                 n += 1;
             }
