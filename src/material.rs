@@ -358,7 +358,8 @@ pub struct CrosstalkCorrection {
     pub below: f64,
     /// Fraction one step above the diagonal (λo = λi + step); 0 where not significant.
     pub above: f64,
-    /// Standard error of `below` (noise σ over the quiet rows' diagonal).
+    /// Standard error of `below` (noise σ over the quiet rows' diagonal); 0 where too few
+    /// rows without fluorescence measured that side.
     pub below_error: f64,
     /// Standard error of `above`.
     pub above_error: f64,
