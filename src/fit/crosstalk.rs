@@ -39,19 +39,43 @@ const VISIBLE_FACTOR: f64 = 3.0;
 /// estimate (a side with fewer is not estimated).
 const MIN_QUIET_ROWS: usize = 3;
 
-/// The neighbours of a diagonal cell: (row, diagonal column, below column, above column),
-/// a neighbour where the cell one step off the diagonal is measured
-/// ([`CellKind::Guard`] for a guard of `step`: the classification the fit's cells use).
-fn neighbours(m: &Measurement, step: f64) -> Vec<(usize, usize, Option<usize>, Option<usize>)> {
-    let near = |i: usize, j: usize| m.cell_kind(i, j, step) == CellKind::Guard;
-    m.diagonal()
+/// The measured neighbours of each diagonal cell: (row, diagonal column, below column,
+/// above column), the emission columns j ∓ 1 ([`Measurement::diagonal_neighbours`], as
+/// the synthesiser writes crosstalk) where measured.
+fn neighbours(m: &Measurement) -> Vec<(usize, usize, Option<usize>, Option<usize>)> {
+    let measured = |i: usize, c: Option<usize>| c.filter(|&c| m.get(i, c).is_finite());
+    m.diagonal_neighbours()
         .into_iter()
-        .map(|(i, j)| {
-            let below = j.checked_sub(1).filter(|&b| near(i, b));
-            let above = Some(j + 1).filter(|&a| a < m.n_emission() && near(i, a));
-            (i, j, below, above)
-        })
+        .map(|(i, j, below, above)| (i, j, measured(i, below), measured(i, above)))
         .collect()
+}
+
+/// Whether row `i`, whose diagonal cell is in column `j`, holds no fluorescence above
+/// `noise_sigma` near the diagonal ([`QUIET_ROW_RMS_FACTOR`]). "Beyond the neighbour" is
+/// [`Measurement::cell_kind`]'s Stokes and anti-Stokes for a guard of the emission grid's
+/// local spacing on that side, so the neighbour is the column next to the diagonal cell on
+/// any pair of grids.
+fn quiet(m: &Measurement, i: usize, j: usize, noise_sigma: f64) -> bool {
+    let l = &m.emission_nm;
+    // The emission grid's spacing above and below the diagonal cell (0 at its ends, where
+    // that side has no cells).
+    let above = l.get(j + 1).map_or(0.0, |a| a - l[j]);
+    let below = j.checked_sub(1).map_or(0.0, |b| l[j] - l[b]);
+    // Σ v² and count of the nearest QUIET_WINDOW cells on each side.
+    let mut sides = [(0.0, 0usize); 2];
+    let stokes = (j + 1..l.len()).map(|c| (c, CellKind::Stokes, 0, above));
+    let anti_stokes = (0..j).rev().map(|c| (c, CellKind::AntiStokes, 1, below));
+    for (c, kind, side, guard) in stokes.chain(anti_stokes) {
+        if sides[side].1 < QUIET_WINDOW && m.cell_kind(i, c, guard) == kind {
+            let v = m.get(i, c);
+            sides[side].0 += v * v;
+            sides[side].1 += 1;
+        }
+    }
+    let within = |(sum, n): (f64, usize)| {
+        n == 0 || (sum / n as f64).sqrt() <= QUIET_ROW_RMS_FACTOR * noise_sigma
+    };
+    sides[0].1 >= QUIET_WINDOW && within(sides[0]) && within(sides[1])
 }
 
 /// Estimates the crosstalk of `m` (noise level `noise_sigma` in the file's units), with
@@ -67,32 +91,13 @@ pub fn estimate(
     if !m.has_diagonal || m.arbitrary_scale || !(noise_sigma.is_finite() && noise_sigma > 0.0) {
         return None;
     }
-    let step = m.default_guard_nm();
-    let rows = neighbours(m, step);
-    let quiet = |i: usize, j: usize| {
-        // Σ v² and count of the Stokes and the anti-Stokes cells beyond one step, the
-        // nearest QUIET_WINDOW on each side.
-        let mut sides = [(0.0, 0usize); 2];
-        let stokes = (j + 1..m.n_emission()).map(|c| (c, CellKind::Stokes, 0));
-        let anti_stokes = (0..j).rev().map(|c| (c, CellKind::AntiStokes, 1));
-        for (c, kind, side) in stokes.chain(anti_stokes) {
-            if sides[side].1 < QUIET_WINDOW && m.cell_kind(i, c, step) == kind {
-                let v = m.get(i, c);
-                sides[side].0 += v * v;
-                sides[side].1 += 1;
-            }
-        }
-        let within = |(sum, n): (f64, usize)| {
-            n == 0 || (sum / n as f64).sqrt() <= QUIET_ROW_RMS_FACTOR * noise_sigma
-        };
-        sides[0].1 >= QUIET_WINDOW && within(sides[0]) && within(sides[1])
-    };
+    let rows = neighbours(m);
     // Per side: Σ v·d, Σ d² and the rows that gave them.
     let mut sums = [(0.0, 0.0, 0usize); 2];
     let mut quiet_rows = 0;
     for &(i, j, below, above) in &rows {
         let d = m.get(i, j);
-        if !d.is_finite() || !quiet(i, j) {
+        if !d.is_finite() || !quiet(m, i, j, noise_sigma) {
             continue;
         }
         let mut used = false;
@@ -195,7 +200,7 @@ pub fn remove(m: &Measurement, crosstalk: &CrosstalkCorrection) -> Measurement {
         Units::PerBin => 1.0,
         Units::PerNm => widths[j],
     };
-    for (i, j, below, above) in neighbours(m, m.default_guard_nm()) {
+    for (i, j, below, above) in neighbours(m) {
         let d = m.get(i, j);
         if !d.is_finite() {
             continue;
@@ -242,9 +247,8 @@ mod tests {
             let (without, _) = clean.generate().unwrap();
             let removed = remove(&m, &c);
             // Every neighbour of a measured diagonal cell is as without crosstalk, to the
-            // estimate's error times the diagonal (rows without a diagonal cell, such as
-            // 370 nm on a grid whose emission starts at 380 nm, have nothing to scale).
-            for (i, j, below, above) in neighbours(&m, m.default_guard_nm()) {
+            // estimate's error times the diagonal.
+            for (i, j, below, above) in neighbours(&m) {
                 let d = m.get(i, j);
                 for column in [below, above].into_iter().flatten() {
                     let (got, want) = (removed.get(i, column), without.get(i, column));
@@ -305,6 +309,70 @@ mod tests {
                 "no row with a weak Stokes tail"
             );
             assert_eq!(estimate(&m, sigma, &Light::standard()), None, "seed {seed}");
+        }
+    }
+
+    /// Grids whose steps differ (5 nm excitation and 10 nm emission, and the reverse), and
+    /// an emission grid whose step changes (10 nm, then 20 nm above 600 nm): the crosstalk
+    /// the synthesiser writes next to each diagonal cell is found within 4 standard errors
+    /// and taken out of exactly those cells. (The uneven grid carries the brightener: the
+    /// red pigment's row at 600 nm holds fluorescence in its 20 nm neighbour above, 4 % of
+    /// the crosstalk, that the four cells beyond it do not show above 2 σ.)
+    #[test]
+    fn crosstalk_is_found_on_grids_of_different_steps() {
+        use crate::spectrum::uniform_grid;
+        let fraction = 0.03;
+        let mut uneven = uniform_grid(380.0, 600.0, 10.0);
+        uneven.extend(uniform_grid(620.0, 780.0, 20.0));
+        let (ten, five) = (
+            uniform_grid(300.0, 780.0, 10.0),
+            uniform_grid(300.0, 780.0, 5.0),
+        );
+        for (preset, excitation, emission) in [
+            (
+                "red-pigment",
+                five.clone(),
+                uniform_grid(380.0, 780.0, 10.0),
+            ),
+            ("red-pigment", ten.clone(), uniform_grid(380.0, 780.0, 5.0)),
+            ("brightener", ten, uneven),
+        ] {
+            let mut spec = SynthSpec::preset(preset).unwrap();
+            spec.excitation_nm = excitation;
+            spec.emission_nm = emission;
+            spec.crosstalk = fraction;
+            spec.noise_sigma = 5e-4;
+            let (m, truth) = spec.generate().unwrap();
+            let grid = format!("{preset}, {} × {} cells", m.n_excitation(), m.n_emission());
+            let c = estimate(&m, spec.noise_sigma, &Light::standard()).expect("visible crosstalk");
+            for (got, error) in [(c.below, c.below_error), (-c.above, c.above_error)] {
+                assert!(
+                    error > 0.0 && (got - fraction).abs() <= 4.0 * error,
+                    "{grid}: {got} against {fraction} (± {error})"
+                );
+            }
+            let mut clean = spec.clone();
+            clean.crosstalk = 0.0;
+            let (without, _) = clean.generate().unwrap();
+            let removed = remove(&m, &c);
+            let allowed = 4.0 * (c.below_error + c.above_error);
+            // The fraction is applied to the measured diagonal cell: its noise and the
+            // fluorescence it holds beside the reflectance (which the synthesiser's
+            // crosstalk leaves alone), times the fraction, move the cells too.
+            for (i, j) in m.diagonal() {
+                let d = m.get(i, j);
+                let fluorescence = without.get(i, j) - truth.diagonal(m.excitation_nm[i]);
+                let noise = fraction * (4.0 * spec.noise_sigma + fluorescence.abs());
+                for column in 0..m.n_emission() {
+                    let (got, want) = (removed.get(i, column), without.get(i, column));
+                    if column != j {
+                        assert!(
+                            (got - want).abs() <= allowed * d + noise,
+                            "{grid} ({i}, {column}): {got} against {want}"
+                        );
+                    }
+                }
+            }
         }
     }
 

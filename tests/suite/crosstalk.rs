@@ -20,15 +20,9 @@ fn plain_spec(sigma: f64) -> SynthSpec {
 /// moved from each diagonal cell into each of its measured emission neighbours (j ± 1),
 /// so each row keeps its energy and the diagonal alone reads low.
 fn spread_to_neighbours(m: &mut Measurement, truth: &Material, fraction: f64) {
-    for (i, j) in m.diagonal() {
+    for (i, j, below, above) in m.diagonal_neighbours() {
         let r = truth.diagonal(m.excitation_nm[i]);
-        for c in [
-            j.checked_sub(1),
-            Some(j + 1).filter(|&c| c < m.n_emission()),
-        ]
-        .into_iter()
-        .flatten()
-        {
+        for c in [below, above].into_iter().flatten() {
             if m.get(i, c).is_finite() {
                 *m.get_mut(i, c) += fraction * r;
                 *m.get_mut(i, j) -= fraction * r;
