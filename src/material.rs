@@ -350,8 +350,9 @@ pub struct FitReport {
 }
 
 /// Crosstalk next to the diagonal: per side, the fraction of the diagonal found one step
-/// off it in the rows without fluorescence (file units: per bin, or per nm), and whether
-/// the fit used the cells without it.
+/// off it in the rows without fluorescence, and whether the fit used the cells without it.
+/// In a per-nm file (`units`) the off-diagonal cells are densities per nm of emission
+/// while the diagonal is a plain reflectance factor, so the fractions are per nm.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct CrosstalkCorrection {
     /// Fraction one step below the diagonal (λo = λi − step); 0 where not significant.
@@ -375,6 +376,14 @@ pub struct CrosstalkCorrection {
     /// Why it was kept as measured, when it was.
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub note: String,
+    /// The file's units: per bin (fractions of the diagonal) or per nm (fractions of the
+    /// diagonal per nm of emission). Written only for per-nm files.
+    #[serde(default, skip_serializing_if = "is_per_bin")]
+    pub units: crate::measurement::Units,
+}
+
+fn is_per_bin(units: &crate::measurement::Units) -> bool {
+    *units == crate::measurement::Units::PerBin
 }
 
 impl FitReport {

@@ -139,6 +139,7 @@ pub fn estimate(
         above_error,
         quiet_rows,
         removed: true,
+        units: m.units,
         ..CrosstalkCorrection::default()
     };
     let (raw, clean) = (m.to_per_bin(), remove(m, &correction).to_per_bin());
@@ -155,7 +156,8 @@ pub fn estimate(
     Some(correction)
 }
 
-/// One line for the summary: what was found and what the fit did with it.
+/// One line for the summary: what was found and what the fit did with it, in the file's
+/// units (% of the diagonal, or % of the diagonal per nm for per-nm files).
 pub fn describe(c: &CrosstalkCorrection) -> String {
     let worth = c
         .delta_e2000
@@ -164,10 +166,15 @@ pub fn describe(c: &CrosstalkCorrection) -> String {
         .collect::<Vec<_>>()
         .join(", ");
     // A side measured in too few quiet rows has fraction and error 0.
+    // Per-nm cells are densities: their fraction of the (unitless) diagonal is per nm.
+    let (per, digits) = match c.units {
+        Units::PerBin => ("", 2),
+        Units::PerNm => (" per nm", 3),
+    };
     let side = |f: f64, error: f64, where_: &str| {
         if error > 0.0 {
             format!(
-                "{:+.2} % of the diagonal one step {where_} it (± {:.2} %)",
+                "{:+.digits$} % of the diagonal{per} one step {where_} it (± {:.digits$} %{per})",
                 100.0 * f,
                 100.0 * error
             )
@@ -374,6 +381,54 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A per-nm file (the synthesiser's per-bin matrix with its off-diagonal cells divided
+    /// by the 10 nm bin): the crosstalk is a tenth of the written fraction per nm, and the
+    /// summary says so.
+    #[test]
+    fn per_nm_crosstalk_is_per_nm_and_says_so() {
+        let fraction = 0.03;
+        let mut spec = SynthSpec::preset("red-pigment").unwrap();
+        spec.crosstalk = fraction;
+        spec.noise_sigma = 5e-4;
+        let (per_bin, _) = spec.generate().unwrap();
+        let mut m = per_bin.clone();
+        m.units = Units::PerNm;
+        let diagonal = m.diagonal();
+        let widths = m.emission_bin_widths();
+        for i in 0..m.n_excitation() {
+            for (j, w) in widths.iter().enumerate() {
+                if !diagonal.contains(&(i, j)) {
+                    *m.get_mut(i, j) /= w;
+                }
+            }
+        }
+        // The noise is per bin as written, so per nm a tenth of it.
+        let c = estimate(&m, spec.noise_sigma / 10.0, &Light::standard()).expect("found");
+        let want = fraction / 10.0;
+        for (got, error) in [(c.below, c.below_error), (-c.above, c.above_error)] {
+            assert!(
+                (got - want).abs() <= 4.0 * error + 0.02 * want,
+                "{got} against {want} (± {error})"
+            );
+        }
+        let line = describe(&c);
+        assert!(
+            line.contains("% of the diagonal per nm one step below it"),
+            "{line}"
+        );
+        assert!(
+            line.contains(&format!("{:+.3} % of", 100.0 * c.below)),
+            "{line}"
+        );
+        // Per bin the same crosstalk is the written fraction, without "per nm".
+        let c = estimate(&per_bin, spec.noise_sigma, &Light::standard()).expect("found");
+        let line = describe(&c);
+        assert!(
+            line.contains("% of the diagonal one step below it") && !line.contains("per nm"),
+            "{line}"
+        );
     }
 
     #[test]
