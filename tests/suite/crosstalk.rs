@@ -101,3 +101,25 @@ fn assert_reflectance_is_the_truths(
         );
     }
 }
+
+/// A material file whose `crosstalk` block gives only the fractions (written by hand, or by
+/// a version before the others) loads: the rest take their defaults, the cells count as
+/// measured (`removed` false).
+#[test]
+fn a_crosstalk_block_with_only_the_fractions_loads() {
+    let mut spec = SynthSpec::preset("red-pigment").unwrap();
+    spec.crosstalk = 0.03;
+    let (m, _) = spec.generate().unwrap();
+    let material = fitted(&m);
+    let mut json: serde_json::Value = serde_json::from_str(&material.to_json()).unwrap();
+    json["fit"]["crosstalk"] = serde_json::json!({"below": 0.04, "above": -0.03});
+    let path = std::path::Path::new("partial-crosstalk.json");
+    let loaded = Material::from_json(&json.to_string(), path).unwrap();
+    let found = loaded.fit.unwrap().crosstalk.unwrap();
+    assert_eq!((found.below, found.above), (0.04, -0.03));
+    assert_eq!(
+        (found.below_error, found.above_error, found.quiet_rows),
+        (0.0, 0.0, 0)
+    );
+    assert!(!found.removed && found.note.is_empty() && found.delta_e2000.is_empty());
+}
