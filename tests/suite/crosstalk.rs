@@ -3,8 +3,10 @@
 //! true reflectance), never against the code's own output.
 
 use fluorite::Material;
+use fluorite::colour::Light;
+use fluorite::fit::crosstalk::{estimate, remove};
 use fluorite::fit::{FitOptions, FitOutcome, fit};
-use fluorite::measurement::Measurement;
+use fluorite::measurement::{Measurement, Units};
 use fluorite::synth::SynthSpec;
 
 /// A dye-free spec (the `plain` preset) at noise `sigma`, without the synthesiser's
@@ -122,4 +124,123 @@ fn a_crosstalk_block_with_only_the_fractions_loads() {
         (0.0, 0.0, 0)
     );
     assert!(!found.removed && found.note.is_empty() && found.delta_e2000.is_empty());
+}
+
+/// `m` (per bin, on a 10 nm grid) as a per-nm file, as an instrument of a constant
+/// 10 nm bandpass writes it: its off-diagonal cells divided by 10 nm.
+fn per_nm(m: &Measurement) -> Measurement {
+    let mut out = m.clone();
+    out.units = Units::PerNm;
+    let diagonal = m.diagonal();
+    for i in 0..m.n_excitation() {
+        for j in 0..m.n_emission() {
+            if !diagonal.contains(&(i, j)) {
+                *out.get_mut(i, j) /= 10.0;
+            }
+        }
+    }
+    out
+}
+
+/// Net energy is conserved by the removal, per bin and per nm (where a cell's energy is
+/// its value times its bin width), with a fifth of the cells missing: each diagonal cell
+/// after is the one before plus what was taken out of its measured neighbours, and
+/// nothing for a missing one (which stays missing); every measured neighbour is the
+/// synthetic matrix without crosstalk, to the estimate's error.
+#[test]
+fn the_removal_gives_back_to_the_diagonal_what_it_took_from_measured_neighbours() {
+    let fraction = 0.03;
+    let mut spec = SynthSpec::preset("red-pigment").unwrap();
+    spec.crosstalk = fraction;
+    spec.noise_sigma = 5e-4;
+    spec.missing_fraction = 0.2;
+    let (written, truth) = spec.generate().unwrap();
+    let mut clean = spec.clone();
+    clean.crosstalk = 0.0;
+    let (without_per_bin, _) = clean.generate().unwrap();
+    for (m, without, sigma) in [
+        (written.clone(), without_per_bin.clone(), spec.noise_sigma),
+        (
+            per_nm(&written),
+            per_nm(&without_per_bin),
+            spec.noise_sigma / 10.0,
+        ),
+    ] {
+        let units = m.units;
+        let found = estimate(&m, sigma, &Light::standard()).expect("crosstalk found");
+        let removed = remove(&m, &found);
+        let widths = m.emission_bin_widths();
+        let weight = |c: usize| match units {
+            Units::PerBin => 1.0,
+            Units::PerNm => widths[c],
+        };
+        let (mut missing, mut checked) = (0, 0);
+        for (i, j, below, above) in m.diagonal_neighbours() {
+            let d = m.get(i, j);
+            if !d.is_finite() {
+                continue;
+            }
+            let mut given = 0.0;
+            for c in [below, above].into_iter().flatten() {
+                let (before, after) = (m.get(i, c), removed.get(i, c));
+                if before.is_finite() {
+                    given += (before - after) * weight(c);
+                    // The fraction scales the measured diagonal cell, which holds noise
+                    // and fluorescence beside the reflectance the crosstalk came from.
+                    let beside = (without.get(i, j) - truth.diagonal(m.excitation_nm[i])).abs();
+                    let allowed = 4.0 * (found.below_error + found.above_error) * d
+                        + (fraction / weight(c)) * (4.0 * spec.noise_sigma + beside);
+                    assert!(
+                        (after - without.get(i, c)).abs() <= allowed,
+                        "{units:?} ({i}, {c}): {after} against {}",
+                        without.get(i, c)
+                    );
+                    checked += 1;
+                } else {
+                    assert!(after.is_nan(), "{units:?} ({i}, {c}) stays missing");
+                    missing += 1;
+                }
+            }
+            let after = removed.get(i, j);
+            assert!(
+                (after - (d + given)).abs() <= 1e-12 * d.abs().max(1.0),
+                "{units:?} diagonal ({i}, {j}): {after} against {d} + {given}"
+            );
+        }
+        assert!(
+            missing > 5 && checked > 40,
+            "{units:?}: {missing} missing, {checked} measured"
+        );
+    }
+}
+
+/// A dye-free per-nm matrix with a bandpass wider than the step: its energy is given back
+/// by bin width (a cell per nm holds a tenth of its 10 nm bin's energy), so the plain
+/// reflector's reflectance is the truth's; weighed as per bin it would be 5 % low. (The
+/// rows next to the grid's ends, 390 and 770 nm, are left out: the trapezoid gives the
+/// end columns half a bin, so half of their crosstalk's energy comes back there.)
+#[test]
+fn a_per_nm_plain_reflector_gets_the_crosstalk_energy_back_by_bin_width() {
+    let sigma = 6e-4;
+    let fraction = 0.03;
+    let (mut m, truth) = plain_spec(sigma).generate().unwrap();
+    spread_to_neighbours(&mut m, &truth, fraction);
+    let mut material = fitted(&per_nm(&m));
+    assert!(material.fluorophores.is_empty(), "a plain reflector");
+    let found = material
+        .fit
+        .as_ref()
+        .unwrap()
+        .crosstalk
+        .clone()
+        .expect("reported");
+    assert!(found.removed, "{found:?}");
+    assert_eq!(found.units, Units::PerNm);
+    let interior = |nm: &f64| (395.0..=765.0).contains(nm);
+    let r = &mut material.reflectance;
+    let keep: Vec<bool> = r.wavelength_nm.iter().map(interior).collect();
+    let mut k = keep.iter();
+    r.value.retain(|_| *k.next().unwrap());
+    r.wavelength_nm.retain(interior);
+    assert_reflectance_is_the_truths(&material, &truth, sigma, &found);
 }
