@@ -350,19 +350,30 @@ pub struct FitReport {
 }
 
 /// Crosstalk next to the diagonal: per side, the fraction of the diagonal found one step
-/// off it in the rows without fluorescence (file units: per bin, or per nm), and whether
-/// the fit used the cells without it.
+/// off it in the rows without fluorescence, and whether the fit used the cells without it.
+/// In a per-nm file (`units`) the off-diagonal cells are densities per nm of emission
+/// while the diagonal is a plain reflectance factor, so the fractions are per nm.
+///
+/// Every field has a default, so a block written by hand or by an older version loads
+/// with what it gives: missing fractions and errors are 0, and `removed` is false (the
+/// cells are then fitted as measured, [`crate::fit::data::FitData::as_fitted`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct CrosstalkCorrection {
     /// Fraction one step below the diagonal (λo = λi − step); 0 where not significant.
+    #[serde(default)]
     pub below: f64,
     /// Fraction one step above the diagonal (λo = λi + step); 0 where not significant.
+    #[serde(default)]
     pub above: f64,
-    /// Standard error of `below` (noise σ over the quiet rows' diagonal).
+    /// Standard error of `below` (noise σ over the quiet rows' diagonal); 0 where too few
+    /// rows without fluorescence measured that side.
+    #[serde(default)]
     pub below_error: f64,
     /// Standard error of `above`.
+    #[serde(default)]
     pub above_error: f64,
     /// Rows without fluorescence the estimate used.
+    #[serde(default)]
     pub quiet_rows: usize,
     /// Per light, ΔE2000 between the measured patch with and without the crosstalk: what
     /// it is worth in the colour every reported ΔE2000 is measured against.
@@ -370,10 +381,19 @@ pub struct CrosstalkCorrection {
     pub delta_e2000: BTreeMap<String, f64>,
     /// True when the fit's cells were taken without it (its net energy given back to the
     /// diagonal); false when it was kept as measured (`note` says why).
+    #[serde(default)]
     pub removed: bool,
     /// Why it was kept as measured, when it was.
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub note: String,
+    /// The file's units: per bin (fractions of the diagonal) or per nm (fractions of the
+    /// diagonal per nm of emission). Written only for per-nm files.
+    #[serde(default, skip_serializing_if = "is_per_bin")]
+    pub units: crate::measurement::Units,
+}
+
+fn is_per_bin(units: &crate::measurement::Units) -> bool {
+    *units == crate::measurement::Units::PerBin
 }
 
 impl FitReport {

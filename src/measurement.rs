@@ -195,6 +195,21 @@ impl Measurement {
             .collect()
     }
 
+    /// The emission columns next to each diagonal cell: `(row, diagonal column, column
+    /// below, column above)`, the columns j − 1 and j + 1 where the emission grid has
+    /// them, measured or not. Crosstalk next to the diagonal sits there whatever the two
+    /// grids' steps (one excitation step need not be one emission step, nor the same
+    /// across the grid): the fit's crosstalk removal and the synthesiser both use this.
+    pub fn diagonal_neighbours(&self) -> Vec<(usize, usize, Option<usize>, Option<usize>)> {
+        self.diagonal()
+            .into_iter()
+            .map(|(i, j)| {
+                let above = Some(j + 1).filter(|&a| a < self.n_emission());
+                (i, j, j.checked_sub(1), above)
+            })
+            .collect()
+    }
+
     /// Classifies cell (`i`, `j`) for a guard band of `guard_nm` around the diagonal.
     /// Without a diagonal (solution EEMs) no cell is `Diagonal`, but the guard band
     /// still excludes the scatter next to λo = λi.

@@ -100,8 +100,9 @@ pub struct SynthSpec {
     pub noise_sigma: f64,
     /// Crosstalk as the real BFC-450 files show it (model.md §5): a small wavelength
     /// offset between the monochromators moves this fraction of each row's diagonal
-    /// reflectance from the cell one grid step above the diagonal (λo > λi) to the cell
-    /// one step below it. It sums to zero, so the row keeps its energy. Real files:
+    /// reflectance from the emission column above the diagonal cell (j + 1) to the one
+    /// below it (j − 1). It sums to zero, so the row keeps its energy (except at the
+    /// grid's ends, where one of the two lies outside it). Real files:
     /// about 0.001 (CIBA12, HERPICER, the post-its) to 0.04 (POLGREE, TEXTYELL).
     pub crosstalk: f64,
     /// Fraction of off-diagonal cells left unmeasured (NaN).
@@ -367,18 +368,22 @@ impl SynthSpec {
             Units::PerBin,
             true,
         );
+        // + one emission column below the diagonal, − one above: an offset, no energy.
+        for i in 0..m.n_excitation() {
+            let moved = self.crosstalk * truth.diagonal(self.excitation_nm[i]);
+            let (below, above) = crosstalk_columns(&m, i);
+            if let Some(c) = below {
+                *m.get_mut(i, c) += moved;
+            }
+            if let Some(c) = above {
+                *m.get_mut(i, c) -= moved;
+            }
+        }
         let mut rng = SplitMix64::new(self.seed);
-        let step = m.default_guard_nm();
         for i in 0..m.n_excitation() {
             for j in 0..m.n_emission() {
-                let signed = self.emission_nm[j] - self.excitation_nm[i];
-                let offset = signed.abs();
+                let offset = (self.emission_nm[j] - self.excitation_nm[i]).abs();
                 let value = m.get_mut(i, j);
-                if offset > 1e-6 && offset <= step + 1e-6 {
-                    // + one step below the diagonal, − one step above: an offset, no energy.
-                    let sign = if signed < 0.0 { 1.0 } else { -1.0 };
-                    *value += sign * self.crosstalk * truth.diagonal(self.excitation_nm[i]);
-                }
                 *value += self.noise_sigma * rng.normal();
                 if offset > 1e-6 && rng.uniform() < self.missing_fraction {
                     *value = f64::NAN;
@@ -387,6 +392,32 @@ impl SynthSpec {
         }
         Ok((m, truth))
     }
+}
+
+/// The emission columns of row `i` of `m` that the synthesiser's crosstalk goes to: those
+/// next to its diagonal cell ([`Measurement::diagonal_neighbours`], j ∓ 1, as the fit
+/// removes it), or, in a row without a diagonal cell (an excitation wavelength off the
+/// emission grid), the columns on either side of its wavelength within one emission step
+/// of it (the grid's spacing there, or at its end).
+fn crosstalk_columns(m: &Measurement, i: usize) -> (Option<usize>, Option<usize>) {
+    let l = &m.emission_nm;
+    let x = m.excitation_nm[i];
+    if let Some(j) = crate::spectrum::find_wavelength(l, x) {
+        return (j.checked_sub(1), Some(j + 1).filter(|&a| a < l.len()));
+    }
+    let above = l.iter().position(|&v| v > x);
+    let below = match above {
+        Some(a) => a.checked_sub(1),
+        None => Some(l.len() - 1),
+    };
+    let spacing = match (below, above) {
+        (Some(b), Some(a)) => l[a] - l[b],
+        _ if l.len() < 2 => 0.0,
+        (None, _) => l[1] - l[0],
+        (_, None) => l[l.len() - 1] - l[l.len() - 2],
+    };
+    let near = |c: usize| (l[c] - x).abs() <= spacing + 1e-6;
+    (below.filter(|&c| near(c)), above.filter(|&c| near(c)))
 }
 
 impl SynthSpec {

@@ -270,6 +270,12 @@ pub(super) fn flag_clamped(
     }
 }
 
+/// The plain reflector (c = 0) of `data`'s diagonal. Where the crosstalk next to the
+/// diagonal was taken out of `data` ([`FitData::with_crosstalk`]) its net energy is in
+/// that diagonal, as for a fluorescent fit: the crosstalk is the reflected sample's light
+/// whatever the material, so keeping it out would lower the same matrix's reflectance by
+/// its net share only because no fluorescence was found, and leave that energy missing
+/// from the colour. The report's `crosstalk` is `data`'s.
 pub(super) fn plain_reflector(
     m: &Measurement,
     data: &FitData,
@@ -313,6 +319,7 @@ pub(super) fn plain_reflector(
         gauge: "no fluorescence: c = 0".into(),
         noise_sigma,
         guard_signal_fraction: guard_fraction(data),
+        crosstalk: data.crosstalk.clone(),
         ..data::provenance(m)
     };
     material.fit = Some(report);

@@ -43,6 +43,7 @@ pub mod representation;
 pub mod search;
 pub mod series;
 pub mod solve;
+mod start;
 mod tabulated;
 
 use std::time::Instant;

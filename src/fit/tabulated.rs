@@ -3,6 +3,7 @@
 //! outcome of matrices without a calibrated diagonal.
 
 use super::grid_material::*;
+use super::start::{flat_start, start_spectra};
 use super::*;
 use crate::material::CrosstalkCorrection;
 
@@ -149,32 +150,87 @@ pub(super) fn fit_checked(
     m.validate()?;
     let guard_nm = options.guard_nm.unwrap_or(0.0);
     let sigma = FitData::new(m, guard_nm).noise_sigma();
-    let Some(found) = super::crosstalk::estimate(m, sigma, &options.lights) else {
-        return fit_cells(m, options, bootstrap, record_noise, None);
-    };
     let started = Instant::now();
-    let cleaned = match fit_cells(m, options, bootstrap, record_noise, Some(&found))? {
-        FitOutcome::Material(material) => material,
-        // Shapes (no diagonal, arbitrary scale) carry no crosstalk estimate.
-        shapes => return Ok(shapes),
+    let kept = match super::crosstalk::estimate(m, sigma, &options.lights) {
+        None => fit_cells(m, options, record_noise, None)?,
+        Some(found) => match fit_cells(m, options, record_noise, Some(&found)) {
+            Ok(cleaned) => keep_cleaned_or_not(m, options, record_noise, &found, sigma, cleaned),
+            // The cells as measured are what a fit without the removal would have used: an
+            // error in the cleaned fit is no reason to fail.
+            Err(e) => {
+                let mut as_measured = fit_cells(m, options, record_noise, None)?;
+                if let (FitOutcome::Material(material), _) = &mut as_measured {
+                    let report = material
+                        .fit
+                        .as_mut()
+                        .expect("fitted materials carry a report");
+                    report.crosstalk = Some(CrosstalkCorrection {
+                        removed: false,
+                        note: format!("the fit without it failed ({e}); fitted as measured"),
+                        ..found
+                    });
+                }
+                as_measured
+            }
+        },
+    };
+    // The noise bootstrap (its refits cost many fits) for the kept fit only.
+    Ok(match kept {
+        (FitOutcome::Material(mut material), Some(at)) if bootstrap => {
+            let mut warnings = Vec::new();
+            noise_colour_check(m, &material, options, &mut warnings);
+            let fit = material
+                .fit
+                .as_mut()
+                .expect("fitted materials carry a report");
+            for (k, w) in warnings.into_iter().enumerate() {
+                fit.warnings.insert((at + k).min(fit.warnings.len()), w);
+            }
+            fit.seconds = started.elapsed().as_secs_f64();
+            FitOutcome::Material(material)
+        }
+        (outcome, _) => outcome,
+    })
+}
+
+/// A fit's outcome and, for a fitted material, where among its warnings the noise
+/// bootstrap's belongs (the bootstrap runs after [`fit_cells`], for the fit kept).
+type CellsFit = (FitOutcome, Option<usize>);
+
+/// [`fit_checked`]'s choice where crosstalk was found: the fit of the cells less `found`
+/// (`cleaned`), unless it misses its own cells' colour and the fit of the cells as
+/// measured comes closer by more than the crosstalk is worth (see [`fit_checked`]).
+fn keep_cleaned_or_not(
+    m: &Measurement,
+    options: &FitOptions,
+    record_noise: bool,
+    found: &CrosstalkCorrection,
+    sigma: f64,
+    cleaned: CellsFit,
+) -> CellsFit {
+    let started = Instant::now();
+    // Shapes (no diagonal, arbitrary scale) carry no crosstalk estimate.
+    let FitOutcome::Material(material) = &cleaned.0 else {
+        return cleaned;
     };
     // Within the bound of its own cells' colour the cleaned fit is kept without fitting
     // the cells as measured: the common case costs one fit.
     let misses = super::crosstalk_check::own_colour_misses(
         m,
-        &cleaned,
-        &found,
+        material,
+        found,
         &options.lights,
         sigma,
-        guard_nm,
+        options.guard_nm.unwrap_or(0.0),
         CROSSTALK_OWN_COLOUR_BOUND,
     );
     if misses.is_empty() {
-        return Ok(FitOutcome::Material(cleaned));
+        return cleaned;
     }
-    let mut as_measured = match fit_cells(m, options, bootstrap, record_noise, None)? {
-        FitOutcome::Material(material) => material,
-        FitOutcome::Shapes(_) => return Ok(FitOutcome::Material(cleaned)),
+    // The cleaned fit stands where the cells as measured cannot be fitted.
+    let Ok((FitOutcome::Material(mut as_measured), at)) = fit_cells(m, options, record_noise, None)
+    else {
+        return cleaned;
     };
     let measured_de = as_measured
         .fit
@@ -187,7 +243,7 @@ pub(super) fn fit_checked(
         *de > before + worth
     });
     let Some((light, de)) = moved else {
-        return Ok(FitOutcome::Material(cleaned));
+        return cleaned;
     };
     let report = as_measured
         .fit
@@ -200,20 +256,21 @@ pub(super) fn fit_checked(
             measured_de.get(light).copied().unwrap_or(f64::NAN),
             found.delta_e2000.get(light).copied().unwrap_or(0.0)
         ),
-        ..found
+        ..found.clone()
     });
-    report.seconds = started.elapsed().as_secs_f64();
-    Ok(FitOutcome::Material(as_measured))
+    report.seconds += started.elapsed().as_secs_f64();
+    (FitOutcome::Material(as_measured), at)
 }
 
-/// The grid fit of `m`'s cells, less `crosstalk` when given (see [`fit_checked`]).
+/// The grid fit of `m`'s cells, less `crosstalk` when given (see [`fit_checked`]), and
+/// for a fitted material with a diagonal the index among its warnings where the noise
+/// bootstrap's belongs (the caller runs it for the fit it keeps).
 fn fit_cells(
     m: &Measurement,
     options: &FitOptions,
-    bootstrap: bool,
     record_noise: bool,
     crosstalk: Option<&CrosstalkCorrection>,
-) -> Result<FitOutcome> {
+) -> Result<CellsFit> {
     let started = Instant::now();
     validate_options(options)?;
     m.validate()?;
@@ -304,7 +361,7 @@ fn fit_cells(
                 "the fluorescence is below the noise cell by cell (a rank-1 fit explains {explained:.3e}, noise alone up to {noise_floor:.3e}), but a plain reflector misses the measured colour by ΔE2000 {worst:.2} under {light}, beyond {:.2} (the bound, or what the colour's noise explains): fitted as fluorescent",
                 bounds.get(&light).copied().unwrap_or(bound)
             )),
-            None => return Ok(plain),
+            None => return Ok((plain, None)),
         }
     }
 
@@ -473,7 +530,9 @@ fn fit_cells(
         gauge: String::new(),
         noise_sigma: noise_sigma * data_scale,
         guard_signal_fraction: guard_fraction(&data),
-        crosstalk: crosstalk.cloned(),
+        // The cells' own record of what was taken out of them: the one source of the
+        // report's crosstalk (the plain reflector's report reads it too).
+        crosstalk: data.crosstalk.clone(),
         cost_history,
         model: "tabulated".into(),
         yield_choice: yield_reason,
@@ -492,8 +551,11 @@ fn fit_cells(
         ));
     }
     if !m.has_diagonal || m.arbitrary_scale {
-        return Ok(shapes(
-            m, &data, &objective, &spectra, report, data_scale, warnings, started,
+        return Ok((
+            shapes(
+                m, &data, &objective, &spectra, report, data_scale, warnings, started,
+            ),
+            None,
         ));
     }
     let mut material = build_material(
@@ -508,9 +570,7 @@ fn fit_cells(
 
     // 4. Assessment.
     let accuracy = assess::accuracy(&material, m, &data, &options.lights);
-    if bootstrap {
-        noise_colour_check(m, &material, noise_sigma, options, &mut warnings);
-    }
+    let bootstrap_at = warnings.len();
     if accuracy.leaves_structure(noise_sigma, m) {
         warnings.push(format!(
             "off-diagonal residual RMS {:.2e} is {:.1}× the noise level σ = {:.2e} (anti-Stokes side): {}",
@@ -556,7 +616,7 @@ fn fit_cells(
             &colour_reference,
         );
     }
-    Ok(FitOutcome::Material(Box::new(material)))
+    Ok((FitOutcome::Material(Box::new(material)), Some(bootstrap_at)))
 }
 
 /// [`super::record_colour_noise`] on the fit's own cells `data` (of `m` itself, unscaled):
@@ -616,10 +676,10 @@ const BOOTSTRAP_SIGNAL_RATIO: f64 = 100.0;
 fn noise_colour_check(
     m: &Measurement,
     material: &Material,
-    noise_sigma: f64,
     options: &FitOptions,
     warnings: &mut Vec<String>,
 ) {
+    let noise_sigma = material.fit.as_ref().map_or(f64::NAN, |f| f.noise_sigma);
     if noise_sigma.is_nan() || noise_sigma <= 0.0 || options.lights.is_empty() {
         return;
     }
@@ -707,72 +767,5 @@ fn arbitrary_data_scale(m: &Measurement, guard_nm: f64) -> f64 {
         kappa / 0.5
     } else {
         1.0
-    }
-}
-
-/// The start: grid spectra projected onto the feasible set (κ ≤ 1), and the κ the
-/// unconstrained rank-1 estimate would need.
-struct StartEstimate {
-    spectra: GridSpectra,
-    kappa_unbounded: f64,
-}
-
-/// Grid spectra from the rank-1 start, projected onto the feasible set (κ ≤ 1). The
-/// rank-1 row is s·a_i·x_i: in the photon form a_i ∝ row_i/λ_i.
-fn start_spectra(objective: &Objective<'_>, start: &init::RankOne) -> StartEstimate {
-    let row: Vec<f64> = start
-        .row
-        .iter()
-        .enumerate()
-        .map(|(i, u)| u / objective.row_factor(i))
-        .collect();
-    let peak = row.iter().cloned().fold(0.0, f64::max);
-    let absorption: Vec<f64> = row
-        .iter()
-        .map(|u| if peak > 0.0 { u / peak } else { 0.0 })
-        .collect();
-    let normaliser: f64 = start
-        .column
-        .iter()
-        .zip(&objective.data.emission_weight)
-        .map(|(v, w)| v * w)
-        .sum();
-    let emission: Vec<f64> = start
-        .column
-        .iter()
-        .map(|v| {
-            if normaliser > 0.0 {
-                v / normaliser
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    let mut sp = GridSpectra {
-        kappa: 0.0,
-        absorption,
-        emission,
-    };
-    let d = objective.derived(&sp);
-    // F = u·v = peak·normaliser · a·x·(v/normaliser) = s·a·x·v with s = κ/(κ/s) and S = 1.
-    let kappa = peak * normaliser * d.kappa_per_scale;
-    // Start strictly inside: with κ = sin²t the bound κ = 1 is a stationary point
-    // (dκ/dt = 0), where a start exactly on it would stay although the optimum lies inside.
-    sp.kappa = kappa.min(START_KAPPA_CAP);
-    StartEstimate {
-        spectra: sp,
-        kappa_unbounded: kappa,
-    }
-}
-
-/// The flat start of [`Start::Flat`]: a = ½, e at the mean level of the estimate's
-/// emission, κ as estimated (so only the spectral shapes are withheld).
-fn flat_start(estimate: &GridSpectra) -> GridSpectra {
-    let n = estimate.emission.len().max(1) as f64;
-    let level = estimate.emission.iter().sum::<f64>() / n;
-    GridSpectra {
-        kappa: estimate.kappa,
-        absorption: vec![0.5; estimate.absorption.len()],
-        emission: vec![level; estimate.emission.len()],
     }
 }

@@ -14,6 +14,7 @@ mod cli_usage;
 mod colour_noise;
 mod colour_reference;
 mod conservation;
+mod crosstalk;
 mod default_fit;
 mod doc_examples;
 mod eem_instrument;

@@ -1,0 +1,246 @@
+//! Crosstalk next to the diagonal (`fit::crosstalk`): what the fit finds and removes,
+//! asserted against the synthetic truth (the fraction the matrix was written with, the
+//! true reflectance), never against the code's own output.
+
+use fluorite::Material;
+use fluorite::colour::Light;
+use fluorite::fit::crosstalk::{estimate, remove};
+use fluorite::fit::{FitOptions, FitOutcome, fit};
+use fluorite::measurement::{Measurement, Units};
+use fluorite::synth::SynthSpec;
+
+/// A dye-free spec (the `plain` preset) at noise `sigma`, without the synthesiser's
+/// crosstalk.
+fn plain_spec(sigma: f64) -> SynthSpec {
+    let mut spec = SynthSpec::preset("plain").unwrap();
+    spec.noise_sigma = sigma;
+    spec.crosstalk = 0.0;
+    spec
+}
+
+/// `m` with a bandpass wider than the step: `fraction` of the true reflectance `truth`
+/// moved from each diagonal cell into each of its measured emission neighbours (j ± 1),
+/// so each row keeps its energy and the diagonal alone reads low.
+fn spread_to_neighbours(m: &mut Measurement, truth: &Material, fraction: f64) {
+    for (i, j, below, above) in m.diagonal_neighbours() {
+        let r = truth.diagonal(m.excitation_nm[i]);
+        for c in [below, above].into_iter().flatten() {
+            if m.get(i, c).is_finite() {
+                *m.get_mut(i, c) += fraction * r;
+                *m.get_mut(i, j) -= fraction * r;
+            }
+        }
+    }
+}
+
+/// The fitted material of `m` by the default fit.
+fn fitted(m: &Measurement) -> Material {
+    match fit(m, &FitOptions::default()).unwrap() {
+        FitOutcome::Material(material) => *material,
+        FitOutcome::Shapes(_) => panic!("{}: a material", m.name),
+    }
+}
+
+/// A dye-free matrix is fitted as a plain reflector to the cells less their crosstalk:
+/// its report says so (it was left out before), and its reflectance is the truth's, the
+/// crosstalk's net energy given back (a bandpass wider than the step takes 2 × 3 % of the
+/// reflectance out of the diagonal; the reflectance without it would be that much low).
+#[test]
+fn a_plain_reflector_reports_the_crosstalk_and_gets_its_energy_back() {
+    let sigma = 6e-4;
+    let fraction = 0.03;
+    for seed in 1..4 {
+        let mut spec = plain_spec(sigma);
+        spec.seed = seed;
+        let (mut m, truth) = spec.generate().unwrap();
+        spread_to_neighbours(&mut m, &truth, fraction);
+        let material = fitted(&m);
+        assert!(
+            material.fluorophores.is_empty(),
+            "seed {seed}: a plain reflector"
+        );
+        let report = material.fit.as_ref().unwrap();
+        let found = report
+            .crosstalk
+            .as_ref()
+            .unwrap_or_else(|| panic!("seed {seed}: crosstalk reported"));
+        assert!(found.removed, "{found:?}");
+        // Fractions of the measured diagonal, (1 − 2f)·r away from the grid's ends.
+        let want = fraction / (1.0 - 2.0 * fraction);
+        for (got, error) in [
+            (found.below, found.below_error),
+            (found.above, found.above_error),
+        ] {
+            assert!(
+                (got - want).abs() <= 4.0 * error + 0.02 * fraction,
+                "seed {seed}: {got} against {want} (± {error})"
+            );
+        }
+        assert_reflectance_is_the_truths(&material, &truth, sigma, found);
+    }
+}
+
+/// Every reflectance sample of `material` within 4 σ plus 4 × the crosstalk's errors
+/// (times the reflectance) of the truth's.
+fn assert_reflectance_is_the_truths(
+    material: &Material,
+    truth: &Material,
+    sigma: f64,
+    found: &fluorite::material::CrosstalkCorrection,
+) {
+    let error = found.below_error + found.above_error;
+    for (&nm, &r) in material
+        .reflectance
+        .wavelength_nm
+        .iter()
+        .zip(&material.reflectance.value)
+    {
+        let want = truth.diagonal(nm);
+        assert!(
+            (r - want).abs() <= 4.0 * sigma + 4.0 * error * want,
+            "{} at {nm} nm: {r} against {want}",
+            material.name
+        );
+    }
+}
+
+/// A material file whose `crosstalk` block gives only the fractions (written by hand, or by
+/// a version before the others) loads: the rest take their defaults, the cells count as
+/// measured (`removed` false).
+#[test]
+fn a_crosstalk_block_with_only_the_fractions_loads() {
+    let mut spec = SynthSpec::preset("red-pigment").unwrap();
+    spec.crosstalk = 0.03;
+    let (m, _) = spec.generate().unwrap();
+    let material = fitted(&m);
+    let mut json: serde_json::Value = serde_json::from_str(&material.to_json()).unwrap();
+    json["fit"]["crosstalk"] = serde_json::json!({"below": 0.04, "above": -0.03});
+    let path = std::path::Path::new("partial-crosstalk.json");
+    let loaded = Material::from_json(&json.to_string(), path).unwrap();
+    let found = loaded.fit.unwrap().crosstalk.unwrap();
+    assert_eq!((found.below, found.above), (0.04, -0.03));
+    assert_eq!(
+        (found.below_error, found.above_error, found.quiet_rows),
+        (0.0, 0.0, 0)
+    );
+    assert!(!found.removed && found.note.is_empty() && found.delta_e2000.is_empty());
+}
+
+/// `m` (per bin, on a 10 nm grid) as a per-nm file, as an instrument of a constant
+/// 10 nm bandpass writes it: its off-diagonal cells divided by 10 nm.
+fn per_nm(m: &Measurement) -> Measurement {
+    let mut out = m.clone();
+    out.units = Units::PerNm;
+    let diagonal = m.diagonal();
+    for i in 0..m.n_excitation() {
+        for j in 0..m.n_emission() {
+            if !diagonal.contains(&(i, j)) {
+                *out.get_mut(i, j) /= 10.0;
+            }
+        }
+    }
+    out
+}
+
+/// Net energy is conserved by the removal, per bin and per nm (where a cell's energy is
+/// its value times its bin width), with a fifth of the cells missing: each diagonal cell
+/// after is the one before plus what was taken out of its measured neighbours, and
+/// nothing for a missing one (which stays missing); every measured neighbour is the
+/// synthetic matrix without crosstalk, to the estimate's error.
+#[test]
+fn the_removal_gives_back_to_the_diagonal_what_it_took_from_measured_neighbours() {
+    let fraction = 0.03;
+    let mut spec = SynthSpec::preset("red-pigment").unwrap();
+    spec.crosstalk = fraction;
+    spec.noise_sigma = 5e-4;
+    spec.missing_fraction = 0.2;
+    let (written, truth) = spec.generate().unwrap();
+    let mut clean = spec.clone();
+    clean.crosstalk = 0.0;
+    let (without_per_bin, _) = clean.generate().unwrap();
+    for (m, without, sigma) in [
+        (written.clone(), without_per_bin.clone(), spec.noise_sigma),
+        (
+            per_nm(&written),
+            per_nm(&without_per_bin),
+            spec.noise_sigma / 10.0,
+        ),
+    ] {
+        let units = m.units;
+        let found = estimate(&m, sigma, &Light::standard()).expect("crosstalk found");
+        let removed = remove(&m, &found);
+        let widths = m.emission_bin_widths();
+        let weight = |c: usize| match units {
+            Units::PerBin => 1.0,
+            Units::PerNm => widths[c],
+        };
+        let (mut missing, mut checked) = (0, 0);
+        for (i, j, below, above) in m.diagonal_neighbours() {
+            let d = m.get(i, j);
+            if !d.is_finite() {
+                continue;
+            }
+            let mut given = 0.0;
+            for c in [below, above].into_iter().flatten() {
+                let (before, after) = (m.get(i, c), removed.get(i, c));
+                if before.is_finite() {
+                    given += (before - after) * weight(c);
+                    // The fraction scales the measured diagonal cell, which holds noise
+                    // and fluorescence beside the reflectance the crosstalk came from.
+                    let beside = (without.get(i, j) - truth.diagonal(m.excitation_nm[i])).abs();
+                    let allowed = 4.0 * (found.below_error + found.above_error) * d
+                        + (fraction / weight(c)) * (4.0 * spec.noise_sigma + beside);
+                    assert!(
+                        (after - without.get(i, c)).abs() <= allowed,
+                        "{units:?} ({i}, {c}): {after} against {}",
+                        without.get(i, c)
+                    );
+                    checked += 1;
+                } else {
+                    assert!(after.is_nan(), "{units:?} ({i}, {c}) stays missing");
+                    missing += 1;
+                }
+            }
+            let after = removed.get(i, j);
+            assert!(
+                (after - (d + given)).abs() <= 1e-12 * d.abs().max(1.0),
+                "{units:?} diagonal ({i}, {j}): {after} against {d} + {given}"
+            );
+        }
+        assert!(
+            missing > 5 && checked > 40,
+            "{units:?}: {missing} missing, {checked} measured"
+        );
+    }
+}
+
+/// A dye-free per-nm matrix with a bandpass wider than the step: its energy is given back
+/// by bin width (a cell per nm holds a tenth of its 10 nm bin's energy), so the plain
+/// reflector's reflectance is the truth's; weighed as per bin it would be 5 % low. (The
+/// rows next to the grid's ends, 390 and 770 nm, are left out: the trapezoid gives the
+/// end columns half a bin, so half of their crosstalk's energy comes back there.)
+#[test]
+fn a_per_nm_plain_reflector_gets_the_crosstalk_energy_back_by_bin_width() {
+    let sigma = 6e-4;
+    let fraction = 0.03;
+    let (mut m, truth) = plain_spec(sigma).generate().unwrap();
+    spread_to_neighbours(&mut m, &truth, fraction);
+    let mut material = fitted(&per_nm(&m));
+    assert!(material.fluorophores.is_empty(), "a plain reflector");
+    let found = material
+        .fit
+        .as_ref()
+        .unwrap()
+        .crosstalk
+        .clone()
+        .expect("reported");
+    assert!(found.removed, "{found:?}");
+    assert_eq!(found.units, Units::PerNm);
+    let interior = |nm: &f64| (395.0..=765.0).contains(nm);
+    let r = &mut material.reflectance;
+    let keep: Vec<bool> = r.wavelength_nm.iter().map(interior).collect();
+    let mut k = keep.iter();
+    r.value.retain(|_| *k.next().unwrap());
+    r.wavelength_nm.retain(interior);
+    assert_reflectance_is_the_truths(&material, &truth, sigma, &found);
+}
