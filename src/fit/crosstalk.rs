@@ -221,21 +221,37 @@ pub fn remove(m: &Measurement, crosstalk: &CrosstalkCorrection) -> Measurement {
         Units::PerBin => 1.0,
         Units::PerNm => widths[j],
     };
-    for (i, j, below, above) in neighbours(m) {
+    // A neighbour column the grid lacks (at its ends) counts with the typical bin.
+    let typical = match m.units {
+        Units::PerBin => 1.0,
+        Units::PerNm => crate::numeric::median_step(&m.emission_nm),
+    };
+    for (i, j, below, above) in m.diagonal_neighbours() {
         let d = m.get(i, j);
         if !d.is_finite() {
             continue;
         }
+        // The diagonal gets back the crosstalk's net, (below + above)·d, whether or not
+        // its neighbours were measured: what the offset took from the reflected sample
+        // does not depend on which cells the file holds. Giving back only what measured
+        // neighbours gave put a whole side's f·d on the diagonal of every row with one
+        // neighbour missing or off the grid (class case055, 1.5 % of cells missing:
+        // 0.03 → 0.57 ΔE2000 from the truth).
         let mut returned = 0.0;
         for (column, fraction) in [(below, crosstalk.below), (above, crosstalk.above)] {
-            if let Some(c) = column.filter(|_| fraction != 0.0) {
-                let moved = fraction * d;
-                let v = out.get_mut(i, c);
-                // Energy goes back only where it was taken out (a missing neighbour gave none).
-                if v.is_finite() {
-                    *v -= moved;
+            if fraction == 0.0 {
+                continue;
+            }
+            let moved = fraction * d;
+            match column {
+                Some(c) => {
+                    let v = out.get_mut(i, c);
+                    if v.is_finite() {
+                        *v -= moved;
+                    }
                     returned += moved * weight(c);
                 }
+                None => returned += moved * typical,
             }
         }
         *out.get_mut(i, j) += returned;
