@@ -95,6 +95,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
     }
     let mut judged = judged_light_names(m);
     let verdict = judge(m, material, &judged);
+    let grid_crosstalk = material.fit.as_ref().and_then(|f| f.crosstalk.clone());
     let report = material
         .fit
         .as_mut()
@@ -146,8 +147,10 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         )));
         return Ok(grid);
     }
+    // The search starts from the cells this grid fit used (crosstalk removed or kept as
+    // it decided), whichever lights it judges.
     let search = |names: &[&str]| {
-        search::fit_model(
+        search::fit_model_from(
             m,
             &FitOptions {
                 model: ModelChoice::Auto,
@@ -155,6 +158,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
                 lights: lights_named(names),
                 ..options.clone()
             },
+            tabulated::CrosstalkPlan::Decided(grid_crosstalk.as_ref()),
         )
     };
     let mut outcome = search(&judged);

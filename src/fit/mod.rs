@@ -135,3 +135,40 @@ fn set_colour_noise(material: &mut Material, lights: &[Light], noise: Vec<f64>) 
         report.delta_e2000_noise = names.zip(noise).collect();
     }
 }
+
+/// [`record_colour_noise`] on the fit's own cells `data` (of `m` itself, unscaled):
+/// from its colour term's noise covariance and measured colours (`reference`, per light of
+/// `options.lights`) where they are the figure's (every cell measured, so the patch is the
+/// file's own), else computed afresh on `data`. The same numbers either way, without
+/// gathering the cells again (callgrind: a fifth of a million instructions a fit).
+fn record_own_colour_noise(
+    m: &Measurement,
+    material: &mut Material,
+    options: &FitOptions,
+    data: &FitData,
+    colour: Option<&objective::ColourTerm>,
+    reference: &[crate::colour::Xyz],
+) {
+    let Some((lights, sigma)) = noise_lights(material, &options.lights) else {
+        return;
+    };
+    let reused = colour
+        .filter(|_| m.values.iter().all(|v| v.is_finite()))
+        .and_then(|term| {
+            // Each light's figure from its own entry of the fit's lights.
+            let index: Option<Vec<usize>> = lights
+                .iter()
+                .map(|l| options.lights.iter().position(|g| g.name == l.name))
+                .collect();
+            let index = index?;
+            let covariance: Option<Vec<_>> = index
+                .iter()
+                .map(|&k| term.noise_covariance.get(k).copied())
+                .collect();
+            let xyz: Option<Vec<_>> = index.iter().map(|&k| reference.get(k).copied()).collect();
+            Some(assess::noise_delta_e2000(m, &lights, &xyz?, &covariance?))
+        });
+    let noise = reused
+        .unwrap_or_else(|| assess::colour_noise_delta_e2000(m, material, data, &lights, sigma));
+    set_colour_noise(material, &lights, noise);
+}

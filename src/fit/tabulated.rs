@@ -146,33 +146,73 @@ pub(super) fn fit_checked(
     bootstrap: bool,
     record_noise: bool,
 ) -> Result<FitOutcome> {
+    fit_checked_as(m, options, bootstrap, record_noise, CrosstalkPlan::Estimate)
+}
+
+/// How [`fit_checked_as`] treats the crosstalk next to the diagonal.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum CrosstalkPlan<'a> {
+    /// Estimate it, and decide whether to fit the cells without it ([`fit_checked`]).
+    Estimate,
+    /// As an earlier fit of the same matrix decided (its report's `crosstalk`): removed
+    /// where that says so, else the cells as measured, with its note. The default fit's
+    /// search starts from the cells its grid fit used, though it judges other lights.
+    Decided(Option<&'a CrosstalkCorrection>),
+}
+
+/// [`fit_checked`], with the crosstalk handled as `plan` says.
+pub(super) fn fit_checked_as(
+    m: &Measurement,
+    options: &FitOptions,
+    bootstrap: bool,
+    record_noise: bool,
+    plan: CrosstalkPlan,
+) -> Result<FitOutcome> {
     validate_options(options)?;
     m.validate()?;
     let guard_nm = options.guard_nm.unwrap_or(0.0);
     let sigma = FitData::new(m, guard_nm).noise_sigma();
     let started = Instant::now();
-    let kept = match super::crosstalk::estimate(m, sigma, &options.lights) {
-        None => fit_cells(m, options, record_noise, None)?,
-        Some(found) => match fit_cells(m, options, record_noise, Some(&found)) {
-            Ok(cleaned) => keep_cleaned_or_not(m, options, record_noise, &found, sigma, cleaned),
-            // The cells as measured are what a fit without the removal would have used: an
-            // error in the cleaned fit is no reason to fail.
-            Err(e) => {
-                let mut as_measured = fit_cells(m, options, record_noise, None)?;
-                if let (FitOutcome::Material(material), _) = &mut as_measured {
-                    let report = material
-                        .fit
-                        .as_mut()
-                        .expect("fitted materials carry a report");
-                    report.crosstalk = Some(CrosstalkCorrection {
-                        removed: false,
-                        note: format!("the fit without it failed ({e}); fitted as measured"),
-                        ..found
-                    });
-                }
-                as_measured
+    let estimated = match plan {
+        CrosstalkPlan::Estimate => super::crosstalk::estimate(m, sigma, &options.lights),
+        CrosstalkPlan::Decided(_) => None,
+    };
+    let kept = match (plan, estimated) {
+        (CrosstalkPlan::Decided(Some(decided)), _) if !decided.removed => {
+            let mut as_measured = fit_cells(m, options, record_noise, None)?;
+            if let (FitOutcome::Material(material), _) = &mut as_measured
+                && let Some(report) = material.fit.as_mut()
+            {
+                report.crosstalk = Some(decided.clone());
             }
-        },
+            as_measured
+        }
+        (CrosstalkPlan::Decided(decided), _) => fit_cells(m, options, record_noise, decided)?,
+        (CrosstalkPlan::Estimate, None) => fit_cells(m, options, record_noise, None)?,
+        (CrosstalkPlan::Estimate, Some(found)) => {
+            match fit_cells(m, options, record_noise, Some(&found)) {
+                Ok(cleaned) => {
+                    keep_cleaned_or_not(m, options, record_noise, &found, sigma, cleaned)
+                }
+                // The cells as measured are what a fit without the removal would have used: an
+                // error in the cleaned fit is no reason to fail.
+                Err(e) => {
+                    let mut as_measured = fit_cells(m, options, record_noise, None)?;
+                    if let (FitOutcome::Material(material), _) = &mut as_measured {
+                        let report = material
+                            .fit
+                            .as_mut()
+                            .expect("fitted materials carry a report");
+                        report.crosstalk = Some(CrosstalkCorrection {
+                            removed: false,
+                            note: format!("the fit without it failed ({e}); fitted as measured"),
+                            ..found
+                        });
+                    }
+                    as_measured
+                }
+            }
+        }
     };
     // The noise bootstrap (its refits cost many fits) for the kept fit only.
     Ok(match kept {
@@ -607,7 +647,7 @@ fn fit_cells(
         ))
     })?;
     if record_noise && data_scale == 1.0 {
-        record_own_colour_noise(
+        super::record_own_colour_noise(
             m,
             &mut material,
             options,
@@ -617,43 +657,6 @@ fn fit_cells(
         );
     }
     Ok((FitOutcome::Material(Box::new(material)), Some(bootstrap_at)))
-}
-
-/// [`super::record_colour_noise`] on the fit's own cells `data` (of `m` itself, unscaled):
-/// from its colour term's noise covariance and measured colours (`reference`, per light of
-/// `options.lights`) where they are the figure's (every cell measured, so the patch is the
-/// file's own), else computed afresh on `data`. The same numbers either way, without
-/// gathering the cells again (callgrind: a fifth of a million instructions a fit).
-fn record_own_colour_noise(
-    m: &Measurement,
-    material: &mut Material,
-    options: &FitOptions,
-    data: &FitData,
-    colour: Option<&objective::ColourTerm>,
-    reference: &[crate::colour::Xyz],
-) {
-    let Some((lights, sigma)) = noise_lights(material, &options.lights) else {
-        return;
-    };
-    let reused = colour
-        .filter(|_| m.values.iter().all(|v| v.is_finite()))
-        .and_then(|term| {
-            // Each light's figure from its own entry of the fit's lights.
-            let index: Option<Vec<usize>> = lights
-                .iter()
-                .map(|l| options.lights.iter().position(|g| g.name == l.name))
-                .collect();
-            let index = index?;
-            let covariance: Option<Vec<_>> = index
-                .iter()
-                .map(|&k| term.noise_covariance.get(k).copied())
-                .collect();
-            let xyz: Option<Vec<_>> = index.iter().map(|&k| reference.get(k).copied()).collect();
-            Some(assess::noise_delta_e2000(m, &lights, &xyz?, &covariance?))
-        });
-    let noise = reused
-        .unwrap_or_else(|| assess::colour_noise_delta_e2000(m, material, data, &lights, sigma));
-    set_colour_noise(material, &lights, noise);
 }
 
 /// Refits of the noise bootstrap.

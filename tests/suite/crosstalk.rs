@@ -266,3 +266,55 @@ fn a_per_nm_plain_reflector_gets_the_crosstalk_energy_back_by_bin_width() {
     r.wavelength_nm.retain(interior);
     assert_reflectance_is_the_truths(&material, &truth, sigma, &found);
 }
+
+/// The default fit decides once: where it escalates, its search starts from the cells its
+/// grid fit used (crosstalk removed or kept), though it judges other lights than the
+/// user's `--lights`; it decided again under the judged lights before, and could start
+/// from other cells than the grid fit it reports.
+#[test]
+fn the_default_fits_search_starts_from_its_grid_fits_cells() {
+    let mut spec = SynthSpec::preset("two-dyes").unwrap();
+    spec.crosstalk = 0.03;
+    let (m, _) = spec.generate().unwrap();
+    let lights = vec![Light::builtin("d65").unwrap()];
+    let grid = match fit(
+        &m,
+        &FitOptions {
+            model: fluorite::fit::ModelChoice::Tabulated,
+            lights: lights.clone(),
+            ..FitOptions::default()
+        },
+    )
+    .unwrap()
+    {
+        FitOutcome::Material(material) => *material,
+        FitOutcome::Shapes(_) => panic!("a material"),
+    };
+    let chosen = match fit(
+        &m,
+        &FitOptions {
+            lights,
+            ..FitOptions::default()
+        },
+    )
+    .unwrap()
+    {
+        FitOutcome::Material(material) => *material,
+        FitOutcome::Shapes(_) => panic!("a material"),
+    };
+    let (grid, chosen) = (grid.fit.unwrap(), chosen.fit.unwrap());
+    assert!(
+        chosen.escalation.as_ref().is_some_and(|e| e.escalated),
+        "two dyes escalate: {:?}",
+        chosen.escalation
+    );
+    let (a, b) = (grid.crosstalk.unwrap(), chosen.crosstalk.unwrap());
+    assert!(a.removed && b.removed, "{a:?} / {b:?}");
+    assert_eq!((a.below, a.above), (b.below, b.above));
+    // Its worth is the grid fit's, under the user's lights only.
+    assert_eq!(
+        b.delta_e2000.keys().collect::<Vec<_>>(),
+        vec!["d65"],
+        "{b:?}"
+    );
+}

@@ -23,6 +23,7 @@ use super::data::FitData;
 use super::init::{Factors, by_column, by_row, fit_factor, masked_nmf};
 use super::parametric::{ModelSpec, PHOTON_SUFFIX, Problem, ReflectanceForm};
 use super::representation::START_KAPPA_CAP;
+use super::tabulated::CrosstalkPlan;
 use super::{FitOptions, FitOutcome, ModelChoice, ModelRequest, YieldChoice, assess, solve};
 
 mod candidate;
@@ -108,12 +109,23 @@ struct Fitted {
 
 /// Fits the model `options.model` asks for (anything but tabulated).
 pub(super) fn fit_model(m: &Measurement, options: &FitOptions) -> Result<FitOutcome> {
+    fit_model_from(m, options, CrosstalkPlan::Estimate)
+}
+
+/// [`fit_model`], its grid fit handling the crosstalk as `plan` says (the default fit
+/// passes its own grid fit's decision, so that its search starts from the same cells
+/// whichever lights it judges).
+pub(super) fn fit_model_from(
+    m: &Measurement,
+    options: &FitOptions,
+    plan: CrosstalkPlan,
+) -> Result<FitOutcome> {
     let started = Instant::now();
     let base_options = FitOptions {
         model: ModelChoice::Tabulated,
         ..options.clone()
     };
-    let base = match super::tabulated::fit_checked(m, &base_options, false, false)? {
+    let base = match super::tabulated::fit_checked_as(m, &base_options, false, false, plan)? {
         FitOutcome::Material(material) => *material,
         FitOutcome::Shapes(_) => {
             return Err(Error::Fit(format!(
