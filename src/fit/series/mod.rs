@@ -27,7 +27,7 @@ use crate::error::{Error, Result};
 use crate::fit::data::{FitData, fill_missing, provenance};
 use crate::fit::{YieldChoice, assess, solve};
 use crate::formats::{ReadOptions, read};
-use crate::material::{FitReport, Fluorophore, Material, YieldForm};
+use crate::material::{CrosstalkCorrection, FitReport, Fluorophore, Material, YieldForm};
 use crate::measurement::Measurement;
 use crate::spectrum::Spectrum;
 use model::SeriesModel;
@@ -103,6 +103,11 @@ pub struct SeriesFile {
     pub rmse_diagonal: f64,
     /// ΔE2000 of a flat patch of this file's material against the file, per light.
     pub delta_e2000: BTreeMap<String, f64>,
+    /// Crosstalk next to the diagonal found in this file and taken out of its cells before
+    /// the joint fit, as a single fit does (fitting.md); every ΔE2000 is still against
+    /// the cells as measured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crosstalk: Option<CrosstalkCorrection>,
 }
 
 /// A fitted concentration series: the shared spectra and yield, and per file c.
@@ -304,9 +309,15 @@ pub fn fit_concentration_series(
     let started = Instant::now();
     validate(measurements, options)?;
     let guard_nm = options.guard_nm.unwrap_or(0.0);
+    // The instrument's crosstalk next to the diagonal, per file, out of the cells the joint
+    // fit sees (the one-fluorophore model holds none; a single fit removes it too).
     let files: Vec<FitData> = measurements
         .iter()
-        .map(|m| FitData::new(m, guard_nm))
+        .map(|m| {
+            let sigma = FitData::new(m, guard_nm).noise_sigma();
+            let found = crate::fit::crosstalk::estimate(m, sigma, &options.lights);
+            FitData::with_crosstalk(m, guard_nm, found.as_ref())
+        })
         .collect();
     let names: Vec<String> = measurements.iter().map(label).collect();
     let fit_in = |form| fit_form(measurements, &files, &names, form, options);
@@ -472,6 +483,7 @@ fn fit_form(
             rel_residual_fluorescence: 0.0,
             rmse_diagonal: 0.0,
             delta_e2000: BTreeMap::new(),
+            crosstalk: data.crosstalk.clone(),
         });
     }
     let mut fit = SeriesFit {
