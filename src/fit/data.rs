@@ -44,8 +44,8 @@ pub struct FitData {
     pub emission_weight: Vec<f64>,
     /// Guard band used (nm).
     pub guard_nm: f64,
-    /// The crosstalk next to the diagonal taken out of the cells above (`None`: none was
-    /// significant, the cells are as measured).
+    /// The crosstalk next to the diagonal found in these cells: taken out of them where
+    /// its `removed` says so, else they are as measured (`None`: none was significant).
     pub crosstalk: Option<CrosstalkCorrection>,
 }
 
@@ -57,20 +57,19 @@ impl FitData {
     }
 
     /// The cells of `m` less `crosstalk` where it was removed (its `removed` flag), else as
-    /// measured.
+    /// measured; `crosstalk` is kept with them for the fit's report.
     pub fn with_crosstalk(
         m: &Measurement,
         guard_nm: f64,
         crosstalk: Option<&CrosstalkCorrection>,
     ) -> Self {
-        match crosstalk.filter(|c| c.removed) {
-            Some(c) => {
-                let mut data = Self::new(&crosstalk::remove(m, c), guard_nm);
-                data.crosstalk = Some(c.clone());
-                data
-            }
+        let mut data = match crosstalk.filter(|c| c.removed) {
+            Some(c) => Self::new(&crosstalk::remove(m, c), guard_nm),
             None => Self::new(m, guard_nm),
-        }
+        };
+        // Kept either way: the report says what was found, and why it was kept if it was.
+        data.crosstalk = crosstalk.cloned();
+        data
     }
 
     /// Gathers the cells of `m` as measured, for a guard band of `guard_nm` around the

@@ -192,11 +192,18 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
                 })
                 .sum::<f64>()
         };
+        // A search's ΔE2000 under the judged lights: its report's where it judged them all
+        // (the four-light search), else computed (the three-light search has no uv).
         let searched_excess = |o: &Result<FitOutcome>| match o {
             Ok(FitOutcome::Material(s)) => {
                 s.fit.as_ref().filter(|f| f.model != "tabulated").map(|f| {
-                    let data = data::FitData::as_fitted(m, f);
-                    let delta_e = assess::accuracy(s, m, &data, &lights).delta_e2000;
+                    let judged_here = judged.iter().all(|l| f.delta_e2000.contains_key(*l));
+                    let delta_e = if judged_here {
+                        under_lights(&f.delta_e2000, &judged)
+                    } else {
+                        let data = data::FitData::as_fitted(m, f);
+                        assess::accuracy(s, m, &data, &lights).delta_e2000
+                    };
                     (excess(&delta_e), delta_e)
                 })
             }
@@ -207,29 +214,21 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         let daylight_missed = verdict.missed.iter().any(|l| l != UV_LIGHT);
         let three_outcome = daylight_missed.then(|| search(&ESCALATION_LIGHTS));
         let three = three_outcome.as_ref().and_then(searched_excess);
-        let best_search = match (&four, &three) {
-            (Some(f), Some(t)) if t.0 < f.0 => Some(Fallback::ThreeLights),
-            (Some(_), _) => Some(Fallback::FourLights),
-            (None, Some(_)) => Some(Fallback::ThreeLights),
-            (None, None) => None,
-        };
-        let search_excess = |which: Fallback| match which {
-            Fallback::FourLights => four.as_ref().map(|f| f.0),
-            Fallback::ThreeLights => three.as_ref().map(|t| t.0),
-        };
-        match best_search.filter(|&b| search_excess(b).is_some_and(|e| e < grid_excess)) {
-            Some(which) => {
-                let (excess, delta_e) = match which {
-                    Fallback::FourLights => four.clone(),
-                    Fallback::ThreeLights => three.clone(),
-                }
-                .expect("the kept search has figures");
+        // The search that exceeds least (the four-light one on a tie), where it exceeds
+        // less than the grid fit.
+        let kept = [(&four, false), (&three, true)]
+            .into_iter()
+            .filter_map(|(figures, alone)| figures.as_ref().map(|f| (f, alone)))
+            .filter(|((excess, _), _)| *excess < grid_excess)
+            .min_by(|a, b| a.0.0.total_cmp(&b.0.0));
+        match kept {
+            Some(((excess, delta_e), three_lights_alone)) => {
                 fallback_note = format!(
                     "; no model meets all of {} ({}): kept as it exceeds the bounds least, by {excess:.2} in total against one fluorophore's {grid_excess:.2}",
                     judged.join(", "),
-                    per_light(&delta_e)
+                    per_light(delta_e)
                 );
-                if let Fallback::ThreeLights = which {
+                if three_lights_alone {
                     judged = ESCALATION_LIGHTS.to_vec();
                     outcome = three_outcome.expect("searched under three lights");
                 }
@@ -350,15 +349,6 @@ struct Verdict {
     /// colour's noise (RMS ΔE2000) where that is larger (computed only when a light
     /// missed [`ESCALATION_BOUND`]; absent lights are held to it).
     bounds: BTreeMap<String, f64>,
-}
-
-/// Which model search the default keeps when none meets every judged light.
-#[derive(Clone, Copy)]
-enum Fallback {
-    /// The search under every judged light (its closest model).
-    FourLights,
-    /// The search under d65, a and f11 alone.
-    ThreeLights,
 }
 
 /// Judges the one-fluorophore grid fit `material` of `m` from its report: the residual

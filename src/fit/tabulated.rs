@@ -173,46 +173,26 @@ pub(super) fn fit_checked_as(
     let guard_nm = options.guard_nm.unwrap_or(0.0);
     let sigma = FitData::new(m, guard_nm).noise_sigma();
     let started = Instant::now();
-    let estimated = match plan {
-        CrosstalkPlan::Estimate => super::crosstalk::estimate(m, sigma, &options.lights),
-        CrosstalkPlan::Decided(_) => None,
-    };
-    let kept = match (plan, estimated) {
-        (CrosstalkPlan::Decided(Some(decided)), _) if !decided.removed => {
-            let mut as_measured = fit_cells(m, options, record_noise, None)?;
-            if let (FitOutcome::Material(material), _) = &mut as_measured
-                && let Some(report) = material.fit.as_mut()
-            {
-                report.crosstalk = Some(decided.clone());
-            }
-            as_measured
-        }
-        (CrosstalkPlan::Decided(decided), _) => fit_cells(m, options, record_noise, decided)?,
-        (CrosstalkPlan::Estimate, None) => fit_cells(m, options, record_noise, None)?,
-        (CrosstalkPlan::Estimate, Some(found)) => {
-            match fit_cells(m, options, record_noise, Some(&found)) {
+    let kept = match plan {
+        // Removed or kept as decided; its block goes with the cells to the report.
+        CrosstalkPlan::Decided(decided) => fit_cells(m, options, record_noise, decided)?,
+        CrosstalkPlan::Estimate => match super::crosstalk::estimate(m, sigma, &options.lights) {
+            None => fit_cells(m, options, record_noise, None)?,
+            Some(found) => match fit_cells(m, options, record_noise, Some(&found)) {
                 Ok(cleaned) => {
                     keep_cleaned_or_not(m, options, record_noise, &found, sigma, cleaned)
                 }
-                // The cells as measured are what a fit without the removal would have used: an
-                // error in the cleaned fit is no reason to fail.
+                // The cells as measured are what a fit without the removal would have
+                // used: an error in the cleaned fit is no reason to fail.
                 Err(e) => {
-                    let mut as_measured = fit_cells(m, options, record_noise, None)?;
-                    if let (FitOutcome::Material(material), _) = &mut as_measured {
-                        let report = material
-                            .fit
-                            .as_mut()
-                            .expect("fitted materials carry a report");
-                        report.crosstalk = Some(CrosstalkCorrection {
-                            removed: false,
-                            note: format!("the fit without it failed ({e}); fitted as measured"),
-                            ..found
-                        });
-                    }
-                    as_measured
+                    let kept = kept_as_measured(
+                        &found,
+                        format!("the fit without it failed ({e}); fitted as measured"),
+                    );
+                    fit_cells(m, options, record_noise, Some(&kept))?
                 }
-            }
-        }
+            },
+        },
     };
     // The noise bootstrap (its refits cost many fits) for the kept fit only.
     Ok(match kept {
@@ -289,20 +269,28 @@ fn keep_cleaned_or_not(
         .fit
         .as_mut()
         .expect("fitted materials carry a report");
-    report.crosstalk = Some(CrosstalkCorrection {
-        removed: false,
-        note: format!(
+    report.crosstalk = Some(kept_as_measured(
+        found,
+        format!(
             "without it the fit moves to another optimum: ΔE2000 {de:.2} under {light} from the colour of the cells it fitted, against {:.2} with the cells as measured (the crosstalk is worth {:.2})",
             measured_de.get(light).copied().unwrap_or(f64::NAN),
             found.delta_e2000.get(light).copied().unwrap_or(0.0)
         ),
-        ..found.clone()
-    });
+    ));
     report.seconds += started.elapsed().as_secs_f64();
     (FitOutcome::Material(as_measured), at)
 }
 
-/// The grid fit of `m`'s cells, less `crosstalk` when given (see [`fit_checked`]), and
+/// `found`, left in the cells (fitted as measured) for the reason `note`.
+fn kept_as_measured(found: &CrosstalkCorrection, note: String) -> CrosstalkCorrection {
+    CrosstalkCorrection {
+        removed: false,
+        note,
+        ..found.clone()
+    }
+}
+
+/// The grid fit of `m`'s cells, less `crosstalk` where it is `removed` (see [`fit_checked`]), and
 /// for a fitted material with a diagonal the index among its warnings where the noise
 /// bootstrap's belongs (the caller runs it for the fit it keeps).
 fn fit_cells(

@@ -33,6 +33,16 @@ fn series(
         .unzip()
 }
 
+/// `spec`'s series at [`CONCENTRATIONS`], as written (its noise, crosstalk and missing
+/// cells).
+fn measured_series(spec: &SynthSpec) -> (Vec<Measurement>, Vec<Material>) {
+    spec.concentration_series(&CONCENTRATIONS)
+        .unwrap()
+        .into_iter()
+        .map(|(_, m, t)| (m, t))
+        .unzip()
+}
+
 fn options(form: YieldForm) -> SeriesOptions {
     SeriesOptions {
         yield_choice: match form {
@@ -294,12 +304,7 @@ fn series_with_crosstalk_and_missing_cells() {
     for preset in ["green-dye", "red-pigment", "brightener"] {
         let mut spec = SynthSpec::preset(preset).unwrap();
         spec.missing_fraction = 0.05;
-        let (measurements, truths): (Vec<_>, Vec<_>) = spec
-            .concentration_series(&CONCENTRATIONS)
-            .unwrap()
-            .into_iter()
-            .map(|(_, m, t)| (m, t))
-            .unzip();
+        let (measurements, truths) = measured_series(&spec);
         let fit = fit_concentration_series(&measurements, &options(YieldForm::Energy)).unwrap();
         println!("{preset}, crosstalk {}, 5 % missing", spec.crosstalk);
         print(&fit, &truths);
@@ -317,12 +322,7 @@ fn series_with_instrument_crosstalk_removes_it_per_file() {
         let mut spec = SynthSpec::preset(preset).unwrap();
         spec.crosstalk = fraction;
         spec.missing_fraction = 0.05;
-        let (measurements, truths): (Vec<_>, Vec<_>) = spec
-            .concentration_series(&CONCENTRATIONS)
-            .unwrap()
-            .into_iter()
-            .map(|(_, m, t)| (m, t))
-            .unzip();
+        let (measurements, truths) = measured_series(&spec);
         let fit = fit_concentration_series(&measurements, &options(YieldForm::Energy)).unwrap();
         println!("{preset}, crosstalk {fraction}, 5 % missing");
         print(&fit, &truths);
