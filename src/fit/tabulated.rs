@@ -359,6 +359,27 @@ fn fit_cells(
                 m.name
             )));
         }
+        // A plain reflector is its diagonal: with none measured it would be a material
+        // without a reflectance sample, which breaks the finite-non-negative law (a
+        // BFC-450 file cut to its UV rows, 300–350 nm against emission from 380 nm, found
+        // by the fuzz campaign).
+        if data.diagonal.is_empty() {
+            return Err(Error::Fit(format!(
+                "{}: the matrix holds no signal above its noise (σ ≈ {noise_sigma:.3e}) and its diagonal (reflectance) is measured at no wavelength ({}); there is nothing to fit: supply the rows whose excitation lies on the emission grid",
+                m.name,
+                if data.diagonal_positions.is_empty() {
+                    format!(
+                        "excitation {:.0}–{:.0} nm and emission {:.0}–{:.0} nm share no wavelength",
+                        m.excitation_nm.first().copied().unwrap_or(f64::NAN),
+                        m.excitation_nm.last().copied().unwrap_or(f64::NAN),
+                        m.emission_nm.first().copied().unwrap_or(f64::NAN),
+                        m.emission_nm.last().copied().unwrap_or(f64::NAN)
+                    )
+                } else {
+                    "every diagonal cell is missing".to_string()
+                }
+            )));
+        }
         let plain = plain_reflector(
             m,
             &data,

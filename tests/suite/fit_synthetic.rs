@@ -213,6 +213,46 @@ fn a_plain_reflector_is_recognised() {
     }
 }
 
+/// A dye-free matrix whose grids share no wavelength (a BFC-450-like file cut to its UV
+/// rows, 300–350 nm, against emission from 380 nm) holds no reflectance: the fit refuses
+/// it, naming why, instead of writing a plain reflector with no reflectance sample (a
+/// material that fails the finite-non-negative law; the fuzz campaign found one). Every
+/// fit the CLI can ask for is tried.
+#[test]
+fn a_plain_matrix_without_a_measured_diagonal_is_refused_not_fitted_empty() {
+    let mut spec = SynthSpec::preset("plain").unwrap();
+    spec.excitation_nm = fluorite::spectrum::uniform_grid(300.0, 350.0, 10.0);
+    let (m, _) = spec.generate().unwrap();
+    for model in [
+        fluorite::fit::ModelChoice::AsNeeded,
+        fluorite::fit::ModelChoice::Tabulated,
+        fluorite::fit::ModelChoice::Auto,
+    ] {
+        for max_delta_e in [None, Some(1.0)] {
+            let options = FitOptions {
+                model,
+                max_delta_e,
+                ..FitOptions::default()
+            };
+            match fit(&m, &options) {
+                Err(e) => {
+                    let message = e.to_string();
+                    assert!(
+                        message.contains("measured at no wavelength")
+                            && message.contains("share no wavelength"),
+                        "{message}"
+                    );
+                }
+                Ok(FitOutcome::Material(material)) => panic!(
+                    "{model:?}, {max_delta_e:?}: fitted a material with {} reflectance samples",
+                    material.reflectance.value.len()
+                ),
+                Ok(FitOutcome::Shapes(_)) => panic!("{model:?}: shapes of a dye-free matrix"),
+            }
+        }
+    }
+}
+
 #[test]
 fn pinned_quantum_yield_splits_k_or_is_refused() {
     let mut spec = SynthSpec::preset("green-dye").unwrap();
