@@ -19,3 +19,25 @@ for other in ("QAG", "QAH"):
             b = sum(o[l][j] for l in o if 270 <= l <= 300 and not math.isnan(o[l][j]))
             print(f"ex {x:.0f} nm: QAF/{other} raw signal {a / b:.3f}")
     print(f"phenylalanine QAF/{other}: {float(conc['QAF'][phe]) / float(conc[other][phe]):.3f}")
+
+# Every sample where phenylalanine dominates the band, by concentration: its signal per µM
+# at the excitation maximum (255 nm) and the shape of its excitation band (240 over
+# 255 nm). The inner filter of a concentrated sample lowers both smoothly with its
+# absorbance, whatever the scale of the signal; a sample off that curve in both is off in
+# its concentration, not in the model.
+def band(cells, x):
+    j = ex.index(x)
+    return sum(cells[l][j] for l in cells if 280 <= l <= 292 and not math.isnan(cells[l][j]))
+print("sample  phenylalanine µM  signal/µM at 255 nm  shape 240/255 nm")
+rows = []
+for name in conc:
+    if name == "sample" or float(conc[name][phe]) < 700:
+        continue
+    try:
+        _, cells = read(name)
+    except FileNotFoundError:
+        continue
+    c = float(conc[name][phe])
+    rows.append((c, name, band(cells, 255.0) / c, band(cells, 240.0) / band(cells, 255.0)))
+for c, name, per, shape in sorted(rows):
+    print(f"{name:6s}  {c:16.0f}  {per:19.4f}  {shape:16.3f}")
