@@ -369,11 +369,9 @@ fn fit_cells(
                 m.name,
                 if data.diagonal_positions.is_empty() {
                     format!(
-                        "excitation {:.0}–{:.0} nm and emission {:.0}–{:.0} nm share no wavelength",
-                        m.excitation_nm.first().copied().unwrap_or(f64::NAN),
-                        m.excitation_nm.last().copied().unwrap_or(f64::NAN),
-                        m.emission_nm.first().copied().unwrap_or(f64::NAN),
-                        m.emission_nm.last().copied().unwrap_or(f64::NAN)
+                        "excitation {} and emission {} share no wavelength",
+                        span(&m.excitation_nm),
+                        span(&m.emission_nm)
                     )
                 } else {
                     "every diagonal cell is missing".to_string()
@@ -779,5 +777,14 @@ fn arbitrary_data_scale(m: &Measurement, guard_nm: f64) -> f64 {
         kappa / 0.5
     } else {
         1.0
+    }
+}
+
+/// `300–350 nm`, or `300 nm` for a grid of one wavelength.
+fn span(grid: &[f64]) -> String {
+    match (grid.first(), grid.last()) {
+        (Some(a), Some(b)) if a != b => format!("{a:.0}–{b:.0} nm"),
+        (Some(a), _) => format!("{a:.0} nm"),
+        _ => "no wavelength".to_string(),
     }
 }
