@@ -159,5 +159,35 @@ fn an_absurd_absorbance_is_refused_naming_its_file() {
             "{message}"
         ),
         Ending::Accepted => panic!("{}: {:?} accepted", seed.origin, mutant.edits),
+        Ending::Invalid(law) => {
+            panic!("{}: {:?} fitted, breaking {law}", seed.origin, mutant.edits)
+        }
+    }
+}
+
+/// Seed 20261204's mutant 8322 cuts the shipped `plain.csv` to its 300–350 nm rows: no
+/// fluorescence and no wavelength shared by the two grids, so no reflectance either. The
+/// fit returned a plain reflector of no sample (which `check` rejects) and the campaign
+/// counted it as a refusal; it is refused now, saying why, and a material that breaks its
+/// own laws ends a campaign as a failure.
+#[test]
+fn a_dye_free_matrix_cut_below_the_emission_grid_is_refused() {
+    let harness = Harness::new();
+    let (which, mutant) = harness.mutant(20261204, 8322);
+    let seed = &harness.seeds[which];
+    if seed.file_name != "plain.csv" {
+        crate::common::skipped("the corpus differs without ../shared/data: another seed file");
+        return;
+    }
+    let scratch = std::env::temp_dir().join(format!("fluorite-fuzz-plain-{}", std::process::id()));
+    std::fs::create_dir_all(&scratch).unwrap();
+    let ending = harness.run(seed, &mutant.bytes, &scratch);
+    let _ = std::fs::remove_dir_all(&scratch);
+    match ending {
+        Ending::Refused(message) => assert!(
+            message.contains("measured at no wavelength") && message.contains("300–350 nm"),
+            "{message}"
+        ),
+        other => panic!("{:?}: {other:?}", mutant.edits),
     }
 }

@@ -46,6 +46,9 @@ pub enum Ending {
     Accepted,
     /// Refused with this error message.
     Refused(String),
+    /// Accepted, but the material the fit returned breaks its own laws (a defect, not a
+    /// refusal: `fit` would write a file `check` rejects), with the law it breaks.
+    Invalid(String),
 }
 
 impl Default for Harness {
@@ -87,12 +90,19 @@ impl Harness {
     /// path (material, spectra, absorbance) are written to `scratch` first.
     pub fn run(&self, seed: &Seed, bytes: &[u8], scratch: &Path) -> Ending {
         match self.run_result(seed, bytes, scratch) {
-            Ok(()) => Ending::Accepted,
+            Ok(None) => Ending::Accepted,
+            Ok(Some(broken)) => Ending::Invalid(broken),
             Err(e) => Ending::Refused(e.to_string()),
         }
     }
 
-    fn run_result(&self, seed: &Seed, bytes: &[u8], scratch: &Path) -> fluorite::Result<()> {
+    /// `Ok(Some(law))` when a fit returned a material that breaks `law`.
+    fn run_result(
+        &self,
+        seed: &Seed,
+        bytes: &[u8],
+        scratch: &Path,
+    ) -> fluorite::Result<Option<String>> {
         let path = scratch.join(&seed.file_name);
         match seed.kind {
             Kind::Matrix => {
@@ -117,7 +127,7 @@ impl Harness {
                     settings.aspect(),
                 )?;
                 render(&scene, &settings, &|| {})?;
-                Ok(())
+                Ok(None)
             }
             Kind::Spectra => {
                 write(&path, bytes)?;
@@ -134,13 +144,13 @@ impl Harness {
                     quantum_yield: 0.5,
                     yield_form: YieldForm::Photon,
                 })?;
-                Ok(())
+                Ok(None)
             }
             Kind::Absorbance => {
                 write(&path, bytes)?;
                 let absorbance = Absorbance::read(&path)?;
                 let Some(sample) = &self.inner_filter_sample else {
-                    return Ok(());
+                    return Ok(None);
                 };
                 let options = EemOptions {
                     absorbance: Some((absorbance, path)),
@@ -151,16 +161,19 @@ impl Harness {
         }
     }
 
-    fn prepare_and_fit(&self, m: Measurement, options: &EemOptions) -> fluorite::Result<()> {
+    fn prepare_and_fit(
+        &self,
+        m: Measurement,
+        options: &EemOptions,
+    ) -> fluorite::Result<Option<String>> {
         let (m, _) = prepare(m, options)?;
-        match fit(&m, &self.fit_options)? {
-            FitOutcome::Material(material) => {
-                // What the fit wrote must be a material its own loader accepts.
-                material.validate()?;
-            }
-            FitOutcome::Shapes(_) => {}
-        }
-        Ok(())
+        Ok(match fit(&m, &self.fit_options)? {
+            // What the fit returns must be a material its own loader accepts; one that is
+            // not was counted as a refusal until a dye-free matrix without a measured
+            // diagonal came back as a reflector of no sample (seed 20261204 mutant 8322).
+            FitOutcome::Material(material) => material.validate().err().map(|e| e.to_string()),
+            FitOutcome::Shapes(_) => None,
+        })
     }
 }
 
@@ -376,6 +389,11 @@ pub fn campaign(harness: &Arc<Harness>, c: &Campaign) -> Report {
                             match done.ending {
                                 Err(panic) => failure = Some(format!("PANIC: {panic}")),
                                 Ok(Ending::Accepted) => r.accepted += 1,
+                                Ok(Ending::Invalid(law)) => {
+                                    failure = Some(format!(
+                                        "INVALID OUTPUT: accepted, but the material returned breaks its own laws: {law}"
+                                    ))
+                                }
                                 Ok(Ending::Refused(message)) => {
                                     r.refused += 1;
                                     if message.trim().is_empty() || message.contains('\n') {
