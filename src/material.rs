@@ -442,6 +442,12 @@ pub struct ModelSearch {
     pub chosen: String,
     /// Whether the chosen model meets the rule (false: none did; the closest was kept).
     pub met: bool,
+    /// Where the rule is not met: per light the kept model misses, its ΔE2000 against
+    /// the measured colour's own noise (RMS ΔE2000), when every miss is within
+    /// [`crate::fit::assess::NOISE_COVERAGE`] × that noise, so no model could be told
+    /// nearer the measured colour than one that fits its noise. Empty otherwise.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub misses_within_noise: BTreeMap<String, [f64; 2]>,
     /// The candidate with the lowest BIC among those tried.
     pub lowest_bic: String,
     /// Wall time of the whole search (seconds).

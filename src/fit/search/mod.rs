@@ -423,10 +423,35 @@ pub(super) fn fit_model_from(
             material
         }
     };
+    let within_noise = if met {
+        BTreeMap::new()
+    } else {
+        misses_within_noise(m, &material, &data, lights, sigma, bound)
+    };
     let fit = material.fit.as_mut().expect("candidates carry a report");
     if !met {
+        let advice = if within_noise.is_empty() {
+            if fit.model == "tabulated" {
+                "try a larger --model".to_string()
+            } else {
+                "try --model tabulated or a larger --model".to_string()
+            }
+        } else {
+            // A larger model would meet the bound only by fitting the measurement's noise.
+            format!(
+                "every miss is within what the measured colour's own noise explains ({}), so the matrix cannot tell a model nearer its colour from one that fits its noise: a larger --model would fit the noise, not the material",
+                within_noise
+                    .iter()
+                    .map(|(l, [de, noise])| format!(
+                        "{l} {de:.2} against {} × {noise:.2}",
+                        assess::NOISE_COVERAGE
+                    ))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        };
         fit.warnings.push(format!(
-            "no model tried meets ΔE2000 ≤ {} under every light; kept the closest ({}, worst ΔE2000 {:.2}); try --model tabulated or a larger --model",
+            "no model tried meets ΔE2000 ≤ {} under every light; kept the closest ({}, worst ΔE2000 {:.2}); {advice}",
             budget.unwrap_or(f64::NAN),
             fit.model,
             worst(&fit.delta_e2000)
@@ -440,6 +465,7 @@ pub(super) fn fit_model_from(
         candidates,
         skipped,
         met,
+        misses_within_noise: within_noise,
         lowest_bic,
         seconds: started.elapsed().as_secs_f64(),
     });
@@ -447,6 +473,36 @@ pub(super) fn fit_model_from(
     // The conservation margins came with the candidate (or the grid fit), whose spectra
     // have not changed since.
     Ok(FitOutcome::Material(Box::new(material)))
+}
+
+/// Per light `material` misses `bound` under, (its ΔE2000, the measured colour's own
+/// noise as RMS ΔE2000), when every miss is within [`assess::NOISE_COVERAGE`] × that
+/// noise; empty when some miss is not (or none is measured against noise).
+fn misses_within_noise(
+    m: &Measurement,
+    material: &Material,
+    data: &FitData,
+    lights: &[crate::colour::Light],
+    sigma: f64,
+    bound: f64,
+) -> BTreeMap<String, [f64; 2]> {
+    let Some(report) = material.fit.as_ref() else {
+        return BTreeMap::new();
+    };
+    let noise = assess::colour_noise_delta_e2000(m, material, data, lights, sigma);
+    let mut misses = BTreeMap::new();
+    for (light, noise) in lights.iter().zip(noise) {
+        match report.delta_e2000.get(&light.name) {
+            Some(&de) if de > bound => {
+                if !(de.is_finite() && de <= assess::NOISE_COVERAGE * noise) {
+                    return BTreeMap::new();
+                }
+                misses.insert(light.name.clone(), [de, noise]);
+            }
+            _ => {}
+        }
+    }
+    misses
 }
 
 /// XYZ of the measured patch under each light, as the accuracy report sees it
