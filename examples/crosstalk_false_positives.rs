@@ -9,8 +9,7 @@
 //! c 0.02/0.2/1, noise σ 1e-4/1e-3/3e-3, steps 5/10/20 nm), a line per correction.
 
 use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, fit};
-use fluorite::spectrum::uniform_grid;
-use fluorite::synth::{Band, SynthSpec};
+use fluorite::synth::SynthSpec;
 use rayon::prelude::*;
 
 fn main() {
@@ -22,28 +21,18 @@ fn main() {
                     for &concentration in &[0.02, 0.2, 1.0] {
                         for &sigma in &[1e-4, 1e-3, 3e-3] {
                             for &step in &[5.0, 10.0, 20.0] {
-                                let mut spec = SynthSpec::preset("green-dye").expect("a preset");
-                                spec.name = format!(
-                                    "peak {peak} ± {absorption_width}, emission {} ± {emission_width}, c {concentration}, σ {sigma}, step {step}",
-                                    (peak + shift).clamp(390.0, 770.0)
+                                let emission = (peak + shift).clamp(390.0, 770.0);
+                                let mut spec = SynthSpec::one_band_dye(
+                                    (peak, absorption_width),
+                                    (emission, emission_width),
+                                    concentration,
+                                    sigma,
+                                    step,
+                                    specs.len() as u64 + 1,
                                 );
-                                spec.excitation_nm = uniform_grid(300.0, 780.0, step);
-                                spec.emission_nm = uniform_grid(380.0, 780.0, step);
-                                spec.absorption = vec![Band {
-                                    centre_nm: peak,
-                                    width_nm: absorption_width,
-                                    weight: 1.0,
-                                }];
-                                spec.emission = vec![Band {
-                                    centre_nm: (peak + shift).clamp(390.0, 770.0),
-                                    width_nm: emission_width,
-                                    weight: 1.0,
-                                }];
-                                spec.concentration = concentration;
-                                spec.noise_sigma = sigma;
-                                spec.crosstalk = 0.0;
-                                spec.missing_fraction = 0.0;
-                                spec.seed = specs.len() as u64 + 1;
+                                spec.name = format!(
+                                    "peak {peak} ± {absorption_width}, emission {emission} ± {emission_width}, c {concentration}, σ {sigma}, step {step}"
+                                );
                                 specs.push(spec);
                             }
                         }

@@ -331,8 +331,6 @@ fn the_default_fits_search_starts_from_its_grid_fits_cells() {
 /// side alone, tried before, found 48 of 2,592.)
 #[test]
 fn one_dye_matrices_without_crosstalk_are_seldom_corrected_and_never_visibly() {
-    use fluorite::spectrum::uniform_grid;
-    use fluorite::synth::Band;
     let options = FitOptions {
         model: fluorite::fit::ModelChoice::Tabulated,
         ..FitOptions::default()
@@ -347,24 +345,14 @@ fn one_dye_matrices_without_crosstalk_are_seldom_corrected_and_never_visibly() {
                     (0.2, 1e-3, 20.0),
                     (1.0, 3e-3, 5.0),
                 ] {
-                    let mut spec = SynthSpec::preset("green-dye").unwrap();
-                    spec.excitation_nm = uniform_grid(300.0, 780.0, step);
-                    spec.emission_nm = uniform_grid(380.0, 780.0, step);
-                    spec.absorption = vec![Band {
-                        centre_nm: peak,
-                        width_nm: absorption_width,
-                        weight: 1.0,
-                    }];
-                    spec.emission = vec![Band {
-                        centre_nm: (peak + shift).clamp(390.0, 770.0),
-                        width_nm: emission_width,
-                        weight: 1.0,
-                    }];
-                    spec.concentration = concentration;
-                    spec.noise_sigma = sigma;
-                    spec.crosstalk = 0.0;
-                    spec.missing_fraction = 0.0;
-                    spec.seed = specs.len() as u64 + 1;
+                    let spec = SynthSpec::one_band_dye(
+                        (peak, absorption_width),
+                        ((peak + shift).clamp(390.0, 770.0), emission_width),
+                        concentration,
+                        sigma,
+                        step,
+                        specs.len() as u64 + 1,
+                    );
                     specs.push(spec);
                 }
             }
