@@ -118,43 +118,6 @@ impl SynthSpec {
     /// a brightener absorbing at 365 nm and emitting at 440 nm, and an orange-red dye
     /// absorbing at 545 nm and emitting at 610 nm), `plain` (no fluorescence).
     pub fn preset(name: &str) -> Result<SynthSpec> {
-        Self::preset_spec(name)
-    }
-
-    /// A one-dye spec on a BFC-450-like grid of `step_nm` (excitation 300–780, emission
-    /// 380–780 nm): one Gaussian absorption band at `absorption` (centre, width nm) and one
-    /// emission band at `emission` (centre, width nm), the green-dye preset's reflectance
-    /// and yield, concentration `concentration`, noise `noise_sigma`, no crosstalk and no
-    /// missing cells. The sweeps of one-band dyes start from it.
-    pub fn one_band_dye(
-        absorption: (f64, f64),
-        emission: (f64, f64),
-        concentration: f64,
-        noise_sigma: f64,
-        step_nm: f64,
-        seed: u64,
-    ) -> SynthSpec {
-        let band = |(centre_nm, width_nm): (f64, f64)| Band {
-            centre_nm,
-            width_nm,
-            weight: 1.0,
-        };
-        SynthSpec {
-            name: format!("dye-{:.0}-{:.0}", absorption.0, emission.0),
-            excitation_nm: uniform_grid(300.0, 780.0, step_nm),
-            emission_nm: uniform_grid(380.0, 780.0, step_nm),
-            absorption: vec![band(absorption)],
-            emission: vec![band(emission)],
-            concentration,
-            noise_sigma,
-            crosstalk: 0.0,
-            missing_fraction: 0.0,
-            seed,
-            ..Self::preset_spec("green-dye").expect("a preset")
-        }
-    }
-
-    fn preset_spec(name: &str) -> Result<SynthSpec> {
         let mut spec = SynthSpec {
             name: name.to_string(),
             excitation_nm: uniform_grid(300.0, 780.0, 10.0),
@@ -229,6 +192,39 @@ impl SynthSpec {
             }
         }
         Ok(spec)
+    }
+
+    /// A one-dye spec on a BFC-450-like grid of `step_nm` (excitation 300–780, emission
+    /// 380–780 nm): one Gaussian absorption band at `absorption` (centre, width nm) and one
+    /// emission band at `emission` (centre, width nm), the green-dye preset's reflectance
+    /// and yield, concentration `concentration`, noise `noise_sigma`, no crosstalk and no
+    /// missing cells. The sweeps of one-band dyes start from it.
+    pub fn one_band_dye(
+        absorption: (f64, f64),
+        emission: (f64, f64),
+        concentration: f64,
+        noise_sigma: f64,
+        step_nm: f64,
+        seed: u64,
+    ) -> SynthSpec {
+        let band = |(centre_nm, width_nm): (f64, f64)| Band {
+            centre_nm,
+            width_nm,
+            weight: 1.0,
+        };
+        SynthSpec {
+            name: format!("dye-{:.0}-{:.0}", absorption.0, emission.0),
+            excitation_nm: uniform_grid(300.0, 780.0, step_nm),
+            emission_nm: uniform_grid(380.0, 780.0, step_nm),
+            absorption: vec![band(absorption)],
+            emission: vec![band(emission)],
+            concentration,
+            noise_sigma,
+            crosstalk: 0.0,
+            missing_fraction: 0.0,
+            seed,
+            ..Self::preset("green-dye").expect("a preset")
+        }
     }
 
     /// The ground-truth material, sampled on the spec's grids (so the tabulated model

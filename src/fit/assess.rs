@@ -138,6 +138,27 @@ pub fn noise_aware_bounds(bound: f64, lights: &[Light], noise: &[f64]) -> BTreeM
         .collect()
 }
 
+/// Σ over `lights` of max(0, ΔE2000 − bound): by how much `delta_e2000` exceeds the
+/// bounds in total, each light held to its bound in `bounds` or to `default_bound`. A
+/// light without a finite ΔE2000 exceeds by ∞. The default fit's fallback and the
+/// search's closest fit when none meets the bound both keep the fit of least total.
+pub fn total_excess<'a>(
+    delta_e2000: &BTreeMap<String, f64>,
+    lights: impl IntoIterator<Item = &'a str>,
+    bounds: &BTreeMap<String, f64>,
+    default_bound: f64,
+) -> f64 {
+    lights
+        .into_iter()
+        .map(|l| match delta_e2000.get(l) {
+            Some(de) if de.is_finite() => {
+                (de - bounds.get(l).copied().unwrap_or(default_bound)).max(0.0)
+            }
+            _ => f64::INFINITY,
+        })
+        .sum()
+}
+
 /// The light under which `delta_e2000` exceeds its bound in `bounds` the most (by ratio),
 /// with its ΔE2000; None when every light is within its bound.
 pub fn worst_excess(

@@ -183,14 +183,12 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
     if judged.len() > ESCALATION_LIGHTS.len() && unmet(&outcome) {
         let lights = lights_named(&judged);
         let excess = |delta_e: &BTreeMap<String, f64>| {
-            judged
-                .iter()
-                .map(|l| {
-                    let de = delta_e.get(*l).copied().unwrap_or(f64::INFINITY);
-                    let bound = verdict.bounds.get(*l).copied().unwrap_or(ESCALATION_BOUND);
-                    (de - bound).max(0.0)
-                })
-                .sum::<f64>()
+            assess::total_excess(
+                delta_e,
+                judged.iter().copied(),
+                &verdict.bounds,
+                ESCALATION_BOUND,
+            )
         };
         // A search's ΔE2000 under the judged lights: its report's where it judged them all
         // (the four-light search), else computed (the three-light search has no uv).

@@ -371,15 +371,13 @@ pub(super) fn fit_model_from(
             // and the grid fit's 0.39, because the grid missed uv, noise RMS 5.89, by more.
             let noise = assess::colour_noise_delta_e2000(m, &base, &data, lights, sigma);
             let bounds = assess::noise_aware_bounds(bound, lights, &noise);
-            let excess = |delta_e: &BTreeMap<String, f64>| -> f64 {
-                delta_e
-                    .iter()
-                    .map(|(l, de)| match bounds.get(l) {
-                        Some(b) if de.is_finite() => (de - b).max(0.0),
-                        Some(_) => f64::INFINITY,
-                        None => 0.0,
-                    })
-                    .sum()
+            let excess = |delta_e: &BTreeMap<String, f64>| {
+                assess::total_excess(
+                    delta_e,
+                    lights.iter().map(|l| l.name.as_str()),
+                    &bounds,
+                    bound,
+                )
             };
             let grid_key = (excess(&base_report.delta_e2000), grid_de);
             let closest = fitted
