@@ -445,7 +445,9 @@ pub struct ModelSearch {
     /// Where the rule is not met: per light the kept model misses, its ΔE2000 against
     /// the measured colour's own noise (RMS ΔE2000), when every miss is within
     /// [`crate::fit::assess::NOISE_COVERAGE`] × that noise, so no model could be told
-    /// nearer the measured colour than one that fits its noise. Empty otherwise.
+    /// nearer the measured colour than one that fits its noise. Where a search with
+    /// `--noise-aware-bound` met its rule: the lights above `max_delta_e` that met it
+    /// only through the widened bound. Empty otherwise.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub misses_within_noise: BTreeMap<String, [f64; 2]>,
     /// The candidate with the lowest BIC among those tried.

@@ -239,6 +239,7 @@ pub(crate) struct FitArgs<'py, 'a> {
     pub max_iterations: u64,
     pub tolerance: f64,
     pub colour_weight: f64,
+    pub noise_aware_bound: bool,
 }
 
 impl FitArgs<'_, '_> {
@@ -269,6 +270,15 @@ impl FitArgs<'_, '_> {
             },
             max_delta_e: self.max_delta_e,
             colour_weight: self.colour_weight,
+            noise_aware_bound: match (self.noise_aware_bound, self.max_delta_e) {
+                (true, None) => {
+                    return Err(crate::invalid(
+                        "noise_aware_bound",
+                        "judges the search's bound; give max_delta_e too",
+                    ));
+                }
+                (flag, _) => flag,
+            },
         })
     }
 }
@@ -337,11 +347,15 @@ fn prepared(
 /// - ``solver`` (``"lbfgs"``, ``"gauss-newton"``, ``"nelder-mead"``, ``"init"``),
 ///   ``start`` (``"closed-form"``, ``"flat"``), ``max_iterations``, ``tolerance``,
 ///   ``colour_weight``.
+/// - ``noise_aware_bound``: with ``max_delta_e``, hold each light to max(bound, 3 × the
+///   measured colour's own noise RMS ΔE2000) and weigh its colour term by that noise
+///   (``fluorite fit --noise-aware-bound``); the report's
+///   ``model_search.misses_within_noise`` lists the lights judged so.
 ///
 /// The GIL is released while the file is read and the fit runs. Returns a ``Fit``;
 /// raises ``FluoriteError`` with the command line's message.
 #[pyfunction]
-#[pyo3(signature = (measurement_or_path, *, lights = None, model = None, max_delta_e = None, yield_form = "auto", quantum_yield = None, concentration = None, guard = None, solver = "lbfgs", start = "closed-form", max_iterations = 500, tolerance = 1e-5, colour_weight = 0.01, format = None, rows = None, zero_is_missing = None, per_nm = None, units = None, blank = None, absorbance = None, keep_scatter = None, scatter_width = None, bandwidth = None, raman_shift = None))]
+#[pyo3(signature = (measurement_or_path, *, lights = None, model = None, max_delta_e = None, yield_form = "auto", quantum_yield = None, concentration = None, guard = None, solver = "lbfgs", start = "closed-form", max_iterations = 500, tolerance = 1e-5, colour_weight = 0.01, noise_aware_bound = false, format = None, rows = None, zero_is_missing = None, per_nm = None, units = None, blank = None, absorbance = None, keep_scatter = None, scatter_width = None, bandwidth = None, raman_shift = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit<'py>(
     py: Python<'py>,
@@ -358,6 +372,7 @@ pub fn fit<'py>(
     max_iterations: u64,
     tolerance: f64,
     colour_weight: f64,
+    noise_aware_bound: bool,
     format: Option<String>,
     rows: Option<String>,
     zero_is_missing: Option<bool>,
@@ -396,6 +411,7 @@ pub fn fit<'py>(
         max_iterations,
         tolerance,
         colour_weight,
+        noise_aware_bound,
     };
     let options = args.options()?;
     let input = read.options()?;
@@ -420,7 +436,7 @@ pub fn fit<'py>(
 /// raises ``FluoriteError`` naming the item; with ``errors="return"`` a failed item's
 /// place in the list holds its ``FluoriteError`` instead of a ``Fit``.
 #[pyfunction]
-#[pyo3(signature = (items, *, threads = None, errors = "raise", lights = None, model = None, max_delta_e = None, yield_form = "auto", quantum_yield = None, concentration = None, guard = None, solver = "lbfgs", start = "closed-form", max_iterations = 500, tolerance = 1e-5, colour_weight = 0.01, format = None, rows = None, zero_is_missing = None, per_nm = None, units = None, blank = None, absorbance = None, keep_scatter = None, scatter_width = None, bandwidth = None, raman_shift = None))]
+#[pyo3(signature = (items, *, threads = None, errors = "raise", lights = None, model = None, max_delta_e = None, yield_form = "auto", quantum_yield = None, concentration = None, guard = None, solver = "lbfgs", start = "closed-form", max_iterations = 500, tolerance = 1e-5, colour_weight = 0.01, noise_aware_bound = false, format = None, rows = None, zero_is_missing = None, per_nm = None, units = None, blank = None, absorbance = None, keep_scatter = None, scatter_width = None, bandwidth = None, raman_shift = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit_many<'py>(
     py: Python<'py>,
@@ -439,6 +455,7 @@ pub fn fit_many<'py>(
     max_iterations: u64,
     tolerance: f64,
     colour_weight: f64,
+    noise_aware_bound: bool,
     format: Option<String>,
     rows: Option<String>,
     zero_is_missing: Option<bool>,
@@ -487,6 +504,7 @@ pub fn fit_many<'py>(
         max_iterations,
         tolerance,
         colour_weight,
+        noise_aware_bound,
     };
     let options = args.options()?;
     let input = read.options()?;

@@ -113,6 +113,11 @@ pub struct FitArgs {
     /// parametric fits (0: matrix only).
     #[arg(long, default_value_t = fluorite::fit::DEFAULT_COLOUR_WEIGHT)]
     pub colour_weight: f64,
+    /// With --max-delta-e: hold each light to max(bound, 3 × the measured colour's own
+    /// noise RMS ΔE2000) and weigh its colour term by that noise, so noisy data are not
+    /// fitted to their noise (the report lists the lights judged so).
+    #[arg(long, requires = "max_delta_e")]
+    pub noise_aware_bound: bool,
     /// Exit with code 1 when a fit did not converge or carries warnings.
     #[arg(long)]
     pub strict: bool,
@@ -211,6 +216,7 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         },
         max_delta_e: args.max_delta_e,
         colour_weight: args.colour_weight,
+        noise_aware_bound: args.noise_aware_bound,
     };
     let input = InputOptions {
         read: ReadOptions {

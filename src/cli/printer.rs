@@ -77,6 +77,21 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
                     if search.met { "met" } else { "NOT met" },
                     search.lowest_bic
                 );
+                if search.met && !search.misses_within_noise.is_empty() {
+                    let _ = writeln!(
+                        s,
+                        "    met within the measured colour's noise only: {}",
+                        search
+                            .misses_within_noise
+                            .iter()
+                            .map(|(l, [de, noise])| format!(
+                                "{l} {de:.2} (bound {}, noise RMS {noise:.2})",
+                                search.max_delta_e.unwrap_or(f64::NAN)
+                            ))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    );
+                }
                 if let Some(skipped) = &search.skipped {
                     let _ = writeln!(s, "    skipped {skipped}");
                 }

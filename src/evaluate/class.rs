@@ -35,6 +35,10 @@ const MAX_REFUSALS_PER_CASE: usize = 100;
 pub const GRID_FIT: &str = "grid";
 /// Name of the model search in tables.
 pub const SEARCH: &str = "search";
+/// Name of the model search with `--noise-aware-bound` in tables.
+pub const SEARCH_NOISE: &str = "search-noise";
+/// The methods of a sweep, in the order each case lists them.
+pub const METHODS: [&str; 3] = [GRID_FIT, SEARCH, SEARCH_NOISE];
 /// How many of the worst cases against the truth the report lists per method.
 pub const WORST_LISTED: usize = 10;
 
@@ -68,7 +72,7 @@ pub struct Draws {
 /// One method's fit of one case.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MethodResult {
-    /// [`GRID_FIT`] or [`SEARCH`].
+    /// [`GRID_FIT`], [`SEARCH`] or [`SEARCH_NOISE`].
     pub method: String,
     /// The error `fit` returned, if any.
     pub error: Option<String>,
@@ -80,7 +84,8 @@ pub struct MethodResult {
     /// Largest ΔE2000 over the four standard lights against the true material; ∞ when
     /// the fit failed.
     pub delta_e_truth: f64,
-    /// Whether the search met its bound (None for the grid fit).
+    /// Whether the search met its bound (None for the grid fit); for [`SEARCH_NOISE`],
+    /// its noise-widened bounds.
     pub bound_met: Option<bool>,
     /// Fluorophores fitted.
     pub fluorophores: usize,
@@ -103,7 +108,7 @@ pub struct Case {
     pub crosstalk: f64,
     /// Share of missing cells.
     pub missing_fraction: f64,
-    /// The grid fit, then the search.
+    /// The grid fit, then the search, then the noise-aware search ([`METHODS`]).
     pub results: Vec<MethodResult>,
 }
 
@@ -312,6 +317,15 @@ fn search_options() -> FitOptions {
     }
 }
 
+/// The search with `--noise-aware-bound`: each light held to max(bound, 3 × its measured
+/// colour's noise RMS), its colour term weighed by that noise.
+fn noise_aware_search_options() -> FitOptions {
+    FitOptions {
+        noise_aware_bound: true,
+        ..search_options()
+    }
+}
+
 /// Fits `measurement` with `options` and compares with the measurement and the truth.
 fn fit_one(method: &str, options: &FitOptions, m: &Measurement, truth: &Material) -> MethodResult {
     let start = Instant::now();
@@ -356,6 +370,7 @@ fn run_case(spec: &SynthSpec) -> Result<Case> {
     let results = vec![
         fit_one(GRID_FIT, &grid_options(), &m, &truth),
         fit_one(SEARCH, &search_options(), &m, &truth),
+        fit_one(SEARCH_NOISE, &noise_aware_search_options(), &m, &truth),
     ];
     Ok(Case {
         name: spec.name.clone(),
@@ -422,14 +437,14 @@ fn split_stats(pairs: &[(&Case, &MethodResult)], value: fn(&MethodResult) -> f64
     }
 }
 
-/// One summary per method (grid fit, then search).
+/// One summary per method ([`METHODS`]).
 pub fn summarise(sweep: &ClassSweep) -> Vec<MethodSummary> {
-    [GRID_FIT, SEARCH]
+    METHODS
         .iter()
         .map(|&method| {
             let pairs = of_method(sweep, method);
             let ms: Vec<f64> = pairs.iter().map(|(_, r)| r.ms).collect();
-            let is_search = method == SEARCH;
+            let is_search = method != GRID_FIT;
             MethodSummary {
                 method: method.to_string(),
                 cases: pairs.len(),
@@ -514,7 +529,7 @@ pub fn to_markdown(sweep: &ClassSweep, command: &str) -> String {
     let mut out = String::from("# Accuracy on a randomized class of materials\n\n");
     let _ = writeln!(
         out,
-        "Made by `{command}`. {} synthetic cases (seed {:#X}; {two} with two fluorophores; draws the synthesiser refused and were redrawn: {}): absorption peak 300–620 nm with an optional second band, Stokes shift 15–120 nm, sigmoid reflectance, c 0.1–1, yield 0.3–1 of its limit (energy form 80 %, photon form 20 %), noise σ log-uniform 1e-4–3e-3, crosstalk 0–0.05, missing cells 0–0.05, 10 nm grid (70 %), 5 nm (20 %) or 20 nm (10 %). Methods: `{GRID_FIT}` (the tabulated fit, `--model tabulated`) and `{SEARCH}` (the model search, ΔE2000 ≤ {SEARCH_BOUND}). ΔE2000 is the largest over D65, A, F11 and UV, against the measurement (the fit's report) and against the true material.\n",
+        "Made by `{command}`. {} synthetic cases (seed {:#X}; {two} with two fluorophores; draws the synthesiser refused and were redrawn: {}): absorption peak 300–620 nm with an optional second band, Stokes shift 15–120 nm, sigmoid reflectance, c 0.1–1, yield 0.3–1 of its limit (energy form 80 %, photon form 20 %), noise σ log-uniform 1e-4–3e-3, crosstalk 0–0.05, missing cells 0–0.05, 10 nm grid (70 %), 5 nm (20 %) or 20 nm (10 %). Methods: `{GRID_FIT}` (the tabulated fit, `--model tabulated`), `{SEARCH}` (the model search, ΔE2000 ≤ {SEARCH_BOUND}) and `{SEARCH_NOISE}` (the same with `--noise-aware-bound`: each light held to max({SEARCH_BOUND}, 3 × its measured colour's noise RMS), its colour term weighed by that noise). ΔE2000 is the largest over D65, A, F11 and UV, against the measurement (the fit's report) and against the true material.\n",
         sweep.cases.len(),
         sweep.config.seed,
         sweep.refused
@@ -542,7 +557,7 @@ pub fn to_markdown(sweep: &ClassSweep, command: &str) -> String {
             }
         }
     }
-    for method in [GRID_FIT, SEARCH] {
+    for method in METHODS {
         let mut pairs = of_method(sweep, method);
         pairs.sort_by(|a, b| b.1.delta_e_truth.total_cmp(&a.1.delta_e_truth));
         let _ = writeln!(

@@ -41,6 +41,7 @@ mod image_synth;
 mod import;
 mod limits;
 mod model_search;
+mod noise_aware_search;
 mod parametric;
 mod plot;
 mod plot_masked;

@@ -117,8 +117,18 @@ impl<'a> Problem<'a> {
             cell_value,
             patches,
             colour_weight,
+            light_weight: vec![1.0; lights.len()],
             reflectance_support,
         }
+    }
+
+    /// Scales each light's colour term by `weights` (one per light, in the order given to
+    /// [`Problem::new`]); an empty slice leaves every light at 1.
+    pub fn with_light_weights(mut self, weights: &[f64]) -> Self {
+        if weights.len() == self.light_weight.len() {
+            self.light_weight = weights.to_vec();
+        }
+        self
     }
 
     /// The model's grid quantities at `theta`.
@@ -340,7 +350,15 @@ impl<'a> Problem<'a> {
         for (s, (r, _)) in self.diagonal.iter().zip(&diag) {
             cost += 0.5 * self.row_weight[s.row] * r * r;
         }
-        cost += 0.5 * self.colour_weight * patch.iter().map(|p| p * p).sum::<f64>();
+        // One sum in patch order, each term scaled by its light's weight (exactly 1 unless
+        // set, so the default objective is bit for bit what it was).
+        cost += 0.5
+            * self.colour_weight
+            * patch
+                .iter()
+                .enumerate()
+                .map(|(k, p)| self.light_weight[k / 3] * p * p)
+                .sum::<f64>();
         // The colour term's pull on residuals of column j: q (reradiated) and h (diagonal).
         let mut q = vec![0.0; n_lights * n_em];
         let mut h = vec![0.0; n_lights * n_em];
@@ -348,7 +366,7 @@ impl<'a> Problem<'a> {
             for j in 0..n_em {
                 let (mut qe, mut hr) = (0.0, 0.0);
                 for channel in 0..3 {
-                    let p = self.colour_weight * patch[l * 3 + channel];
+                    let p = self.colour_weight * self.light_weight[l] * patch[l * 3 + channel];
                     qe += p * light.emitted[channel][j];
                     hr += p * light.reflected[channel][j];
                 }

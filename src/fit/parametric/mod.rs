@@ -241,6 +241,8 @@ pub struct Problem<'a> {
     cell_value: Vec<f64>,
     patches: Vec<PatchLight>,
     colour_weight: f64,
+    /// Each light's share of `colour_weight` (1 unless set).
+    light_weight: Vec<f64>,
     /// The reflectance's Legendre support (nm).
     pub reflectance_support: [f64; 2],
 }

@@ -22,12 +22,12 @@ pub(super) fn photon_law_binds(material: &Material, misses: bool) -> bool {
 }
 
 /// The choice among one structure's yield forms (`here`, indices into `fitted`): the
-/// energy form when it meets `accept` and the photon form does not fit better (a lower
-/// objective), else the photon form when it meets it. Returns the index and why.
+/// energy form when it meets the bound (every light within its own) and the photon form
+/// does not fit better (a lower objective), else the photon form when it meets it.
+/// Returns the index and why.
 pub(super) fn choose_form(
     fitted: &[Fitted],
     here: &[usize],
-    accept: f64,
     auto_form: bool,
 ) -> Option<(usize, String)> {
     let energy = here
@@ -38,7 +38,7 @@ pub(super) fn choose_form(
         .iter()
         .copied()
         .find(|&i| fitted[i].spec.yield_form == YieldForm::Photon);
-    let meets = |i: usize| fitted[i].worst <= accept;
+    let meets = |i: usize| fitted[i].within;
     let describe = |i: usize| format!("{} {:.2}", fitted[i].spec.name(), fitted[i].worst);
     match (energy, photon) {
         (Some(e), Some(p)) if meets(p) && (!meets(e) || fitted[p].cost < fitted[e].cost) => Some((
@@ -89,6 +89,10 @@ pub(super) struct CandidateContext<'a> {
     pub(super) tolerance: f64,
     /// The grid model misses the bound (K > 1 then starts from what it leaves empty).
     pub(super) grid_misses: bool,
+    /// Per light, the ΔE2000 a candidate must stay within to meet the bound.
+    pub(super) light_bounds: &'a BTreeMap<String, f64>,
+    /// Per light, its share of the colour weight (empty: 1 each).
+    pub(super) light_weights: &'a [f64],
 }
 
 /// Whether `big` contains `small`: the same axis, yield form and reflectance kind, and no
@@ -128,7 +132,8 @@ pub(super) fn fit_candidate(
         &options.lights,
         ctx.reference,
         options.colour_weight,
-    );
+    )
+    .with_light_weights(ctx.light_weights);
     let one_component: Vec<(ModelSpec, Vec<f64>)> = fitted
         .iter()
         .filter(|f| f.spec.components == 1 && f.spec.yield_form == spec.yield_form)
@@ -270,6 +275,14 @@ pub(super) fn fit_candidate(
     report.warnings.extend(unconfirmed);
     material.fit = Some(report);
     let worst = worst(&delta_e);
+    let within = options.lights.iter().all(|l| {
+        let bound = ctx
+            .light_bounds
+            .get(&l.name)
+            .copied()
+            .unwrap_or(f64::INFINITY);
+        delta_e.get(&l.name).is_some_and(|de| *de <= bound)
+    });
     Ok(Fitted {
         spec,
         theta,
@@ -277,5 +290,6 @@ pub(super) fn fit_candidate(
         material,
         delta_e,
         worst,
+        within,
     })
 }

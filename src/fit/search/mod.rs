@@ -105,6 +105,8 @@ struct Fitted {
     delta_e: BTreeMap<String, f64>,
     /// The largest of them.
     worst: f64,
+    /// Whether every light's ΔE2000 is within its bound (the search's per-light bounds).
+    within: bool,
 }
 
 /// Fits the model `options.model` asks for (anything but tabulated).
@@ -191,7 +193,23 @@ pub(super) fn fit_model_from(
     // matrices). When no candidate meets the bound, the closest fit is kept, the grid fit
     // included, so a search never ends worse than the fit it starts from.
     let grid_de = worst(&base_report.delta_e2000);
-    let accept = bound;
+    // Per light, the bound a candidate is held to and the weight of its colour pull: the
+    // bound as given, or (--noise-aware-bound) widened to what the measured colour's own
+    // noise explains, with the pull weighed by that noise.
+    let colour_noise = match (options.noise_aware_bound, budget) {
+        (true, Some(_)) => Some(assess::colour_noise_delta_e2000(
+            m, &base, &data, lights, sigma,
+        )),
+        _ => None,
+    };
+    let light_bounds: BTreeMap<String, f64> = match &colour_noise {
+        Some(noise) => assess::noise_aware_bounds(bound, lights, noise),
+        None => lights.iter().map(|l| (l.name.clone(), bound)).collect(),
+    };
+    let light_weights: Vec<f64> = colour_noise
+        .as_deref()
+        .map(|noise| noise_pull_weights(bound, noise))
+        .unwrap_or_default();
     let mut skipped: Option<String> = None;
     let specs: Vec<(usize, usize, usize)> = match options.model {
         ModelChoice::Fixed(r) => vec![(r.components, r.absorption_bands, r.emission_bands)],
@@ -241,7 +259,7 @@ pub(super) fn fit_model_from(
                 .copied();
             if auto_form && yield_form == YieldForm::Photon {
                 match energy_here {
-                    Some(i) if photon_law_binds(&fitted[i].material, fitted[i].worst > accept) => {}
+                    Some(i) if photon_law_binds(&fitted[i].material, !fitted[i].within) => {}
                     Some(_) => continue,
                     None => {}
                 }
@@ -259,6 +277,8 @@ pub(super) fn fit_model_from(
                     focus: &focus,
                     tolerance,
                     grid_misses: grid_worst.is_some(),
+                    light_bounds: &light_bounds,
+                    light_weights: &light_weights,
                 },
                 spec,
                 &fitted,
@@ -267,7 +287,8 @@ pub(super) fn fit_model_from(
             match result {
                 Ok(f) => {
                     let problem =
-                        Problem::new(&data, spec, lights, &reference, options.colour_weight);
+                        Problem::new(&data, spec, lights, &reference, options.colour_weight)
+                            .with_light_weights(&light_weights);
                     let rss = problem.residual_sum_of_squares(&f.theta);
                     let bic = bic(rss, sigma, parameters, &data);
                     let fit = f.material.fit.as_ref();
@@ -325,7 +346,7 @@ pub(super) fn fit_model_from(
         }
         first_structure = false;
         let decides = budget.is_some() || matches!(options.model, ModelChoice::Fixed(_));
-        if decides && let Some(pick) = choose_form(&fitted, &here, accept, auto_form) {
+        if decides && let Some(pick) = choose_form(&fitted, &here, auto_form) {
             chosen = Some(pick);
             break;
         }
@@ -408,20 +429,22 @@ pub(super) fn fit_model_from(
         }
     };
     let rule = match budget {
+        Some(bound) if colour_noise.is_some() => format!(
+            "first model with ΔE2000 ≤ max({bound}, {} × the measured colour's noise RMS) under each light: {} (--noise-aware-bound; each light's colour term weighed by that noise)",
+            assess::NOISE_COVERAGE,
+            lights
+                .iter()
+                .map(|l| format!("{} ≤ {:.2}", l.name, light_bounds[&l.name]))
+                .collect::<Vec<_>>()
+                .join(", "),
+        ),
         Some(bound) => format!(
-            "first model with ΔE2000 ≤ {bound} under {}{}",
+            "first model with ΔE2000 ≤ {bound} under {}",
             lights
                 .iter()
                 .map(|l| l.name.as_str())
                 .collect::<Vec<_>>()
                 .join(", "),
-            if accept < bound {
-                format!(
-                    ", and ≤ {accept:.2}, the grid fit's worst (a search never ends worse than the fit it starts from)"
-                )
-            } else {
-                String::new()
-            }
         ),
         None if candidates.len() == 1 => "fixed by --model".to_string(),
         None => "lowest BIC on the matrix residual".to_string(),
@@ -446,10 +469,18 @@ pub(super) fn fit_model_from(
             material
         }
     };
-    let within_noise = if met {
-        BTreeMap::new()
-    } else {
-        misses_within_noise(m, &material, &data, lights, sigma, bound)
+    let within_noise = match (&colour_noise, met) {
+        // Met only where the noise widened the bound: the lights it was widened for.
+        (Some(noise), true) => lights
+            .iter()
+            .zip(noise)
+            .filter_map(|(l, n)| {
+                let de = *material.fit.as_ref()?.delta_e2000.get(&l.name)?;
+                (de > bound).then(|| (l.name.clone(), [de, *n]))
+            })
+            .collect(),
+        (None, true) => BTreeMap::new(),
+        (_, false) => misses_within_noise(m, &material, &data, lights, sigma, bound),
     };
     let fit = material.fit.as_mut().expect("candidates carry a report");
     if !met {
@@ -496,6 +527,24 @@ pub(super) fn fit_model_from(
     // The conservation margins came with the candidate (or the grid fit), whose spectra
     // have not changed since.
     Ok(FitOutcome::Material(Box::new(material)))
+}
+
+/// Each light's share of the colour weight under --noise-aware-bound: 1 while the
+/// measured colour's noise RMS (`noise`, ΔE2000 per light) is at most
+/// [`super::NOISE_PULL_SHARE`] × `bound`, then falling as 1/noise² (inverse-variance
+/// weighting of the colour residual).
+fn noise_pull_weights(bound: f64, noise: &[f64]) -> Vec<f64> {
+    let scale = super::NOISE_PULL_SHARE * bound;
+    noise
+        .iter()
+        .map(|n| {
+            if n.is_finite() && *n > scale {
+                (scale / n).powi(2)
+            } else {
+                1.0
+            }
+        })
+        .collect()
 }
 
 /// Per light `material` misses `bound` under, (its ΔE2000, the measured colour's own
