@@ -348,7 +348,8 @@ fn prepared(
 ///   ``start`` (``"closed-form"``, ``"flat"``), ``max_iterations``, ``tolerance``,
 ///   ``colour_weight``.
 /// - ``noise_aware_bound``: with ``max_delta_e``, hold each light to max(bound, 3 × the
-///   measured colour's own noise RMS ΔE2000) and weigh its colour term by that noise
+///   measured colour's own noise RMS ΔE2000; at most the grid fit's ΔE2000 + bound) and
+///   weigh its colour term by that noise
 ///   (``fluorite fit --noise-aware-bound``); the report's
 ///   ``model_search.misses_within_noise`` lists the lights judged so.
 ///

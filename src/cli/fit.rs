@@ -114,8 +114,9 @@ pub struct FitArgs {
     #[arg(long, default_value_t = fluorite::fit::DEFAULT_COLOUR_WEIGHT)]
     pub colour_weight: f64,
     /// With --max-delta-e: hold each light to max(bound, 3 × the measured colour's own
-    /// noise RMS ΔE2000) and weigh its colour term by that noise, so noisy data are not
-    /// fitted to their noise (the report lists the lights judged so).
+    /// noise RMS ΔE2000; at most the grid fit's ΔE2000 + bound) and weigh its colour term
+    /// by that noise, so noisy data are not fitted to their noise (the report lists the
+    /// lights judged so).
     #[arg(long, requires = "max_delta_e")]
     pub noise_aware_bound: bool,
     /// Exit with code 1 when a fit did not converge or carries warnings.

@@ -318,7 +318,8 @@ fn search_options() -> FitOptions {
 }
 
 /// The search with `--noise-aware-bound`: each light held to max(bound, 3 × its measured
-/// colour's noise RMS), its colour term weighed by that noise.
+/// colour's noise RMS, at most the grid fit's ΔE2000 + bound), its colour term weighed by
+/// that noise.
 fn noise_aware_search_options() -> FitOptions {
     FitOptions {
         noise_aware_bound: true,
@@ -529,7 +530,7 @@ pub fn to_markdown(sweep: &ClassSweep, command: &str) -> String {
     let mut out = String::from("# Accuracy on a randomized class of materials\n\n");
     let _ = writeln!(
         out,
-        "Made by `{command}`. {} synthetic cases (seed {:#X}; {two} with two fluorophores; draws the synthesiser refused and were redrawn: {}): absorption peak 300–620 nm with an optional second band, Stokes shift 15–120 nm, sigmoid reflectance, c 0.1–1, yield 0.3–1 of its limit (energy form 80 %, photon form 20 %), noise σ log-uniform 1e-4–3e-3, crosstalk 0–0.05, missing cells 0–0.05, 10 nm grid (70 %), 5 nm (20 %) or 20 nm (10 %). Methods: `{GRID_FIT}` (the tabulated fit, `--model tabulated`), `{SEARCH}` (the model search, ΔE2000 ≤ {SEARCH_BOUND}) and `{SEARCH_NOISE}` (the same with `--noise-aware-bound`: each light held to max({SEARCH_BOUND}, 3 × its measured colour's noise RMS), its colour term weighed by that noise). ΔE2000 is the largest over D65, A, F11 and UV, against the measurement (the fit's report) and against the true material.\n",
+        "Made by `{command}`. {} synthetic cases (seed {:#X}; {two} with two fluorophores; draws the synthesiser refused and were redrawn: {}): absorption peak 300–620 nm with an optional second band, Stokes shift 15–120 nm, sigmoid reflectance, c 0.1–1, yield 0.3–1 of its limit (energy form 80 %, photon form 20 %), noise σ log-uniform 1e-4–3e-3, crosstalk 0–0.05, missing cells 0–0.05, 10 nm grid (70 %), 5 nm (20 %) or 20 nm (10 %). Methods: `{GRID_FIT}` (the tabulated fit, `--model tabulated`), `{SEARCH}` (the model search, ΔE2000 ≤ {SEARCH_BOUND}) and `{SEARCH_NOISE}` (the same with `--noise-aware-bound`: each light held to max({SEARCH_BOUND}, 3 × its measured colour's noise RMS, at most the grid fit's ΔE2000 + {SEARCH_BOUND}), its colour term weighed by that noise). ΔE2000 is the largest over D65, A, F11 and UV, against the measurement (the fit's report) and against the true material.\n",
         sweep.cases.len(),
         sweep.config.seed,
         sweep.refused
