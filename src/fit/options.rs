@@ -151,8 +151,9 @@ pub struct FitOptions {
     /// to max(`max_delta_e`, [`crate::fit::assess::NOISE_COVERAGE`] × the measured colour's
     /// own noise RMS) (but to no more than `max_delta_e` beyond the grid fit's own ΔE2000
     /// there), and its colour term pulls no harder than that noise allows
-    /// (weight × min(1, ([`NOISE_PULL_SHARE`] × bound / noise)²)). Off: every light is held
-    /// to `max_delta_e` as given.
+    /// (weight × min(1, ([`NOISE_PULL_SHARE`] × bound / noise)²)); where the grid model
+    /// misses a light beyond its widened bound the search starts at two components. Off:
+    /// every light is held to `max_delta_e` as given.
     pub noise_aware_bound: bool,
 }
 
