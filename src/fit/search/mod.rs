@@ -248,7 +248,7 @@ pub(super) fn fit_model_from(
     if colour_noise.is_some() && !matches!(options.model, ModelChoice::Fixed(_)) {
         let beyond = lights.iter().find_map(|l| {
             let grid = *base_report.delta_e2000.get(&l.name)?;
-            let limit = light_bounds[&l.name];
+            let limit = light_bounds.get(&l.name).copied().unwrap_or(bound);
             (grid > limit).then(|| (l.name.clone(), grid, limit))
         });
         if let Some((light, grid, limit)) = beyond {
@@ -453,7 +453,11 @@ pub(super) fn fit_model_from(
             assess::NOISE_COVERAGE,
             lights
                 .iter()
-                .map(|l| format!("{} ≤ {:.2}", l.name, light_bounds[&l.name]))
+                .map(|l| format!(
+                    "{} ≤ {:.2}",
+                    l.name,
+                    light_bounds.get(&l.name).copied().unwrap_or(bound)
+                ))
                 .collect::<Vec<_>>()
                 .join(", "),
         ),
