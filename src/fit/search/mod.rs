@@ -409,7 +409,10 @@ pub(super) fn fit_model_from(
             // that chase a light whose measured colour is mostly noise: the red pigment at
             // σ 2.5·10⁻³ (seed 5) kept gaussian:2x1+r7, d65 3.83 against the measurement
             // and the grid fit's 0.39, because the grid missed uv, noise RMS 5.89, by more.
-            let noise = assess::colour_noise_delta_e2000(m, &base, &data, lights, sigma);
+            // (--noise-aware-bound computed the same noise, from the same grid fit, above.)
+            let noise = colour_noise.clone().unwrap_or_else(|| {
+                assess::colour_noise_delta_e2000(m, &base, &data, lights, sigma)
+            });
             let bounds = assess::noise_aware_bounds(bound, lights, &noise);
             let excess = |delta_e: &BTreeMap<String, f64>| {
                 assess::total_excess(
