@@ -13,7 +13,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use crate::colour::Light;
+use crate::colour::{Light, PatchColorimeter, delta_e2000, xyz_to_lab};
 use crate::error::{Error, Result};
 use crate::fit::{FitOptions, FitOutcome, ModelChoice, fit};
 use crate::material::{Material, YieldForm};
@@ -108,6 +108,11 @@ pub struct Case {
     pub crosstalk: f64,
     /// Share of missing cells.
     pub missing_fraction: f64,
+    /// Largest ΔE2000 over the four standard lights between the measured colour (the
+    /// cells as measured, noise and crosstalk included, missing cells filled from the
+    /// truth) and the truth's, both on the measurement's grids: what no fit controls. A
+    /// fit within b of the measured colour is about this − b or more from the truth.
+    pub measured_colour_truth: f64,
     /// The grid fit, then the search, then the noise-aware search ([`METHODS`]).
     pub results: Vec<MethodResult>,
 }
@@ -368,6 +373,7 @@ fn fit_one(method: &str, options: &FitOptions, m: &Measurement, truth: &Material
 /// One case: generate, fit both ways.
 fn run_case(spec: &SynthSpec) -> Result<Case> {
     let (m, truth) = spec.generate()?;
+    let measured_colour_truth = measured_colour_delta_e(&m, &truth);
     let results = vec![
         fit_one(GRID_FIT, &grid_options(), &m, &truth),
         fit_one(SEARCH, &search_options(), &m, &truth),
@@ -380,8 +386,27 @@ fn run_case(spec: &SynthSpec) -> Result<Case> {
         noise_sigma: spec.noise_sigma,
         crosstalk: spec.crosstalk,
         missing_fraction: spec.missing_fraction,
+        measured_colour_truth,
         results,
     })
+}
+
+/// Largest ΔE2000 over the four standard lights between the patch colour of the cells of
+/// `m` (missing cells filled from `truth`) and of `truth`, on the grids of `m`: how far
+/// the colour a bound is judged against lies from the truth, whatever is fitted.
+pub fn measured_colour_delta_e(m: &Measurement, truth: &Material) -> f64 {
+    let true_cells = crate::model::predict_like(truth, m).to_per_bin();
+    let measured = m.to_per_bin().filled_from(&true_cells);
+    Light::standard()
+        .iter()
+        .map(|light| {
+            let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
+            delta_e2000(
+                xyz_to_lab(pc.xyz(&measured), pc.white),
+                xyz_to_lab(pc.xyz(&true_cells), pc.white),
+            )
+        })
+        .fold(0.0, f64::max)
 }
 
 /// Draws the cases and fits each with the grid fit and the search, in parallel over
@@ -438,6 +463,24 @@ fn split_stats(pairs: &[(&Case, &MethodResult)], value: fn(&MethodResult) -> f64
     }
 }
 
+/// The measured colour's own ΔE2000 from the truth ([`Case::measured_colour_truth`]),
+/// over all cases and split by the truth's fluorophore count.
+pub fn measured_colour_floor(sweep: &ClassSweep) -> SplitStats {
+    let select = |k: Option<usize>| -> Vec<f64> {
+        sweep
+            .cases
+            .iter()
+            .filter(|c| k.is_none_or(|k| c.true_fluorophores == k))
+            .map(|c| c.measured_colour_truth)
+            .collect()
+    };
+    SplitStats {
+        all: stats(&select(None)),
+        one: stats(&select(Some(1))),
+        two: stats(&select(Some(2))),
+    }
+}
+
 /// One summary per method ([`METHODS`]).
 pub fn summarise(sweep: &ClassSweep) -> Vec<MethodSummary> {
     METHODS
@@ -473,7 +516,7 @@ pub fn summarise(sweep: &ClassSweep) -> Vec<MethodSummary> {
 }
 
 /// The CSV header of [`to_csv`].
-pub const CSV_HEADER: &str = "case,method,true_fluorophores,step_nm,noise_sigma,crosstalk,missing_fraction,error,model,fluorophores,bound_met,max_delta_e2000_measurement,max_delta_e2000_truth,ms";
+pub const CSV_HEADER: &str = "case,method,true_fluorophores,step_nm,noise_sigma,crosstalk,missing_fraction,measured_colour_delta_e2000_truth,error,model,fluorophores,bound_met,max_delta_e2000_measurement,max_delta_e2000_truth,ms";
 
 /// One line per case and method.
 pub fn to_csv(sweep: &ClassSweep) -> String {
@@ -483,7 +526,7 @@ pub fn to_csv(sweep: &ClassSweep) -> String {
         for r in &c.results {
             let _ = writeln!(
                 out,
-                "{},{},{},{},{:.4e},{:.4},{:.4},\"{}\",{},{},{},{:.4},{:.4},{:.3}",
+                "{},{},{},{},{:.4e},{:.4},{:.4},{:.4},\"{}\",{},{},{},{:.4},{:.4},{:.3}",
                 c.name,
                 r.method,
                 c.true_fluorophores,
@@ -491,6 +534,7 @@ pub fn to_csv(sweep: &ClassSweep) -> String {
                 c.noise_sigma,
                 c.crosstalk,
                 c.missing_fraction,
+                c.measured_colour_truth,
                 r.error.as_deref().unwrap_or("").replace('"', "'"),
                 r.model,
                 r.fluorophores,
@@ -558,6 +602,24 @@ pub fn to_markdown(sweep: &ClassSweep, command: &str) -> String {
             }
         }
     }
+    let floor = measured_colour_floor(sweep);
+    for (group, st) in [("all", &floor.all), ("1", &floor.one), ("2", &floor.two)] {
+        stats_row(&mut out, "measured colour (no fit)", "truth", group, st);
+    }
+    let beyond: Vec<f64> = sweep
+        .cases
+        .iter()
+        .map(|c| (c.measured_colour_truth - SEARCH_BOUND).max(0.0))
+        .collect();
+    let forced = beyond.iter().filter(|&&v| v > 1.0).count();
+    let _ = writeln!(
+        out,
+        "\nThe `measured colour` rows need no fit: the colour of the cells as measured (noise and crosstalk included, missing cells filled from the truth) against the truth's, both on the measurement's grids. A fit within ΔE2000 {SEARCH_BOUND} of the measured colour, as `{SEARCH}` asks, is about that distance − {SEARCH_BOUND} or more from the truth (ΔE2000 is close to a distance at these sizes): at least median {:.2}, 90th percentile {:.2}, max {:.2}; more than 1 on {forced} of {} cases.",
+        quantile(&beyond, 0.5),
+        quantile(&beyond, 0.9),
+        beyond.iter().copied().fold(0.0, f64::max),
+        beyond.len()
+    );
     for method in METHODS {
         let mut pairs = of_method(sweep, method);
         pairs.sort_by(|a, b| b.1.delta_e_truth.total_cmp(&a.1.delta_e_truth));

@@ -91,6 +91,51 @@ fn delta_e_against_the_truth_matches_a_recomputation() {
     }
 }
 
+/// The measured colour's own distance from the truth needs no fit: nil for a noiseless
+/// matrix without crosstalk or missing cells, growing with the noise; and no fit within
+/// d of the measured colour comes closer to the truth than its distance − d (ΔE2000 as a
+/// distance), which makes it a floor for any bound judged against the measurement.
+#[test]
+fn measured_colour_distance_is_nil_without_noise_and_floors_every_fit() {
+    let specs = class::draw(&SMALL).unwrap().specs;
+    for spec in &specs {
+        let clean = fluorite::synth::SynthSpec {
+            noise_sigma: 0.0,
+            crosstalk: 0.0,
+            missing_fraction: 0.0,
+            ..spec.clone()
+        };
+        let (m, truth) = clean.generate().unwrap();
+        let nil = class::measured_colour_delta_e(&m, &truth);
+        assert!(nil < 1e-9, "{}: {nil}", spec.name);
+        let noisy = |sigma: f64| {
+            let (m, truth) = fluorite::synth::SynthSpec {
+                noise_sigma: sigma,
+                ..clean.clone()
+            }
+            .generate()
+            .unwrap();
+            class::measured_colour_delta_e(&m, &truth)
+        };
+        let (low, high) = (noisy(1e-4), noisy(3e-3));
+        assert!(low > 0.0 && low < high, "{}: {low} vs {high}", spec.name);
+    }
+    let sweep = class::run(&SMALL).unwrap();
+    for case in &sweep.cases {
+        for r in &case.results {
+            assert!(
+                r.delta_e_truth >= case.measured_colour_truth - r.delta_e_measurement - 0.05,
+                "{} {}: truth {} < measured colour {} − measurement {}",
+                case.name,
+                r.method,
+                r.delta_e_truth,
+                case.measured_colour_truth,
+                r.delta_e_measurement
+            );
+        }
+    }
+}
+
 #[test]
 fn command_writes_report_and_csv() {
     let dir = common::temp_dir("class");
