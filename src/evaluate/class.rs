@@ -113,8 +113,24 @@ pub struct Case {
     /// truth) and the truth's, both on the measurement's grids: what no fit controls. A
     /// fit within b of the measured colour is about this − b or more from the truth.
     pub measured_colour_truth: f64,
+    /// The case's dye-free twin fitted by the grid fit: see [`DyeFreeTwin`].
+    pub dye_free: DyeFreeTwin,
     /// The grid fit, then the search, then the noise-aware search ([`METHODS`]).
     pub results: Vec<MethodResult>,
+}
+
+/// A case drawn again without its fluorophores (the same reflectance, grid, noise,
+/// crosstalk and missing cells) and fitted with the grid fit, which the searches start
+/// from and keep as it is when it finds no fluorescence: it must stay a plain reflector.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DyeFreeTwin {
+    /// Fluorophores the grid fit gave it (0: a plain reflector, as it should be).
+    pub fluorophores: usize,
+    /// Largest ΔE2000 over the four standard lights between that fit and its truth (∞
+    /// when the fit failed).
+    pub delta_e_truth: f64,
+    /// The error the fit returned, if any.
+    pub error: Option<String>,
 }
 
 /// A whole sweep.
@@ -374,6 +390,7 @@ fn fit_one(method: &str, options: &FitOptions, m: &Measurement, truth: &Material
 fn run_case(spec: &SynthSpec) -> Result<Case> {
     let (m, truth) = spec.generate()?;
     let measured_colour_truth = measured_colour_delta_e(&m, &truth);
+    let dye_free = dye_free_twin(spec)?;
     let results = vec![
         fit_one(GRID_FIT, &grid_options(), &m, &truth),
         fit_one(SEARCH, &search_options(), &m, &truth),
@@ -387,7 +404,24 @@ fn run_case(spec: &SynthSpec) -> Result<Case> {
         crosstalk: spec.crosstalk,
         missing_fraction: spec.missing_fraction,
         measured_colour_truth,
+        dye_free,
         results,
+    })
+}
+
+/// `spec` without its fluorophores, fitted with the grid fit ([`DyeFreeTwin`]).
+fn dye_free_twin(spec: &SynthSpec) -> Result<DyeFreeTwin> {
+    let twin = SynthSpec {
+        concentration: 0.0,
+        components: Vec::new(),
+        ..spec.clone()
+    };
+    let (m, truth) = twin.generate()?;
+    let grid = fit_one(GRID_FIT, &grid_options(), &m, &truth);
+    Ok(DyeFreeTwin {
+        fluorophores: grid.fluorophores,
+        delta_e_truth: grid.delta_e_truth,
+        error: grid.error,
     })
 }
 
@@ -516,7 +550,7 @@ pub fn summarise(sweep: &ClassSweep) -> Vec<MethodSummary> {
 }
 
 /// The CSV header of [`to_csv`].
-pub const CSV_HEADER: &str = "case,method,true_fluorophores,step_nm,noise_sigma,crosstalk,missing_fraction,measured_colour_delta_e2000_truth,error,model,fluorophores,bound_met,max_delta_e2000_measurement,max_delta_e2000_truth,ms";
+pub const CSV_HEADER: &str = "case,method,true_fluorophores,step_nm,noise_sigma,crosstalk,missing_fraction,measured_colour_delta_e2000_truth,dye_free_twin_fluorophores,dye_free_twin_delta_e2000_truth,error,model,fluorophores,bound_met,max_delta_e2000_measurement,max_delta_e2000_truth,ms";
 
 /// One line per case and method.
 pub fn to_csv(sweep: &ClassSweep) -> String {
@@ -526,7 +560,7 @@ pub fn to_csv(sweep: &ClassSweep) -> String {
         for r in &c.results {
             let _ = writeln!(
                 out,
-                "{},{},{},{},{:.4e},{:.4},{:.4},{:.4},\"{}\",{},{},{},{:.4},{:.4},{:.3}",
+                "{},{},{},{},{:.4e},{:.4},{:.4},{:.4},{},{:.4},\"{}\",{},{},{},{:.4},{:.4},{:.3}",
                 c.name,
                 r.method,
                 c.true_fluorophores,
@@ -535,6 +569,8 @@ pub fn to_csv(sweep: &ClassSweep) -> String {
                 c.crosstalk,
                 c.missing_fraction,
                 c.measured_colour_truth,
+                c.dye_free.fluorophores,
+                c.dye_free.delta_e_truth,
                 r.error.as_deref().unwrap_or("").replace('"', "'"),
                 r.model,
                 r.fluorophores,
@@ -620,6 +656,41 @@ pub fn to_markdown(sweep: &ClassSweep, command: &str) -> String {
         beyond.iter().copied().fold(0.0, f64::max),
         beyond.len()
     );
+    let twins: Vec<f64> = sweep
+        .cases
+        .iter()
+        .map(|c| c.dye_free.delta_e_truth)
+        .collect();
+    let fluorescent: Vec<&Case> = sweep
+        .cases
+        .iter()
+        .filter(|c| c.dye_free.fluorophores > 0 || c.dye_free.error.is_some())
+        .collect();
+    let _ = writeln!(
+        out,
+        "\n**Dye-free twins.** Each case drawn again without its fluorophores (the same reflectance, grid, noise, crosstalk and missing cells) and fitted with `{GRID_FIT}`, which both searches start from and keep as it is when it finds no fluorescence: {} of {} stay plain reflectors, ΔE2000 to the truth median {:.2}, max {:.2}.",
+        sweep.cases.len() - fluorescent.len(),
+        sweep.cases.len(),
+        quantile(&twins, 0.5),
+        twins.iter().copied().fold(0.0, f64::max)
+    );
+    if !fluorescent.is_empty() {
+        out.push_str("\n| dye-free twin of | grid (nm) | noise σ | crosstalk | missing | fluorophores fitted | ΔE2000 truth | error |\n|---|---|---|---|---|---|---|---|\n");
+        for c in &fluorescent {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {:.1e} | {:.3} | {:.3} | {} | {:.2} | {} |",
+                c.name,
+                c.step_nm,
+                c.noise_sigma,
+                c.crosstalk,
+                c.missing_fraction,
+                c.dye_free.fluorophores,
+                c.dye_free.delta_e_truth,
+                c.dye_free.error.as_deref().unwrap_or("")
+            );
+        }
+    }
     for method in METHODS {
         let mut pairs = of_method(sweep, method);
         pairs.sort_by(|a, b| b.1.delta_e_truth.total_cmp(&a.1.delta_e_truth));

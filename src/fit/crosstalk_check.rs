@@ -3,6 +3,8 @@
 //! explains, removing the crosstalk may have tipped the fit to another optimum, and the
 //! grid fit (`tabulated`) compares it with the fit of the cells as measured.
 
+use std::collections::BTreeMap;
+
 use crate::colour::{Light, PatchColorimeter, delta_e2000};
 use crate::material::{CrosstalkCorrection, Material};
 use crate::measurement::{Measurement, Units};
@@ -26,8 +28,26 @@ pub(super) fn own_colour_misses(
     guard_nm: f64,
     bound: f64,
 ) -> Vec<(String, f64)> {
+    let data = FitData::with_crosstalk(m, guard_nm, Some(found));
+    let noise = assess::colour_noise_delta_e2000(m, cleaned, &data, lights, sigma);
+    let bounds = assess::noise_aware_bounds(bound, lights, &noise);
+    own_colour_delta_e(m, cleaned, found, lights)
+        .into_iter()
+        .filter(|(light, de)| *de > bounds.get(light).copied().unwrap_or(bound))
+        .collect()
+}
+
+/// Per light, ΔE2000 between `material`'s patch and the colour of the cells of `m` less
+/// `found` (its missing cells filled from the material, as the report's reference has):
+/// how far the material is from the cells it was fitted to.
+pub(super) fn own_colour_delta_e(
+    m: &Measurement,
+    material: &Material,
+    found: &CrosstalkCorrection,
+    lights: &[Light],
+) -> BTreeMap<String, f64> {
     let predicted = predict(
-        cleaned,
+        material,
         &m.name,
         &m.excitation_nm,
         &m.emission_nm,
@@ -35,16 +55,14 @@ pub(super) fn own_colour_misses(
         true,
     );
     let cells = assess::measured_patch(&remove(m, found), &predicted);
-    let data = FitData::with_crosstalk(m, guard_nm, Some(found));
-    let noise = assess::colour_noise_delta_e2000(m, cleaned, &data, lights, sigma);
-    let bounds = assess::noise_aware_bounds(bound, lights, &noise);
     lights
         .iter()
-        .filter_map(|light| {
+        .map(|light| {
             let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
-            let de = delta_e2000(pc.lab(&cells), pc.lab(&predicted));
-            let allowed = bounds.get(&light.name).copied().unwrap_or(bound);
-            (de > allowed).then(|| (light.name.clone(), de))
+            (
+                light.name.clone(),
+                delta_e2000(pc.lab(&cells), pc.lab(&predicted)),
+            )
         })
         .collect()
 }

@@ -7,22 +7,6 @@ use super::start::{flat_start, start_spectra};
 use super::*;
 use crate::material::CrosstalkCorrection;
 
-/// ΔE2000 under any light beyond which a plain reflector does not explain a matrix whose
-/// fluorescence is below the noise cell by cell, unless the colour's own noise explains
-/// more (the bound `fit --max-delta-e` gives the search, when none is given).
-const PLAIN_COLOUR_BOUND: f64 = 1.0;
-
-/// The measured patch's colour (XYZ) under each light, unmeasured cells counted as 0.
-fn patch_reference(m: &Measurement, lights: &[Light]) -> Vec<crate::colour::Xyz> {
-    let per_bin = m.to_per_bin();
-    lights
-        .iter()
-        .map(|light| {
-            PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm).xyz(&per_bin)
-        })
-        .collect()
-}
-
 /// How many noise-matrix singular values a rank-1 fit must beat to count as signal:
 /// pure noise of level σ on an m×n grid lets a rank-1 fit explain about σ²(√m + √n)².
 const SIGNIFICANCE_FACTOR: f64 = 4.0;
@@ -388,25 +372,10 @@ fn fit_cells(
                 "no fluorescent signal above the noise (a rank-1 fit explains {explained:.3e}, pure noise of σ = {noise_sigma:.2e} would explain up to {noise_floor:.3e}): fitted as a plain reflector with c = 0"
             )],
         );
-        // The energy test weighs cells one by one; the colour sums all of them, so
-        // fluorescence below the noise of any single cell can still show in the patch.
-        // The plain reflector is kept unless it misses the measured colour by more than
-        // the bound and more than that colour's own noise explains.
-        let reference = patch_reference(m_fit, &options.lights);
-        let noise = assess::colour_noise(&data, &options.lights, &reference, noise_sigma);
-        let bound = options.max_delta_e.unwrap_or(PLAIN_COLOUR_BOUND);
-        let bounds = assess::noise_aware_bounds(bound, &options.lights, &noise);
-        let missed = match &plain {
-            FitOutcome::Material(material) => material
-                .fit
-                .as_ref()
-                .and_then(|f| assess::worst_excess(&f.delta_e2000, &bounds)),
-            FitOutcome::Shapes(_) => None,
-        };
+        let missed = plain_reflector_colour_miss(m_fit, &data, options, &plain, noise_sigma);
         match missed {
-            Some((light, worst)) => warnings.push(format!(
-                "the fluorescence is below the noise cell by cell (a rank-1 fit explains {explained:.3e}, noise alone up to {noise_floor:.3e}), but a plain reflector misses the measured colour by ΔE2000 {worst:.2} under {light}, beyond {:.2} (the bound, or what the colour's noise explains): fitted as fluorescent",
-                bounds.get(&light).copied().unwrap_or(bound)
+            Some((light, worst, allowed)) => warnings.push(format!(
+                "the fluorescence is below the noise cell by cell (a rank-1 fit explains {explained:.3e}, noise alone up to {noise_floor:.3e}), but a plain reflector misses the measured colour by ΔE2000 {worst:.2} under {light}, beyond {allowed:.2} (the bound, or what the colour's noise explains): fitted as fluorescent"
             )),
             None => return Ok((plain, None)),
         }

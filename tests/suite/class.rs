@@ -35,6 +35,15 @@ fn small_sweep_is_deterministic_complete_and_adds_up() {
         let methods: Vec<&str> = case.results.iter().map(|r| r.method.as_str()).collect();
         assert_eq!(methods, METHODS, "{}", case.name);
         assert!((1..=2).contains(&case.true_fluorophores), "{}", case.name);
+        // Its twin without fluorophores stays a plain reflector, fitted and close to the truth.
+        assert_eq!(case.dye_free.fluorophores, 0, "{}", case.name);
+        assert!(case.dye_free.error.is_none(), "{}", case.name);
+        assert!(
+            case.dye_free.delta_e_truth < 1.0,
+            "{}: {:?}",
+            case.name,
+            case.dye_free
+        );
     }
     let summaries = class::summarise(&first);
     assert_eq!(summaries.len(), METHODS.len());
