@@ -288,7 +288,9 @@ def main():
     args = p.parse_args()
     lights = args.lights.split(",")
     cmf = fx.observer(args.shared)
-    work = args.keep or tempfile.mkdtemp(prefix="verify-renderers-")
+    # Absolute: ART resolves the scene's files relative to the scene's own folder, so a
+    # relative --keep made it crash (segfault, 2026-12-04).
+    work = os.path.abspath(args.keep) if args.keep else tempfile.mkdtemp(prefix="verify-renderers-")
     if not args.keep:  # renders and exports: hundreds of MB a run
         atexit.register(shutil.rmtree, work, ignore_errors=True)
     os.makedirs(work, exist_ok=True)
