@@ -153,7 +153,8 @@ pub struct FitOptions {
     /// there), and its colour term pulls no harder than that noise allows
     /// (weight × min(1, ([`NOISE_PULL_SHARE`] × bound / noise)²)); where the grid model
     /// misses a light beyond its widened bound the search starts at two components. Off:
-    /// every light is held to `max_delta_e` as given.
+    /// every light is held to `max_delta_e` as given. Without `max_delta_e` the fit refuses
+    /// it (there is no bound to widen).
     pub noise_aware_bound: bool,
 }
 
@@ -298,6 +299,14 @@ pub(super) fn validate_options(options: &FitOptions) -> Result<()> {
         return Err(Error::invalid(
             "--max-delta-e",
             format!("is {bound}; give a positive ΔE2000 (1 is invisible side by side)"),
+        ));
+    }
+    // The widening is of a bound: without one there is nothing to widen, and ignoring the
+    // flag would let a caller believe the noise was allowed for.
+    if options.noise_aware_bound && options.max_delta_e.is_none() {
+        return Err(Error::invalid(
+            "--noise-aware-bound",
+            "needs a bound to widen; give --max-delta-e too (e.g. --max-delta-e 1)",
         ));
     }
     if !(options.colour_weight.is_finite() && options.colour_weight >= 0.0) {

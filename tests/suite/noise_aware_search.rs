@@ -151,3 +151,27 @@ fn the_cli_takes_the_flag_with_a_bound_only() {
         "{stdout}"
     );
 }
+
+/// The library refuses the flag without a bound too (the CLI and Python refuse it before
+/// calling it): a caller who set it must not believe the noise was allowed for, on the
+/// default fit or any model.
+#[test]
+fn the_library_refuses_the_flag_without_a_bound() {
+    let (m, _) = SynthSpec::preset("green-dye").unwrap().generate().unwrap();
+    for model in [
+        ModelChoice::AsNeeded,
+        ModelChoice::Tabulated,
+        ModelChoice::Auto,
+    ] {
+        let options = FitOptions {
+            model,
+            noise_aware_bound: true,
+            ..FitOptions::default()
+        };
+        let error = fit(&m, &options).expect_err("refused").to_string();
+        assert!(
+            error.contains("--noise-aware-bound") && error.contains("--max-delta-e"),
+            "{model:?}: {error}"
+        );
+    }
+}
