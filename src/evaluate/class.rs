@@ -13,7 +13,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use crate::colour::{Light, PatchColorimeter, delta_e2000, xyz_to_lab};
+use crate::colour::{Light, PatchColorimeter, delta_e2000};
 use crate::error::{Error, Result};
 use crate::fit::{FitOptions, FitOutcome, ModelChoice, fit};
 use crate::material::{Material, YieldForm};
@@ -435,10 +435,7 @@ pub fn measured_colour_delta_e(m: &Measurement, truth: &Material) -> f64 {
         .iter()
         .map(|light| {
             let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
-            delta_e2000(
-                xyz_to_lab(pc.xyz(&measured), pc.white),
-                xyz_to_lab(pc.xyz(&true_cells), pc.white),
-            )
+            delta_e2000(pc.lab(&measured), pc.lab(&true_cells))
         })
         .fold(0.0, f64::max)
 }
@@ -482,12 +479,14 @@ fn of_method<'a>(sweep: &'a ClassSweep, method: &'a str) -> Vec<(&'a Case, &'a M
         .collect()
 }
 
-fn split_stats(pairs: &[(&Case, &MethodResult)], value: fn(&MethodResult) -> f64) -> SplitStats {
+/// Statistics of `values`, (the truth's fluorophore count, value) pairs, over all of them
+/// and split by that count.
+fn split_by_dyes(values: &[(usize, f64)]) -> SplitStats {
     let select = |k: Option<usize>| -> Vec<f64> {
-        pairs
+        values
             .iter()
-            .filter(|(c, r)| r.error.is_none() && k.is_none_or(|k| c.true_fluorophores == k))
-            .map(|(_, r)| value(r))
+            .filter(|(dyes, _)| k.is_none_or(|k| *dyes == k))
+            .map(|(_, v)| *v)
             .collect()
     };
     SplitStats {
@@ -497,22 +496,24 @@ fn split_stats(pairs: &[(&Case, &MethodResult)], value: fn(&MethodResult) -> f64
     }
 }
 
+fn split_stats(pairs: &[(&Case, &MethodResult)], value: fn(&MethodResult) -> f64) -> SplitStats {
+    let values: Vec<(usize, f64)> = pairs
+        .iter()
+        .filter(|(_, r)| r.error.is_none())
+        .map(|(c, r)| (c.true_fluorophores, value(r)))
+        .collect();
+    split_by_dyes(&values)
+}
+
 /// The measured colour's own ΔE2000 from the truth ([`Case::measured_colour_truth`]),
 /// over all cases and split by the truth's fluorophore count.
 pub fn measured_colour_floor(sweep: &ClassSweep) -> SplitStats {
-    let select = |k: Option<usize>| -> Vec<f64> {
-        sweep
-            .cases
-            .iter()
-            .filter(|c| k.is_none_or(|k| c.true_fluorophores == k))
-            .map(|c| c.measured_colour_truth)
-            .collect()
-    };
-    SplitStats {
-        all: stats(&select(None)),
-        one: stats(&select(Some(1))),
-        two: stats(&select(Some(2))),
-    }
+    let values: Vec<(usize, f64)> = sweep
+        .cases
+        .iter()
+        .map(|c| (c.true_fluorophores, c.measured_colour_truth))
+        .collect();
+    split_by_dyes(&values)
 }
 
 /// One summary per method ([`METHODS`]).
