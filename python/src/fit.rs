@@ -349,9 +349,11 @@ fn prepared(
 ///   ``colour_weight``.
 /// - ``noise_aware_bound``: with ``max_delta_e``, hold each light to max(bound, 3 × the
 ///   measured colour's own noise RMS ΔE2000; at most the grid fit's ΔE2000 + bound) and
-///   weigh its colour term by that noise
+///   weigh its colour term by that noise, and keep the grid fit when it meets the bound
+///   too and the matrix tells the candidate that met it from the grid model
 ///   (``fluorite fit --noise-aware-bound``); the report's
-///   ``model_search.misses_within_noise`` lists the lights judged so.
+///   ``model_search.misses_within_noise`` lists the lights judged so, and
+///   ``model_search.kept_grid`` says why the grid fit was kept.
 ///
 /// The GIL is released while the file is read and the fit runs. Returns a ``Fit``;
 /// raises ``FluoriteError`` with the command line's message.

@@ -116,7 +116,8 @@ pub struct FitArgs {
     /// With --max-delta-e: hold each light to max(bound, 3 × the measured colour's own
     /// noise RMS ΔE2000; at most the grid fit's ΔE2000 + bound) and weigh its colour term
     /// by that noise, so noisy data are not fitted to their noise (the report lists the
-    /// lights judged so).
+    /// lights judged so); keep the grid fit when it meets the bound too and the matrix
+    /// tells the candidate that met it from the grid model by more than noise.
     #[arg(long, requires = "max_delta_e")]
     pub noise_aware_bound: bool,
     /// Exit with code 1 when a fit did not converge or carries warnings.

@@ -95,6 +95,9 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
                 if let Some(skipped) = &search.skipped {
                     let _ = writeln!(s, "    skipped {skipped}");
                 }
+                if let Some(why) = &search.kept_grid {
+                    let _ = writeln!(s, "    kept the grid fit: {why}");
+                }
                 for c in &search.candidates {
                     let _ = writeln!(
                         s,

@@ -26,6 +26,7 @@ use super::representation::START_KAPPA_CAP;
 use super::tabulated::CrosstalkPlan;
 use super::{FitOptions, FitOutcome, ModelChoice, ModelRequest, YieldChoice, assess, solve};
 
+mod adequacy;
 mod candidate;
 mod model_name;
 mod starts;
@@ -239,6 +240,8 @@ pub(super) fn fit_model_from(
     let mut jobs: std::collections::VecDeque<(usize, usize, usize)> =
         specs.iter().copied().collect();
     let mut first_structure = true;
+    // --noise-aware-bound: why the grid fit is kept although a candidate met the bound.
+    let mut kept_grid: Option<String> = None;
     // --noise-aware-bound: where the grid model (one fluorophore, every sample free) misses
     // a light by more than its noise explains, a one-component model could meet that
     // light's bound only through the colour term hiding its misfit, which the noise
@@ -366,6 +369,26 @@ pub(super) fn fit_model_from(
         first_structure = false;
         let decides = budget.is_some() || matches!(options.model, ModelChoice::Fixed(_));
         if decides && let Some(pick) = choose_form(&fitted, &here, auto_form) {
+            // --noise-aware-bound judges a candidate by the matrix too: one that meets the
+            // (widened) bound while the matrix tells it from the grid model, which also
+            // meets it, has reached the bound through its colour term, not its bands;
+            // the grid fit is kept. On `fluorite class` (five seeds) this lowered the
+            // median against the truth from 0.42–0.49 to 0.26–0.31 (docs/results.md).
+            if colour_noise.is_some()
+                && !matches!(options.model, ModelChoice::Fixed(_))
+                && let Some(reason) = adequacy::grid_beats(
+                    &fitted[pick.0],
+                    &base,
+                    m,
+                    &data,
+                    sigma,
+                    lights,
+                    &light_bounds,
+                )
+            {
+                kept_grid = Some(reason);
+                break;
+            }
             chosen = Some(pick);
             break;
         }
@@ -390,6 +413,11 @@ pub(super) fn fit_model_from(
     // (index into `fitted`, or None for the grid fit; met; why this yield form)
     let (index, met, yield_reason) = match (chosen, budget) {
         (Some((i, why)), _) => (Some(i), true, why),
+        (None, _) if kept_grid.is_some() => (
+            None,
+            true,
+            "the grid fit's form: it meets the bound and the matrix tells the candidate that met it from the grid model".to_string(),
+        ),
         // No bound: the lowest BIC.
         (None, None) => {
             let i = fitted
@@ -488,9 +516,11 @@ pub(super) fn fit_model_from(
             let mut material = base;
             if let Some(fit) = material.fit.as_mut() {
                 fit.model = "tabulated".into();
-                fit.warnings.push(format!(
-                    "no parametric model tried matched the grid fit's worst ΔE2000 {grid_de:.2}; kept the grid (tabulated) fit the search started from"
-                ));
+                if kept_grid.is_none() {
+                    fit.warnings.push(format!(
+                        "no parametric model tried matched the grid fit's worst ΔE2000 {grid_de:.2}; kept the grid (tabulated) fit the search started from"
+                    ));
+                }
             }
             material
         }
@@ -546,6 +576,7 @@ pub(super) fn fit_model_from(
         skipped,
         met,
         misses_within_noise: within_noise,
+        kept_grid,
         lowest_bic,
         seconds: started.elapsed().as_secs_f64(),
     });
