@@ -450,11 +450,11 @@ pub struct ModelSearch {
     /// only through the widened bound. Empty otherwise.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub misses_within_noise: BTreeMap<String, [f64; 2]>,
-    /// `--noise-aware-bound` only: why the grid fit was kept although a candidate met the
-    /// bound (the grid fit met it too, and the matrix tells the candidate from the grid
-    /// model by more than noise).
+    /// `--noise-aware-bound` only, where the matrix told a candidate that met the bound
+    /// from the grid model by more than noise: what the search did (kept the grid fit, or
+    /// went on to a candidate that passes), and why.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub kept_grid: Option<String>,
+    pub matrix_test: Option<String>,
     /// The candidate with the lowest BIC among those tried.
     pub lowest_bic: String,
     /// Wall time of the whole search (seconds).

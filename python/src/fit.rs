@@ -349,11 +349,12 @@ fn prepared(
 ///   ``colour_weight``.
 /// - ``noise_aware_bound``: with ``max_delta_e``, hold each light to max(bound, 3 × the
 ///   measured colour's own noise RMS ΔE2000; at most the grid fit's ΔE2000 + bound) and
-///   weigh its colour term by that noise, and keep the grid fit when it meets the bound
-///   too and the matrix tells the candidate that met it from the grid model
+///   weigh its colour term by that noise; a candidate that meets the bound but that the
+///   matrix tells from the grid model is passed over: for the grid fit where it leaves
+///   only noise and meets the bound, else for a later candidate that passes
 ///   (``fluorite fit --noise-aware-bound``); the report's
 ///   ``model_search.misses_within_noise`` lists the lights judged so, and
-///   ``model_search.kept_grid`` says why the grid fit was kept.
+///   ``model_search.matrix_test`` what the test decided and why.
 ///
 /// The GIL is released while the file is read and the fit runs. Returns a ``Fit``;
 /// raises ``FluoriteError`` with the command line's message.

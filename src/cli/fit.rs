@@ -116,8 +116,9 @@ pub struct FitArgs {
     /// With --max-delta-e: hold each light to max(bound, 3 × the measured colour's own
     /// noise RMS ΔE2000; at most the grid fit's ΔE2000 + bound) and weigh its colour term
     /// by that noise, so noisy data are not fitted to their noise (the report lists the
-    /// lights judged so); keep the grid fit when it meets the bound too and the matrix
-    /// tells the candidate that met it from the grid model by more than noise.
+    /// lights judged so); pass over a candidate that meets the bound but that the matrix
+    /// tells from the grid model by more than noise: for the grid fit where it leaves only
+    /// noise and meets the bound, else for a later candidate that passes.
     #[arg(long, requires = "max_delta_e")]
     pub noise_aware_bound: bool,
     /// Exit with code 1 when a fit did not converge or carries warnings.

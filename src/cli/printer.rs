@@ -95,8 +95,8 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
                 if let Some(skipped) = &search.skipped {
                     let _ = writeln!(s, "    skipped {skipped}");
                 }
-                if let Some(why) = &search.kept_grid {
-                    let _ = writeln!(s, "    kept the grid fit: {why}");
+                if let Some(verdict) = &search.matrix_test {
+                    let _ = writeln!(s, "    matrix test: {verdict}");
                 }
                 for c in &search.candidates {
                     let _ = writeln!(
