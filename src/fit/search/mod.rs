@@ -399,6 +399,8 @@ pub(super) fn fit_model_from(
                         if passed_over.is_none() {
                             passed_over = Some((pick, reason));
                         }
+                        // What the grid model leaves is a second fluorophore's to explain.
+                        jobs.retain(|s| s.0 > 1);
                         continue;
                     }
                 }
