@@ -264,50 +264,64 @@ fn the_library_refuses_the_flag_without_a_bound() {
     }
 }
 
-/// Where the grid model leaves structure one fluorophore cannot explain, the matrix test
-/// does not fall back on it: the search goes on up the ladder. Case035 of `fluorite class`
-/// (default seed): two dyes at σ 1.4·10⁻⁴; the grid fit (one component) meets ΔE2000 ≤ 1
-/// (0.97) but lies 2.72 from the truth, and the literal search keeps a one-component model
-/// 1.12 from it. The noise-aware search's first candidate to meet the bound fails the
-/// matrix test, the grid model leaves hundreds of σ² per cell away from the diagonal, and
-/// the search keeps the two-component model after it, 0.21 from the truth.
+/// Where what the grid model leaves holds a second fluorophore, the matrix test does not
+/// fall back on the grid fit, nor keep a one-component candidate: the search goes on among
+/// two-component models. Two draws of `fluorite class`:
+/// - case035 of the default seed: two dyes at σ 1.4·10⁻⁴; the grid fit (one component)
+///   meets ΔE2000 ≤ 1 (0.97) but lies 2.72 from the truth, the literal search keeps a
+///   one-component model 1.12 from it; the noise-aware search's first candidate to meet
+///   the bound fails the matrix test, and it keeps the two-component model after it,
+///   0.21 from the truth.
+/// - case081 of seed 0xBEEF: two dyes at σ 2.3·10⁻³; a one-component candidate meets the
+///   widened bounds (uv ≤ 6.49) and passes the test against a grid model that misses the
+///   second dye as badly (4.84 from the truth); it was kept, 4.95 from the truth. Now the
+///   second fluorophore in the grid model's residual sends the search on: 2x1+rt, 0.92.
 #[test]
-fn where_the_grid_model_leaves_structure_the_matrix_test_goes_on_to_two_components() {
+fn where_the_grid_model_leaves_a_second_fluorophore_the_search_goes_on_to_two_components() {
     use fluorite::evaluate::class::{ClassConfig, draw};
-    let draws = draw(&ClassConfig::default()).unwrap();
-    let spec = draws.specs.iter().find(|s| s.name == "case035").unwrap();
-    assert_eq!(spec.components.len(), 1, "case035 is a two-dye draw");
-    let (m, truth) = spec.generate().unwrap();
     let lights = Light::standard();
-    let grid = material(
-        fit(
-            &m,
-            &FitOptions {
-                model: ModelChoice::Tabulated,
-                ..FitOptions::default()
-            },
-        )
-        .unwrap(),
-    );
-    let plain = material(fit(&m, &search(1.0, false)).unwrap());
-    let aware = material(fit(&m, &search(1.0, true)).unwrap());
-    aware.validate().unwrap();
-    let report = aware.fit.as_ref().unwrap();
-    let search = report.model_search.as_ref().unwrap();
-    let why = search
-        .matrix_test
-        .as_deref()
-        .expect("the matrix test spoke");
-    assert!(why.contains("so the search went on"), "{why}");
-    assert!(search.met && report.delta_e2000.values().all(|de| *de <= 1.0));
-    assert_eq!(aware.fluorophores.len(), 2, "{}", report.model);
-    let (g, p, a) = (
-        material_delta_e(&grid, &truth, &lights),
-        material_delta_e(&plain, &truth, &lights),
-        material_delta_e(&aware, &truth, &lights),
-    );
-    assert!(
-        a < 0.5 && a < p && a < g,
-        "from the truth: grid fit {g:.2}, literal search {p:.2}, noise-aware {a:.2}"
-    );
+    for (seed, case, nearer_than_literal) in [
+        (ClassConfig::default().seed, "case035", true),
+        (0xBEEF, "case081", false),
+    ] {
+        let draws = draw(&ClassConfig {
+            seed,
+            ..ClassConfig::default()
+        })
+        .unwrap();
+        let spec = draws.specs.iter().find(|s| s.name == case).unwrap();
+        assert_eq!(spec.components.len(), 1, "{case} is a two-dye draw");
+        let (m, truth) = spec.generate().unwrap();
+        let grid = material(
+            fit(
+                &m,
+                &FitOptions {
+                    model: ModelChoice::Tabulated,
+                    ..FitOptions::default()
+                },
+            )
+            .unwrap(),
+        );
+        let plain = material(fit(&m, &search(1.0, false)).unwrap());
+        let aware = material(fit(&m, &search(1.0, true)).unwrap());
+        aware.validate().unwrap();
+        let report = aware.fit.as_ref().unwrap();
+        let search = report.model_search.as_ref().unwrap();
+        let why = search
+            .matrix_test
+            .as_deref()
+            .expect("the matrix test spoke");
+        assert!(why.contains("so the search went on"), "{case}: {why}");
+        assert!(search.met, "{case}");
+        assert_eq!(aware.fluorophores.len(), 2, "{case}: {}", report.model);
+        let (g, p, a) = (
+            material_delta_e(&grid, &truth, &lights),
+            material_delta_e(&plain, &truth, &lights),
+            material_delta_e(&aware, &truth, &lights),
+        );
+        assert!(
+            a < 1.0 && a < g && (a < p || !nearer_than_literal),
+            "{case} from the truth: grid fit {g:.2}, literal search {p:.2}, noise-aware {a:.2}"
+        );
+    }
 }

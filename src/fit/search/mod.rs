@@ -380,7 +380,7 @@ pub(super) fn fit_model_from(
             // it leaves only noise and meets the bound too; where it leaves structure (a
             // second fluorophore) the search goes on to a candidate that passes, else keeps
             // the first that met the bound. On `fluorite class` (five seeds) this lowered
-            // the median against the truth from 0.42–0.49 to 0.26–0.31 (docs/results.md).
+            // the median against the truth from 0.42–0.49 to 0.26–0.30 (docs/results.md).
             if colour_noise.is_some() && !matches!(options.model, ModelChoice::Fixed(_)) {
                 match adequacy::judge(
                     &fitted[pick.0],
