@@ -22,6 +22,14 @@ fn search(bound: f64, noise_aware_bound: bool) -> FitOptions {
     }
 }
 
+/// The grid fit (`--model tabulated`), which every search starts from.
+fn grid_fit() -> FitOptions {
+    FitOptions {
+        model: ModelChoice::Tabulated,
+        ..FitOptions::default()
+    }
+}
+
 fn material(outcome: FitOutcome) -> Material {
     match outcome {
         FitOutcome::Material(m) => *m,
@@ -292,16 +300,7 @@ fn where_the_grid_model_leaves_a_second_fluorophore_the_search_goes_on_to_two_co
         let spec = draws.specs.iter().find(|s| s.name == case).unwrap();
         assert_eq!(spec.components.len(), 1, "{case} is a two-dye draw");
         let (m, truth) = spec.generate().unwrap();
-        let grid = material(
-            fit(
-                &m,
-                &FitOptions {
-                    model: ModelChoice::Tabulated,
-                    ..FitOptions::default()
-                },
-            )
-            .unwrap(),
-        );
+        let grid = material(fit(&m, &grid_fit()).unwrap());
         let plain = material(fit(&m, &search(1.0, false)).unwrap());
         let aware = material(fit(&m, &search(1.0, true)).unwrap());
         aware.validate().unwrap();
