@@ -19,6 +19,23 @@ pub struct RankOne {
     pub cost_history: Vec<f64>,
 }
 
+impl RankOne {
+    /// The energy of `data`'s off-diagonal cells this fit explains: Σ M² − Σ (M − u·v)²
+    /// (`data` the cells it was fitted to; all of it before the first sweep).
+    pub fn explained(&self, data: &FitData) -> f64 {
+        let total: f64 = data.off_diagonal.iter().map(|c| c.value * c.value).sum();
+        total - 2.0 * self.cost_history.last().copied().unwrap_or(0.5 * total)
+    }
+}
+
+/// What a rank-1 fit explains of pure noise of level `sigma` on an `rows` × `columns`
+/// grid: about σ²(√m + √n)², the top singular value of the noise matrix squared. The unit
+/// in which the grid fit asks whether a matrix holds fluorescence, and the model search
+/// whether a grid model's residual holds a second fluorophore.
+pub fn noise_rank_one_energy(sigma: f64, rows: usize, columns: usize) -> f64 {
+    sigma * sigma * ((rows as f64).sqrt() + (columns as f64).sqrt()).powi(2)
+}
+
 /// Sweep limit of the rank-1 start. Fluorescent surfaces converge in about ten sweeps;
 /// pure noise (σ₁ ≈ σ₂) converges slowly, and the significance test needs only the
 /// explained energy, which is near its limit long before.

@@ -328,17 +328,9 @@ fn fit_cells(
     // 1. Closed-form start.
     let start = init::rank_one(&data, init::MAX_SWEEPS);
     let total_energy: f64 = data.off_diagonal.iter().map(|c| c.value * c.value).sum();
-    let explained = total_energy
-        - 2.0
-            * start
-                .cost_history
-                .last()
-                .copied()
-                .unwrap_or(0.5 * total_energy);
-    let n_rows = data.n_excitation() as f64;
-    let n_cols = data.n_emission() as f64;
-    let noise_floor =
-        SIGNIFICANCE_FACTOR * noise_sigma.powi(2) * (n_rows.sqrt() + n_cols.sqrt()).powi(2);
+    let explained = start.explained(&data);
+    let noise_floor = SIGNIFICANCE_FACTOR
+        * init::noise_rank_one_energy(noise_sigma, data.n_excitation(), data.n_emission());
     let fluorescent =
         explained > noise_floor.max(1e-24 * total_energy.max(1e-300)) && explained > 0.0;
 

@@ -13,14 +13,12 @@
 //! question the grid fit asks of a matrix before it fits any fluorescence), the search
 //! looks on among two-component models instead.
 
-use std::collections::BTreeMap;
-
 use crate::material::Material;
 use crate::measurement::Measurement;
 use crate::model::predict_like;
 
 use super::super::data::{Cell, FitData};
-use super::super::init::rank_one;
+use super::super::init::{noise_rank_one_energy, rank_one};
 use super::{Fitted, worst};
 
 /// Standard deviations of the χ² spread a candidate's extra residual may exceed its mean by
@@ -148,31 +146,61 @@ fn second_fluorophore_energy(
         })
         .filter(|c| c.value.is_finite())
         .collect();
-    let total: f64 = left.off_diagonal.iter().map(|c| c.value * c.value).sum();
-    let fit = rank_one(&left, RANK_ONE_SWEEPS);
-    let explained = total - 2.0 * fit.cost_history.last().copied().unwrap_or(0.5 * total);
-    let scale = ((m.n_excitation() as f64).sqrt() + (m.n_emission() as f64).sqrt()).powi(2);
-    explained.max(0.0) / (sigma * sigma * scale).max(1e-300)
+    let explained = rank_one(&left, RANK_ONE_SWEEPS).explained(&left);
+    explained.max(0.0) / noise_rank_one_energy(sigma, m.n_excitation(), m.n_emission()).max(1e-300)
 }
 
-/// The matrix test of `candidate`, which met every light's bound in `light_bounds`, against
-/// the grid fit `base` it started from, on the cells `data` of `m` at noise level `sigma`.
+/// The grid fit as the matrix test sees it: what it leaves of the matrix, and whether it
+/// meets the search's bounds. It depends on the grid fit alone, so a search computes it
+/// once, however many candidates it judges.
+pub(super) struct GridReference {
+    /// Its predicted matrix's residual sum of squares over the fitted cells.
+    rss: f64,
+    /// Its free parameters.
+    parameters: usize,
+    /// [`second_fluorophore_energy`] of its residual.
+    second: f64,
+    /// Whether it meets every light's bound of the search.
+    meets_bounds: bool,
+    /// Its largest ΔE2000 against the measurement.
+    worst: f64,
+}
+
+impl GridReference {
+    /// The grid fit `base` of `m`'s cells `data` at noise level `sigma`; `meets_bounds`
+    /// as the search judged its ΔE2000.
+    pub fn new(
+        base: &Material,
+        m: &Measurement,
+        data: &FitData,
+        sigma: f64,
+        meets_bounds: bool,
+    ) -> Self {
+        let predicted = predict_like(base, m);
+        let report = base.fit.as_ref();
+        GridReference {
+            rss: residual_sum_of_squares(&predicted, data),
+            parameters: report.map_or(0, |r| r.parameter_count),
+            second: second_fluorophore_energy(&predicted, m, data, sigma),
+            meets_bounds,
+            worst: report.map_or(f64::NAN, |r| worst(&r.delta_e2000)),
+        }
+    }
+}
+
+/// The matrix test of `candidate`, which met every light's bound, against the grid fit
+/// `grid` it started from, on the cells `data` of `m` at noise level `sigma`.
 pub(super) fn judge(
     candidate: &Fitted,
-    base: &Material,
+    grid: &GridReference,
     m: &Measurement,
     data: &FitData,
     sigma: f64,
-    lights: &[crate::colour::Light],
-    light_bounds: &BTreeMap<String, f64>,
 ) -> Verdict {
-    let (Some(report), Some(candidate_report)) =
-        (base.fit.as_ref(), candidate.material.fit.as_ref())
-    else {
+    let Some(candidate_report) = candidate.material.fit.as_ref() else {
         return Verdict::Keep;
     };
-    let grid_predicted = predict_like(base, m);
-    let second = second_fluorophore_energy(&grid_predicted, m, data, sigma);
+    let second = grid.second;
     let name = candidate.spec.name();
     // One component cannot take what one component's grid model leaves, however little it
     // loses beyond that model (where the grid model leaves a second fluorophore, the test
@@ -185,8 +213,8 @@ pub(super) fn judge(
     let test = against_grid(
         residual_sum_of_squares(&predict_like(&candidate.material, m), data),
         candidate_report.parameter_count,
-        residual_sum_of_squares(&grid_predicted, data),
-        report.parameter_count,
+        grid.rss,
+        grid.parameters,
         data.off_diagonal.len() + data.diagonal.len(),
         sigma,
     );
@@ -199,20 +227,13 @@ pub(super) fn judge(
             test.describe()
         ));
     }
-    let grid_meets = lights.iter().all(|l| {
-        let limit = light_bounds.get(&l.name).copied().unwrap_or(f64::INFINITY);
-        report
-            .delta_e2000
-            .get(&l.name)
-            .is_some_and(|de| *de <= limit)
-    });
-    if !grid_meets {
+    if !grid.meets_bounds {
         return Verdict::Keep;
     }
     Verdict::KeepGrid(format!(
         "kept the grid fit: {name} met the bound, but {}: pulled onto the measured colour, its bands miss the matrix; what the grid model leaves holds no second fluorophore ({second:.1} × σ²(√m + √n)²) and it meets the bound too (worst ΔE2000 {:.2})",
         test.describe(),
-        worst(&report.delta_e2000)
+        grid.worst
     ))
 }
 

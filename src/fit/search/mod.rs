@@ -247,24 +247,27 @@ pub(super) fn fit_model_from(
     let mut matrix_test: Option<String> = None;
     let mut kept_grid = false;
     let mut passed_over: Option<((usize, String), String)> = None;
+    let judged_by_matrix =
+        colour_noise.is_some() && !matches!(options.model, ModelChoice::Fixed(_));
+    // The first light whose (widened) bound the grid fit misses, with its ΔE2000 and bound.
+    let grid_beyond = lights.iter().find_map(|l| {
+        let grid = *base_report.delta_e2000.get(&l.name)?;
+        let limit = light_bounds.get(&l.name).copied().unwrap_or(bound);
+        (grid > limit).then(|| (l.name.clone(), grid, limit))
+    });
+    // The grid fit as the matrix test sees it: computed at the first judgement, once.
+    let mut grid_reference: Option<adequacy::GridReference> = None;
     // --noise-aware-bound: where the grid model (one fluorophore, every sample free) misses
     // a light by more than its noise explains, a one-component model could meet that
     // light's bound only through the colour term hiding its misfit, which the noise
     // weighting no longer does; the search starts at two components. On `fluorite class`
     // (five seeds) this lowered a median, p90 or max on four and raised none (0xBEEF's
     // two-dye cases 1.16 / 3.30 → 0.99 / 3.00).
-    if colour_noise.is_some() && !matches!(options.model, ModelChoice::Fixed(_)) {
-        let beyond = lights.iter().find_map(|l| {
-            let grid = *base_report.delta_e2000.get(&l.name)?;
-            let limit = light_bounds.get(&l.name).copied().unwrap_or(bound);
-            (grid > limit).then(|| (l.name.clone(), grid, limit))
-        });
-        if let Some((light, grid, limit)) = beyond {
-            jobs.retain(|s| s.0 > 1);
-            skipped = Some(format!(
-                "one-component models: under {light} the grid model (K = 1, every sample free) has ΔE2000 {grid:.2}, beyond the {limit:.2} the measured colour's noise explains (--noise-aware-bound)"
-            ));
-        }
+    if judged_by_matrix && let Some((light, grid, limit)) = &grid_beyond {
+        jobs.retain(|s| s.0 > 1);
+        skipped = Some(format!(
+            "one-component models: under {light} the grid model (K = 1, every sample free) has ΔE2000 {grid:.2}, beyond the {limit:.2} the measured colour's noise explains (--noise-aware-bound)"
+        ));
     }
     while let Some((components, absorption_bands, emission_bands)) = jobs.pop_front() {
         // This structure's fits, per yield form.
@@ -381,16 +384,11 @@ pub(super) fn fit_model_from(
             // second fluorophore) the search goes on to a candidate that passes, else keeps
             // the first that met the bound. On `fluorite class` (five seeds) this lowered
             // the median against the truth from 0.42–0.49 to 0.26–0.30 (docs/results.md).
-            if colour_noise.is_some() && !matches!(options.model, ModelChoice::Fixed(_)) {
-                match adequacy::judge(
-                    &fitted[pick.0],
-                    &base,
-                    m,
-                    &data,
-                    sigma,
-                    lights,
-                    &light_bounds,
-                ) {
+            if judged_by_matrix {
+                let grid = grid_reference.get_or_insert_with(|| {
+                    adequacy::GridReference::new(&base, m, &data, sigma, grid_beyond.is_none())
+                });
+                match adequacy::judge(&fitted[pick.0], grid, m, &data, sigma) {
                     adequacy::Verdict::Keep => {}
                     adequacy::Verdict::KeepGrid(reason) => {
                         matrix_test = Some(reason);
