@@ -179,29 +179,24 @@ fn bench_search(c: &mut Criterion) {
         max_delta_e: Some(1.0),
         ..FitOptions::default()
     };
-    let mut group = c.benchmark_group("search");
-    group.sample_size(10);
-    for m in measured(&["CIBA12.BFC", "HERPICER.BFC", "POLGREE.BFC", "TEXTYELL.BFC"]) {
-        group.bench_function(format!("{}/auto", m.name), |b| {
-            b.iter(|| fit(black_box(&m), &options).unwrap())
-        });
-    }
-    group.finish();
     // The same with `--noise-aware-bound`: on all four the grid fit's residual holds a
     // rank-1 component above 5 × σ²(√m + √n)², so the search runs the two-component ladder
     // to its end looking for a candidate that passes the matrix test (none does).
     let noise_aware = FitOptions {
         noise_aware_bound: true,
-        ..options
+        ..options.clone()
     };
-    let mut group = c.benchmark_group("search-noise-aware");
-    group.sample_size(10);
-    for m in measured(&["CIBA12.BFC", "HERPICER.BFC", "POLGREE.BFC", "TEXTYELL.BFC"]) {
-        group.bench_function(format!("{}/auto", m.name), |b| {
-            b.iter(|| fit(black_box(&m), &noise_aware).unwrap())
-        });
+    let inputs = measured(&["CIBA12.BFC", "HERPICER.BFC", "POLGREE.BFC", "TEXTYELL.BFC"]);
+    for (name, options) in [("search", options), ("search-noise-aware", noise_aware)] {
+        let mut group = c.benchmark_group(name);
+        group.sample_size(10);
+        for m in &inputs {
+            group.bench_function(format!("{}/auto", m.name), |b| {
+                b.iter(|| fit(black_box(m), &options).unwrap())
+            });
+        }
+        group.finish();
     }
-    group.finish();
 }
 
 /// The default `fluorite fit` (`FitOptions::default()`) on every shipped example
