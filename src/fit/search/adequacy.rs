@@ -210,8 +210,9 @@ pub(super) fn judge(
             "{name} met the bound, but what the grid model leaves away from the diagonal holds a rank-1 component of {second:.1} × σ²(√m + √n)² (a second fluorophore, beyond the {SECOND_FLUOROPHORE_ENERGY} noise reaches), so the search went on"
         ));
     }
-    // The delivered material's residual, not the solver's: lowering r to the energy bound
-    // after the fit moves it (CIBA12's photon forms by 37–136 σ², near the limit itself).
+    // The delivered material's residual, not the solver's from the same parameters: the
+    // material is them tabulated, its r lowered where ρ passes 1 between samples, and that
+    // moves the residual (CIBA12's photon forms by 37–136 σ², as much as the limit).
     let test = against_grid(
         residual_sum_of_squares(&predict_like(&candidate.material, m), data),
         candidate_report.parameter_count,
