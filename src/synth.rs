@@ -227,6 +227,17 @@ impl SynthSpec {
         }
     }
 
+    /// The same draw without its fluorophores: the same reflectance, grids, noise,
+    /// crosstalk, missing cells and seed, zero concentration and no further components.
+    /// What a fit must call a plain reflector ([`crate::evaluate::class`]'s dye-free twins).
+    pub fn dye_free_twin(&self) -> SynthSpec {
+        SynthSpec {
+            concentration: 0.0,
+            components: Vec::new(),
+            ..self.clone()
+        }
+    }
+
     /// The ground-truth material, sampled on the spec's grids (so the tabulated model
     /// represents it exactly): the spec's own fluorophore (unless it has no absorption
     /// bands or zero concentration), then one per entry of `components`, in order.

@@ -411,12 +411,7 @@ fn run_case(spec: &SynthSpec) -> Result<Case> {
 
 /// `spec` without its fluorophores, fitted with the grid fit ([`DyeFreeTwin`]).
 fn dye_free_twin(spec: &SynthSpec) -> Result<DyeFreeTwin> {
-    let twin = SynthSpec {
-        concentration: 0.0,
-        components: Vec::new(),
-        ..spec.clone()
-    };
-    let (m, truth) = twin.generate()?;
+    let (m, truth) = spec.dye_free_twin().generate()?;
     let grid = fit_one(GRID_FIT, &grid_options(), &m, &truth);
     Ok(DyeFreeTwin {
         fluorophores: grid.fluorophores,

@@ -436,12 +436,7 @@ fn the_dye_free_twins_of_the_class_draws_stay_plain_reflectors() {
     let fluorescent: Vec<String> = specs
         .iter()
         .filter_map(|spec| {
-            let twin = SynthSpec {
-                concentration: 0.0,
-                components: Vec::new(),
-                ..spec.clone()
-            };
-            let (m, _) = twin.generate().unwrap();
+            let (m, _) = spec.dye_free_twin().generate().unwrap();
             match fit(&m, &grid_options()).unwrap() {
                 FitOutcome::Material(material) if material.fluorophores.is_empty() => None,
                 _ => Some(spec.name.clone()),
