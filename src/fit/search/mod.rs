@@ -96,7 +96,6 @@ const LADDER: [(usize, usize, usize); 10] = [
     (2, 3, 3),
 ];
 
-/// Fits the model `options.model` asks for (anything but tabulated).
 /// One fitted candidate of a search.
 struct Fitted {
     spec: ModelSpec,
