@@ -61,8 +61,8 @@ enum Command {
     Bench(bench::BenchArgs),
     /// Map where each fitting method fails on synthetic data with known truth.
     Stability(stability::StabilityArgs),
-    /// Measure the grid fit and the model search on a randomized class of synthetic
-    /// materials with known truth.
+    /// Measure the grid fit, the model search and the default fit on a randomized class
+    /// of synthetic materials with known truth.
     Class(class::ClassArgs),
     /// Count the Gaussian bands each curve of spectrum files needs, per band domain.
     Bands(bands::BandsArgs),

@@ -7,7 +7,9 @@ use crate::common;
 use std::process::Command;
 
 use fluorite::colour::{Light, delta_e2000, material_xyz, xyz_to_lab};
-use fluorite::evaluate::class::{self, ClassConfig, ClassSweep, GRID_FIT, METHODS};
+use fluorite::evaluate::class::{
+    self, ClassConfig, ClassSweep, DEFAULT_FIT, GRID_FIT, METHODS, SEARCH, SEARCH_NOISE,
+};
 use fluorite::fit::{FitOutcome, fit};
 
 const SMALL: ClassConfig = ClassConfig {
@@ -34,6 +36,16 @@ fn small_sweep_is_deterministic_complete_and_adds_up() {
     for case in &first.cases {
         let methods: Vec<&str> = case.results.iter().map(|r| r.method.as_str()).collect();
         assert_eq!(methods, METHODS, "{}", case.name);
+        // The default fit keeps the grid fit where one fluorophore does (it is the grid
+        // fit then), else it is a parametric model with its own figures.
+        let of = |method: &str| case.results.iter().find(|r| r.method == method).unwrap();
+        let (grid, default) = (of(GRID_FIT), of(DEFAULT_FIT));
+        if default.model == "tabulated" {
+            assert_eq!(default.delta_e_truth, grid.delta_e_truth, "{}", case.name);
+            assert_eq!(default.fluorophores, grid.fluorophores, "{}", case.name);
+        } else {
+            assert!(default.model.starts_with("gaussian:"), "{}", case.name);
+        }
         assert!((1..=2).contains(&case.true_fluorophores), "{}", case.name);
         // Its twin without fluorophores stays a plain reflector, fitted and close to the truth.
         assert_eq!(case.dye_free.fluorophores, 0, "{}", case.name);
@@ -62,7 +74,12 @@ fn small_sweep_is_deterministic_complete_and_adds_up() {
             assert!(split.all.median <= split.all.p90 && split.all.p90 <= split.all.max);
         }
         assert!(s.fluorophores_right <= s.cases - s.errors);
-        assert_eq!(s.bound_met.is_some(), s.method != GRID_FIT);
+        assert_eq!(
+            s.bound_met.is_some(),
+            [SEARCH, SEARCH_NOISE].contains(&s.method.as_str()),
+            "{}",
+            s.method
+        );
         assert!(s.bound_met.unwrap_or(0) <= s.cases);
     }
 }
