@@ -383,7 +383,8 @@ pub struct CrosstalkCorrection {
     /// diagonal); false when it was kept as measured (`note` says why).
     #[serde(default)]
     pub removed: bool,
-    /// Why it was kept as measured, when it was.
+    /// Why it was kept as measured, when it was; when removed, anything else to know (the
+    /// model search removed it where the grid fit it started from had kept it).
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub note: String,
     /// The file's units: per bin (fractions of the diagonal) or per nm (fractions of the

@@ -203,8 +203,13 @@ pub fn describe(c: &CrosstalkCorrection) -> String {
         c.quiet_rows
     );
     if c.removed {
+        let note = if c.note.is_empty() {
+            String::new()
+        } else {
+            format!("; {}", c.note)
+        };
         format!(
-            "crosstalk removed before fitting: {found}; its net energy went back to the reflectance"
+            "crosstalk removed before fitting: {found}; its net energy went back to the reflectance{note}"
         )
     } else {
         format!("crosstalk kept as measured: {found}; {}", c.note)

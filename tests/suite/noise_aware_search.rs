@@ -275,22 +275,23 @@ fn the_library_refuses_the_flag_without_a_bound() {
 /// Where what the grid model leaves holds a second fluorophore, the matrix test does not
 /// fall back on the grid fit, nor keep a one-component candidate: the search goes on among
 /// two-component models. Two draws of `fluorite class`:
-/// - case035 of the default seed: two dyes at σ 1.4·10⁻⁴; the grid fit (one component)
-///   meets ΔE2000 ≤ 1 (0.97) but lies 2.72 from the truth, the literal search keeps a
-///   one-component model 1.12 from it; the noise-aware search's first candidate to meet
-///   the bound fails the matrix test, and it keeps the two-component model after it,
-///   0.21 from the truth.
-/// - case081 of seed 0xBEEF: two dyes at σ 2.3·10⁻³; a one-component candidate meets the
-///   widened bounds (uv ≤ 6.49) and passes the test against a grid model that misses the
-///   second dye as badly (4.84 from the truth); it was kept, 4.95 from the truth. Now the
-///   second fluorophore in the grid model's residual sends the search on: 2x1+rt, 0.92.
+/// - case090 of the default seed: two dyes at σ 2.5·10⁻⁴; the grid fit (one component)
+///   lies 1.66 from the truth, the literal search keeps a one-component model 0.43 from
+///   it; the noise-aware search's one-component candidate that meets the bound fails the
+///   matrix test, and it keeps the two-component model after it, 0.23 from the truth.
+/// - case042 of seed 0xBEEF: two dyes at σ 1.8·10⁻⁴, the grid fit 18.4 from the truth,
+///   the literal search 1.22 (2x2+r9), the noise-aware search 0.49 (2x3+r9).
+///
+/// (Until session 24 the cases were case035 and 0xBEEF's case081; since the search
+/// removes the crosstalk its grid fit kept as measured, no one-component model meets the
+/// bound on either, and the search reaches two components without the test.)
 #[test]
 fn where_the_grid_model_leaves_a_second_fluorophore_the_search_goes_on_to_two_components() {
     use fluorite::evaluate::class::{ClassConfig, draw};
     let lights = Light::standard();
-    for (seed, case, nearer_than_literal) in [
-        (ClassConfig::default().seed, "case035", true),
-        (0xBEEF, "case081", false),
+    for (seed, case) in [
+        (ClassConfig::default().seed, "case090"),
+        (0xBEEF, "case042"),
     ] {
         let draws = draw(&ClassConfig {
             seed,
@@ -319,7 +320,7 @@ fn where_the_grid_model_leaves_a_second_fluorophore_the_search_goes_on_to_two_co
             material_delta_e(&aware, &truth, &lights),
         );
         assert!(
-            a < 1.0 && a < g && (a < p || !nearer_than_literal),
+            a < 1.0 && a < g && a < p,
             "{case} from the truth: grid fit {g:.2}, literal search {p:.2}, noise-aware {a:.2}"
         );
     }

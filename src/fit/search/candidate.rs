@@ -270,6 +270,8 @@ pub(super) fn fit_candidate(
         cost_history: refined.cost_history,
         model: spec.name(),
         parameter_count: parameters,
+        // The cells this candidate fitted (the search removes crosstalk the grid fit kept).
+        crosstalk: data.crosstalk.clone(),
         ..ctx.base.fit.clone().unwrap_or_default()
     };
     // Its own residuals, ΔE2000 and filled-reference figures, not the grid fit's.
