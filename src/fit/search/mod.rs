@@ -309,7 +309,6 @@ pub(super) fn fit_model_from(
                     sigma,
                     focus: &focus,
                     tolerance,
-                    grid_misses: grid_worst.is_some(),
                     light_bounds: &light_bounds,
                     light_weights: &light_weights,
                 },
