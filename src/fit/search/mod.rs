@@ -641,7 +641,7 @@ fn measured_xyz(
 /// models have the components for. The search starts from that grid fit but fits the
 /// cleaned cells: on `fluorite class` the two-dye cases whose grid fit kept it were
 /// fitted to the offset (seed 33 case126: 6.25 → 0.24 ΔE2000 from the truth), and the
-/// default fit's p90 against the truth fell on 9 of 12 seeds (docs/results.md).
+/// default fit's p90 against the truth fell on 9 of 15 seeds and rose on 3 (docs/results.md).
 fn search_crosstalk(
     grid: Option<&crate::material::CrosstalkCorrection>,
 ) -> Option<crate::material::CrosstalkCorrection> {
