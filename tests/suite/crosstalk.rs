@@ -460,16 +460,9 @@ fn the_dye_free_twins_of_the_class_draws_stay_plain_reflectors() {
 #[test]
 fn the_search_removes_the_crosstalk_its_grid_fit_kept() {
     use fluorite::colour::Light;
-    use fluorite::evaluate::class::{ClassConfig, draw};
     use fluorite::evaluate::stability::material_delta_e;
     use fluorite::fit::{FitOptions, ModelChoice};
-    let specs = draw(&ClassConfig {
-        seed: 33,
-        ..ClassConfig::default()
-    })
-    .unwrap()
-    .specs;
-    let spec = specs.iter().find(|s| s.name == "case126").unwrap();
+    let spec = crate::common::class_case(33, "case126");
     assert_eq!(spec.components.len(), 1, "a two-dye draw");
     let (m, truth) = spec.generate().unwrap();
     let fitted = |options: &FitOptions| match fit(&m, options).unwrap() {

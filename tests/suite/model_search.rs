@@ -503,15 +503,8 @@ fn an_unmet_bound_says_whether_the_noise_explains_the_misses() {
 #[test]
 fn two_dyes_the_grid_model_averages_are_found_from_the_other_starts() {
     use fluorite::colour::Light;
-    use fluorite::evaluate::class::{ClassConfig, draw};
     use fluorite::evaluate::stability::material_delta_e;
-    let specs = draw(&ClassConfig {
-        seed: 31,
-        ..ClassConfig::default()
-    })
-    .unwrap()
-    .specs;
-    let spec = specs.iter().find(|s| s.name == "case148").unwrap();
+    let spec = common::class_case(31, "case148");
     assert_eq!(spec.components.len(), 1, "a two-dye draw");
     let (m, truth) = spec.generate().unwrap();
     let options = FitOptions {

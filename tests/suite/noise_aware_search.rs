@@ -287,18 +287,10 @@ fn the_library_refuses_the_flag_without_a_bound() {
 /// where the grid model misses, those reach two components without the test.)
 #[test]
 fn where_the_grid_model_leaves_a_second_fluorophore_the_search_goes_on_to_two_components() {
-    use fluorite::evaluate::class::{ClassConfig, draw};
+    use fluorite::evaluate::class::DEFAULT_SEED;
     let lights = Light::standard();
-    for (seed, case) in [
-        (ClassConfig::default().seed, "case090"),
-        (0xBEEF, "case009"),
-    ] {
-        let draws = draw(&ClassConfig {
-            seed,
-            ..ClassConfig::default()
-        })
-        .unwrap();
-        let spec = draws.specs.iter().find(|s| s.name == case).unwrap();
+    for (seed, case) in [(DEFAULT_SEED, "case090"), (0xBEEF, "case009")] {
+        let spec = common::class_case(seed, case);
         assert_eq!(spec.components.len(), 1, "{case} is a two-dye draw");
         let (m, truth) = spec.generate().unwrap();
         let grid = material(fit(&m, &grid_fit()).unwrap());

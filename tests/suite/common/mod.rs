@@ -109,6 +109,21 @@ impl Drop for TempDir {
     }
 }
 
+/// Case `name` (`case000`, ...) of the draws `fluorite class --seed seed` makes (default
+/// number of cases).
+pub fn class_case(seed: u64, name: &str) -> fluorite::synth::SynthSpec {
+    use fluorite::evaluate::class::{ClassConfig, draw};
+    draw(&ClassConfig {
+        seed,
+        ..ClassConfig::default()
+    })
+    .unwrap()
+    .specs
+    .into_iter()
+    .find(|s| s.name == name)
+    .unwrap_or_else(|| panic!("no {name} among seed {seed:#X}'s draws"))
+}
+
 /// One file of `../shared/data/measured`.
 pub fn measured(name: &str) -> Option<PathBuf> {
     shared(&format!("measured/{name}"))
