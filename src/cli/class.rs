@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use anyhow::Context;
 use fluorite::evaluate::class::{self, ClassConfig, DEFAULT_CASES, DEFAULT_SEED};
 use fluorite::files::write_files;
 
@@ -22,6 +23,17 @@ pub struct ClassArgs {
     /// CSV with one line per case and method.
     #[arg(long)]
     pub csv: Option<PathBuf>,
+    /// Fit only these cases of the draw (comma-separated names from the report, e.g.
+    /// `case069,case124`); the same cases as in a full sweep of this seed. The whole
+    /// report is printed then.
+    #[arg(long, value_delimiter = ',')]
+    pub case: Vec<String>,
+    /// Folder (created if missing) for each fitted case's files: `NAME.csv` (the
+    /// measurement, which `fluorite fit` reads), `NAME.truth.json` (the true material),
+    /// `NAME.synth.json` (the drawn parameters) and `NAME.METHOD.json` (each method's fit
+    /// with its report).
+    #[arg(long)]
+    pub dump: Option<PathBuf>,
     /// Print nothing (otherwise the report's summary tables are printed).
     #[arg(short, long)]
     pub quiet: bool,
@@ -42,20 +54,36 @@ pub fn run(args: ClassArgs) -> anyhow::Result<ExitCode> {
         cases: args.cases,
         seed: args.seed,
     };
-    let sweep = class::run(&config)?;
-    let command = format!(
+    let sweep = class::run_named(&config, &args.case)?;
+    let mut command = format!(
         "fluorite class --cases {} --seed {:#X}",
         args.cases, args.seed
     );
+    if !args.case.is_empty() {
+        command += &format!(" --case {}", args.case.join(","));
+    }
     let report = class::to_markdown(&sweep, &command);
     let mut files = vec![(args.report.clone(), report.clone().into_bytes())];
     if let Some(path) = &args.csv {
         files.push((path.clone(), class::to_csv(&sweep).into_bytes()));
     }
+    if let Some(dir) = &args.dump {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        for case in &sweep.cases {
+            for (name, bytes) in class::case_files(case)? {
+                files.push((dir.join(name), bytes));
+            }
+        }
+    }
     write_files(&files)?;
     if !args.quiet {
-        // The summary tables: everything before the lists of worst cases.
-        print!("{}", report.split("\n## ").next().unwrap_or(&report));
+        if args.case.is_empty() {
+            // The summary tables: everything before the lists of worst cases.
+            print!("{}", report.split("\n## ").next().unwrap_or(&report));
+        } else {
+            // A few named cases: the worst-case lists hold every one of them.
+            print!("{report}");
+        }
     }
     Ok(ExitCode::SUCCESS)
 }
