@@ -60,6 +60,45 @@ pub fn colour_noise_delta_e2000(
     noise_delta_e2000(m, lights, &reference, &term.noise_covariance)
 }
 
+/// Per light, the squared Mahalanobis distance of the colour difference `reference −
+/// model` (patch XYZ per light) under the covariance that cell noise of level `sigma`
+/// gives `reference` on the grids of `data`. A colour is linear in the cells, so where the
+/// difference is that noise alone this is χ² with three degrees of freedom however large
+/// the noise, where a ΔE against its RMS is not: Lab bends at dark colours, and the
+/// noise spreads unevenly over the three channels. ∞ where the noise is nil and the
+/// colours differ, 0 where they do not.
+pub fn colour_noise_chi2(
+    data: &FitData,
+    lights: &[Light],
+    reference: &[Xyz],
+    model: &[Xyz],
+    sigma: f64,
+) -> Vec<f64> {
+    let term = ColourTerm::new(data, lights, reference, 0.0, sigma);
+    lights
+        .iter()
+        .zip(reference.iter().zip(model))
+        .zip(&term.noise_covariance)
+        .map(|((light, (r, f)), covariance)| {
+            // The covariance is of ΔLab, the Jacobian's image of ΔXYZ's: the distance is
+            // the same in either space, so ΔXYZ goes through the same Jacobian.
+            let white =
+                PatchColorimeter::cached(light, &data.excitation_nm, &data.emission_nm).white;
+            let j = crate::colour::lab_jacobian(*r, white);
+            let d =
+                nalgebra::Vector3::from_fn(|a, _| (0..3).map(|x| j[a][x] * (r[x] - f[x])).sum());
+            if d.iter().all(|v| *v == 0.0) {
+                return 0.0;
+            }
+            let c = nalgebra::Matrix3::from_fn(|a, b| covariance[a][b]);
+            match c.cholesky() {
+                Some(chol) => d.dot(&chol.solve(&d)),
+                None => f64::INFINITY,
+            }
+        })
+        .collect()
+}
+
 /// [`colour_noise_delta_e2000`] from the patch colours `reference` (XYZ per light) and
 /// the noise's Lab covariance per light ([`ColourTerm`]'s), for a caller that has them.
 pub(super) fn noise_delta_e2000(

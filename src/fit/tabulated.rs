@@ -360,7 +360,7 @@ fn fit_cells(
                 }
             )));
         }
-        let plain = plain_reflector(
+        let mut plain = plain_reflector(
             m,
             &data,
             options,
@@ -370,12 +370,25 @@ fn fit_cells(
                 "no fluorescent signal above the noise (a rank-1 fit explains {explained:.3e}, pure noise of σ = {noise_sigma:.2e} would explain up to {noise_floor:.3e}): fitted as a plain reflector with c = 0"
             )],
         );
-        let missed = plain_reflector_colour_miss(m_fit, &data, options, &plain, noise_sigma);
-        match missed {
-            Some((light, worst, allowed)) => warnings.push(format!(
-                "the fluorescence is below the noise cell by cell (a rank-1 fit explains {explained:.3e}, noise alone up to {noise_floor:.3e}), but a plain reflector misses the measured colour by ΔE2000 {worst:.2} under {light}, beyond {allowed:.2} (the bound, or what the colour's noise explains): fitted as fluorescent"
+        let bound = options.max_delta_e.unwrap_or(PLAIN_COLOUR_BOUND);
+        match plain_reflector_colour_miss(m_fit, &data, options, &plain, noise_sigma) {
+            Some(miss) if miss.chi2 > PLAIN_COLOUR_CHI2 => warnings.push(format!(
+                "the fluorescence is below the noise cell by cell (a rank-1 fit explains {explained:.3e}, noise alone up to {noise_floor:.3e}), but a plain reflector misses the measured colour under {} by ΔE2000 {:.2}, more than {bound} and more than the cells' noise explains (χ² {:.1} over the colour's three channels; noise alone passes {PLAIN_COLOUR_CHI2} in 1 of 10⁵ draws): fitted as fluorescent",
+                miss.light, miss.delta_e2000, miss.chi2
             )),
-            None => return Ok((plain, None)),
+            miss => {
+                // Where the plain reflector misses by more than the bound, say how far
+                // within the noise that is: a weak dye can hide there.
+                if let (Some(miss), FitOutcome::Material(material)) = (miss, &mut plain)
+                    && let Some(report) = material.fit.as_mut()
+                {
+                    report.warnings.push(format!(
+                        "the plain reflector misses the measured colour under {} by ΔE2000 {:.2}, more than {bound}, but no more than the cells' noise explains (χ² {:.1} over the colour's three channels, at most {PLAIN_COLOUR_CHI2}): a fluorophore weaker than the noise may hide there; average repeated measurements to tell",
+                        miss.light, miss.delta_e2000, miss.chi2
+                    ));
+                }
+                return Ok((plain, None));
+            }
         }
     }
 

@@ -1,10 +1,12 @@
-//! The colour noise the plain-reflector gate allows for (`fit::assess::colour_noise`, a
-//! linearised propagation of the cells' noise into CIELAB) against Monte Carlo: noise of
-//! known σ added to every cell of a noise-free matrix, the patch's Lab recomputed by the
-//! colorimeter for each draw, and the RMS of |ΔLab| taken over the draws.
+//! The colour noise the fits allow for against Monte Carlo: noise of known σ added to
+//! every cell of a noise-free matrix and the patch's colour recomputed by the colorimeter
+//! for each draw. `fit::assess::colour_noise` (a linearised propagation of the cells'
+//! noise into CIELAB) against the RMS of |ΔLab| over the draws; the plain-reflector
+//! gate's `fit::assess::colour_noise_chi2` against the χ² distribution with three degrees
+//! of freedom it should follow; the fit's reported RMS ΔE2000 against the draws'.
 
 use fluorite::colour::{Light, PatchColorimeter, delta_e2000};
-use fluorite::fit::assess::colour_noise;
+use fluorite::fit::assess::{colour_noise, colour_noise_chi2};
 use fluorite::fit::data::FitData;
 use fluorite::numeric::SplitMix64;
 use fluorite::synth::SynthSpec;
@@ -54,6 +56,61 @@ fn propagated_colour_noise_matches_noise_draws() {
             );
         }
     }
+}
+
+/// The χ² of a colour difference that is cell noise alone, as the plain-reflector gate
+/// judges it, follows the χ² distribution with three degrees of freedom: mean 3 (400
+/// draws per light estimate it to ±0.12) and 1 % of draws beyond 11.34.
+#[test]
+fn colour_noise_chi2_of_noise_draws_follows_chi_square_with_three_degrees() {
+    let sigma = 2e-3;
+    let draws = 400;
+    let lights = Light::standard();
+    let (mut beyond, mut total) = (0, 0);
+    for preset in ["green-dye", "red-pigment"] {
+        let mut spec = SynthSpec::preset(preset).unwrap();
+        spec.noise_sigma = 0.0;
+        spec.crosstalk = 0.0;
+        let (clean, _) = spec.generate().unwrap();
+        let data = FitData::new(&clean, 0.0);
+        let colorimeters: Vec<_> = lights
+            .iter()
+            .map(|light| PatchColorimeter::new(light, &clean.excitation_nm, &clean.emission_nm))
+            .collect();
+        let xyz = |m: &fluorite::Measurement| -> Vec<_> {
+            colorimeters
+                .iter()
+                .map(|pc| pc.xyz(&m.to_per_bin()))
+                .collect()
+        };
+        let truth = xyz(&clean);
+        let mut rng = SplitMix64::new(29);
+        let mut sums = vec![0.0; lights.len()];
+        for _ in 0..draws {
+            let mut noisy = clean.clone();
+            for v in noisy.values.iter_mut().filter(|v| v.is_finite()) {
+                *v += sigma * rng.normal();
+            }
+            let chi2 = colour_noise_chi2(&data, &lights, &xyz(&noisy), &truth, sigma);
+            for (sum, x) in sums.iter_mut().zip(&chi2) {
+                *sum += x;
+                beyond += usize::from(*x > 11.34);
+                total += 1;
+            }
+        }
+        for (light, sum) in lights.iter().zip(&sums) {
+            let mean = sum / draws as f64;
+            eprintln!("{preset} under {}: mean χ² {mean:.2}", light.name);
+            assert!(
+                (mean - 3.0).abs() < 0.4,
+                "{preset} under {}: {mean}",
+                light.name
+            );
+        }
+    }
+    let share = beyond as f64 / total as f64;
+    eprintln!("beyond 11.34: {beyond} of {total}");
+    assert!((0.003..0.025).contains(&share), "{share}");
 }
 
 /// The fit's report of how well the measurement knows its own colour

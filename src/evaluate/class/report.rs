@@ -50,7 +50,10 @@ pub fn to_csv(sweep: &ClassSweep) -> String {
 fn stats_row(out: &mut String, method: &str, against: &str, group: &str, s: &DeltaEStats) {
     if s.n == 0 {
         // A group without cases (e.g. no two-dye truth among the `--case` picked).
-        let _ = writeln!(out, "| {method} | {against} | {group} | 0 | – | – | – | – | – |");
+        let _ = writeln!(
+            out,
+            "| {method} | {against} | {group} | 0 | – | – | – | – | – |"
+        );
         return;
     }
     let _ = writeln!(
