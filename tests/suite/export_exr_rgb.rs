@@ -669,9 +669,10 @@ fn fitted_materials_round_trip_through_exr() {
 
 /// The same for a material of two fluorophores (HERPICER's default fit since it is judged
 /// under UV). No refit can recover it: the layout drops the anti-Stokes cells, and the
-/// default refit keeps one fluorophore that meets ΔE2000 ≤ 1 on the EXR's cells (d65 0.30)
-/// while its a(λi)·e(λo) puts the blue emitter's emission under the red pigment's
-/// absorption in the dropped cells (5.9 off in full under D65). What is asked is honesty:
+/// default refit ends with one fluorophore that meets ΔE2000 ≤ 1 on the EXR's cells (the
+/// grid fit, d65 0.31, escalates on its unconfirmed colour to gaussian:1x2+r7/photon,
+/// d65 0.20) while its a(λi)·e(λo) puts the blue emitter's emission under the red
+/// pigment's absorption in the dropped cells (5.7 off in full under D65). What is asked is honesty:
 /// wherever the refit's full colour is more than 1 off the original's, the refit warns that
 /// its colour rests on unconfirmed cells worth more than 1 under that light.
 #[test]
