@@ -329,6 +329,32 @@ pub fn accuracy(
     }
 }
 
+/// Per light, ΔE2000 between `material`'s patch and the measured cells of `m` with the
+/// cells the file does not hold filled from `filler` instead of from `material` itself
+/// (as [`accuracy`] fills them). Where `material` leaves structure in the measured cells,
+/// its own fill is no evidence of its colour ([`unconfirmed_fill_warning`]); a model that
+/// explains those cells (the lowest BIC) predicts the rest better, and judged against
+/// the same fill, two fits compare on one reference.
+pub fn delta_e2000_filled_from(
+    material: &Material,
+    filler: &Material,
+    m: &Measurement,
+    lights: &[Light],
+) -> BTreeMap<String, f64> {
+    let own = predict_like(material, m).to_per_bin();
+    let reference = measured_patch(m, &predict_like(filler, m).to_per_bin());
+    lights
+        .iter()
+        .map(|light| {
+            let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
+            (
+                light.name.clone(),
+                delta_e2000(pc.lab(&reference), pc.lab(&own)),
+            )
+        })
+        .collect()
+}
+
 /// The measured patch the colour is judged on, per bin: the measurement as measured
 /// (model.md §7). Every measured cell counts, the cells next to the diagonal included;
 /// only cells the file does not hold (missing) are taken from `fitted_per_bin`. A

@@ -99,6 +99,8 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
     let mut judged = judged_light_names(m);
     let verdict = judge(m, material, &judged);
     let grid_crosstalk = material.fit.as_ref().and_then(|f| f.crosstalk.clone());
+    // Kept for the fallback's comparison on a common fill, where its own is unconfirmed.
+    let unconfirmed_grid = verdict.unconfirmed.then(|| (**material).clone());
     let report = material
         .fit
         .as_mut()
@@ -210,7 +212,21 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
             }
             _ => None,
         };
-        let grid_excess = excess(&verdict.grid_delta_e2000);
+        // A grid fit whose colour rests on cells it filled itself is judged against
+        // those cells filled from the search's model, which explains the measured ones.
+        let grid_excess = match (&unconfirmed_grid, &outcome) {
+            (Some(grid_material), Ok(FitOutcome::Material(filler)))
+                if filler.fit.as_ref().is_some_and(|f| f.model != "tabulated") =>
+            {
+                excess(&assess::delta_e2000_filled_from(
+                    grid_material,
+                    filler,
+                    m,
+                    &lights,
+                ))
+            }
+            _ => excess(&verdict.grid_delta_e2000),
+        };
         let four = searched_excess(&outcome);
         let daylight_missed = verdict.missed.iter().any(|l| l != UV_LIGHT);
         let three_outcome = daylight_missed.then(|| search(&ESCALATION_LIGHTS));
@@ -346,6 +362,8 @@ struct Verdict {
     missed: Vec<String>,
     /// Lights missed by less than the measured colour's noise explains, with that bound.
     excused: BTreeMap<String, f64>,
+    /// Whether its colour rests on cells it filled itself (the unconfirmed-fill warning).
+    unconfirmed: bool,
     /// The bound each judged light is held to: [`ESCALATION_BOUND`], or 3 × the measured
     /// colour's noise (RMS ΔE2000) where that is larger (computed only when a light
     /// missed [`ESCALATION_BOUND`]; absent lights are held to it).
@@ -454,6 +472,7 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
         structure,
         missed: misses.keys().cloned().collect(),
         excused,
+        unconfirmed,
         bounds: held_to,
     }
 }
