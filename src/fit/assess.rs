@@ -125,7 +125,7 @@ pub(super) fn noise_delta_e2000(
 
 /// ΔE2000's local metric at `lab`: G with ΔE2000(lab, lab + d)² ≈ dᵀ·G·d for small d,
 /// by central differences (polarisation for the off-diagonal entries).
-fn delta_e2000_metric(lab: Lab) -> [[f64; 3]; 3] {
+pub(crate) fn delta_e2000_metric(lab: Lab) -> [[f64; 3]; 3] {
     const STEP: f64 = 1e-3;
     let squared = |d: [f64; 3]| {
         let moved = [lab[0] + d[0], lab[1] + d[1], lab[2] + d[2]];

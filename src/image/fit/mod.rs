@@ -595,7 +595,7 @@ fn conclude(
         }
     };
     notes.push(format!(
-        "cell noise σ = {sigma:.2e} (the energy outside the {rank}-vector basis): a pixel also meets the bound where its ΔE2000 is within {} × the RMS ΔE that noise gives its measured colour",
+        "cell noise σ = {sigma:.2e} (the energy outside the {rank}-vector basis): a pixel also meets the bound where its ΔE2000 is within {} × the RMS ΔE2000 that noise gives its measured colour",
         crate::fit::assess::NOISE_COVERAGE
     ));
     let trial = trials[chosen].clone();

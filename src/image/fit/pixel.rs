@@ -63,8 +63,6 @@ pub struct PixelColours {
     pub fitted_xyz: Vec<Xyz>,
     /// ΔE2000 fitted against measured, per light.
     pub delta_e: Vec<f64>,
-    /// Per light, the RMS ΔE76 the cell noise alone gives the measured colour.
-    pub noise_delta_e: Vec<f64>,
 }
 
 impl PixelModel {
@@ -231,14 +229,12 @@ impl PixelModel {
                 measured_xyz: vec![[f64::NAN; 3]; lights],
                 fitted_xyz: vec![[f64::NAN; 3]; lights],
                 delta_e: vec![f64::NAN; lights],
-                noise_delta_e: vec![f64::NAN; lights],
             };
         }
         let measured_diagonal = &r[self.record.diagonal()];
         let mut measured_xyz = Vec::with_capacity(lights);
         let mut fitted_xyz = Vec::with_capacity(lights);
         let mut delta_e = Vec::with_capacity(lights);
-        let mut noise_delta_e = Vec::with_capacity(lights);
         let fitted_f32: Vec<f32> = fit.fitted_diagonal.iter().map(|&v| v as f32).collect();
         for l in 0..lights {
             let off = &r[self.record.xyz(l)];
@@ -251,7 +247,6 @@ impl PixelModel {
                 }
             }
             delta_e.push(self.colours.delta_e(l, measured, fitted));
-            noise_delta_e.push(self.colours.noise_delta_e(l, measured, self.sigma));
             measured_xyz.push(measured);
             fitted_xyz.push(fitted);
         }
@@ -259,7 +254,13 @@ impl PixelModel {
             measured_xyz,
             fitted_xyz,
             delta_e,
-            noise_delta_e,
         }
+    }
+
+    /// The RMS ΔE2000 that the cell noise gives the measured colour `xyz` under light
+    /// `l` ([`CellColours::noise_delta_e2000`]). Computed only where asked: a pixel
+    /// within the bound needs no allowance.
+    pub fn noise_delta_e2000(&self, l: usize, xyz: Xyz) -> f64 {
+        self.colours.noise_delta_e2000(l, xyz, self.sigma)
     }
 }

@@ -196,13 +196,12 @@ impl<'a> RecordContext<'a> {
                         delta_e[l].push(*d as f32);
                     }
                     judged += 1;
-                    within += usize::from(
-                        colours
-                            .delta_e
-                            .iter()
-                            .zip(&colours.noise_delta_e)
-                            .all(|(d, n)| *d <= bound.max(crate::fit::assess::NOISE_COVERAGE * n)),
-                    );
+                    within += usize::from(colours.delta_e.iter().enumerate().all(|(l, d)| {
+                        *d <= bound
+                            || *d
+                                <= crate::fit::assess::NOISE_COVERAGE
+                                    * model.noise_delta_e2000(l, colours.measured_xyz[l])
+                    }));
                 }
                 ChunkResult::Judged {
                     delta_e: delta_e.into_iter().map(QuantileSketch::of).collect(),
