@@ -343,13 +343,24 @@ pub fn delta_e2000_filled_from(
 ) -> BTreeMap<String, f64> {
     let own = predict_like(material, m).to_per_bin();
     let reference = measured_patch(m, &predict_like(filler, m).to_per_bin());
+    patch_delta_e2000(m, &reference, &own, lights)
+}
+
+/// Per light, ΔE2000 between the patches of the per-bin cells `reference` and `model`
+/// on the grids of `m`.
+pub fn patch_delta_e2000(
+    m: &Measurement,
+    reference: &Measurement,
+    model: &Measurement,
+    lights: &[Light],
+) -> BTreeMap<String, f64> {
     lights
         .iter()
         .map(|light| {
             let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
             (
                 light.name.clone(),
-                delta_e2000(pc.lab(&reference), pc.lab(&own)),
+                delta_e2000(pc.lab(reference), pc.lab(model)),
             )
         })
         .collect()

@@ -5,7 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::colour::{Light, PatchColorimeter, delta_e2000};
+use crate::colour::Light;
 use crate::material::{CrosstalkCorrection, Material};
 use crate::measurement::{Measurement, Units};
 use crate::model::predict;
@@ -55,14 +55,5 @@ pub(super) fn own_colour_delta_e(
         true,
     );
     let cells = assess::measured_patch(&remove(m, found), &predicted);
-    lights
-        .iter()
-        .map(|light| {
-            let pc = PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm);
-            (
-                light.name.clone(),
-                delta_e2000(pc.lab(&cells), pc.lab(&predicted)),
-            )
-        })
-        .collect()
+    assess::patch_delta_e2000(m, &cells, &predicted, lights)
 }
