@@ -470,6 +470,15 @@ pub fn unconfirmed_fill_warning(
 /// The words that open [`unconfirmed_fill_warning`]'s warning.
 pub const UNCONFIRMED_FILL_WARNING: &str = "colour unconfirmed in cells no one measured";
 
+/// Whether `report` carries [`unconfirmed_fill_warning`]'s warning: its fit's colour
+/// rests on cells it filled itself, from a model that leaves structure in the others.
+pub fn colour_unconfirmed(report: &FitReport) -> bool {
+    report
+        .warnings
+        .iter()
+        .any(|w| w.starts_with(UNCONFIRMED_FILL_WARNING))
+}
+
 /// Bayesian information criterion of a fit of `data` with `parameters` parameters whose
 /// matrix residual (off-diagonal and diagonal cells) sums to `rss`: BIC = RSS/σ² + p·ln n,
 /// n the cells fitted, σ the noise level (floored at 1e-12, so noise-free data rank by

@@ -419,10 +419,7 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
             .collect();
         kept
     };
-    let unconfirmed = report
-        .warnings
-        .iter()
-        .any(|w| w.starts_with(assess::UNCONFIRMED_FILL_WARNING));
+    let unconfirmed = assess::colour_unconfirmed(report);
     let structure = structure.map(|_| {
         format!(
             "its residual leaves structure above {} × the noise (fluorescence residual {:.1} %){}",

@@ -451,19 +451,14 @@ pub(super) fn plain_reflector_colour_miss(
     // them nearer the truth (median 2.01 → 1.04, max 9.05 → 3.71), and 9 dye-free twins
     // were fitted as fluorescent where that rule had 30 (docs/results.md).
     let chi2 = assess::colour_noise_chi2(data, &options.lights, &reference, &model, noise_sigma);
+    let delta_e = assess::patch_delta_e2000(m_fit, &cells, &predicted, &options.lights);
     let bound = options.max_delta_e.unwrap_or(PLAIN_COLOUR_BOUND);
     options
         .lights
         .iter()
-        .zip(reference.iter().zip(&model))
         .zip(chi2)
-        .filter_map(|((light, (r, f)), chi2)| {
-            let white =
-                PatchColorimeter::cached(light, &m_fit.excitation_nm, &m_fit.emission_nm).white;
-            let delta_e2000 = delta_e2000(
-                crate::colour::xyz_to_lab(*r, white),
-                crate::colour::xyz_to_lab(*f, white),
-            );
+        .filter_map(|(light, chi2)| {
+            let delta_e2000 = delta_e.get(&light.name).copied()?;
             (delta_e2000 > bound).then(|| PlainColourMiss {
                 light: light.name.clone(),
                 delta_e2000,

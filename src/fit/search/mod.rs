@@ -484,13 +484,9 @@ pub(super) fn fit_model_from(
             // measured ones: judged against its own fill it was the closest on seed 22
             // case111 of `fluorite class` (f11 1.24 against 1.35, its 112 missing cells
             // worth up to 11.2) and 6.85 from the truth, where 2x3+rt/photon is 1.13.
-            let unconfirmed = base_report
-                .warnings
-                .iter()
-                .any(|w| w.starts_with(assess::UNCONFIRMED_FILL_WARNING));
             let filler = fitted.iter().find(|f| f.spec.name() == lowest_bic);
             let grid_delta_e = match filler {
-                Some(filler) if unconfirmed => {
+                Some(filler) if assess::colour_unconfirmed(&base_report) => {
                     assess::delta_e2000_filled_from(&base, &filler.material, m, lights)
                 }
                 _ => base_report.delta_e2000.clone(),
