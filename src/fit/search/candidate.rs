@@ -92,6 +92,10 @@ pub(super) struct CandidateContext<'a> {
     pub(super) light_bounds: &'a BTreeMap<String, f64>,
     /// Per light, its share of the colour weight (empty: 1 each).
     pub(super) light_weights: &'a [f64],
+    /// Whether K > 1 candidates also start as if there were no one-component parent
+    /// (the parent and split starts from the grid fit alone): where the search fits its
+    /// one-component parent only as a start, that parent may be the worse start.
+    pub(super) parentless_starts_too: bool,
 }
 
 /// Whether `big` contains `small`: the same axis, yield form and reflectance kind, and no
@@ -150,7 +154,7 @@ pub(super) fn fit_candidate(
         .iter()
         .filter(|f| contains(&spec, &f.spec))
         .min_by(|a, b| a.cost.total_cmp(&b.cost));
-    let mut starts: Vec<Start> = if energy_twin.is_some() {
+    let starts: Vec<Start> = if energy_twin.is_some() {
         // The photon form starts from the energy form's optimum of the same structure.
         vec![Start::Twin]
     } else if spec.components == 1 {
@@ -165,6 +169,13 @@ pub(super) fn fit_candidate(
         // its max lower on 8 and higher on none; HERPICER's search 11.3 → 12.8 ms.
         vec![Start::Parent, Start::Split, Start::Base]
     };
+    // Each start with whether it builds on the one-component parent (where there is one).
+    let mut starts: Vec<(Start, bool)> = starts.into_iter().map(|k| (k, true)).collect();
+    if ctx.parentless_starts_too && spec.components > 1 && energy_twin.is_none() && parent.is_some()
+    {
+        starts.push((Start::Parent, false));
+        starts.push((Start::Split, false));
+    }
     // The nested start when the contained model has as many components (extra bands
     // only). An added component is seeded by the starts above (the parent plus a small
     // component, the residual of the grid fit); refining a third start there doubled
@@ -173,7 +184,7 @@ pub(super) fn fit_candidate(
     if let Some(n) = nested
         && n.spec.components == spec.components
     {
-        starts.push(Start::Nested);
+        starts.push((Start::Nested, true));
     }
     // Each start is refined on its own, so a single fit refines them in parallel (the
     // nested start, the longest, took 60–75 % of CIBA12's two-component fits); they are
@@ -182,7 +193,7 @@ pub(super) fn fit_candidate(
     // fills the cores, and a nested join would steal other fits' work into this one's
     // time (the class's per-case search median 4.6 → 6.0 ms, its total unchanged), so
     // there they run in turn.
-    let refine_start = |&kind: &Start| {
+    let refine_start = |&(kind, with_parent): &(Start, bool)| {
         let theta0 = match kind {
             Start::Twin => energy_twin
                 .map(|t| Ok(convert_yield_form(&problem, &t.spec, &t.theta)))
@@ -191,7 +202,7 @@ pub(super) fn fit_candidate(
                 Some(n) => nested_start(&problem, ctx, n),
                 None => Err(Error::Fit("no nested model".into())),
             },
-            _ => start(&problem, ctx, parent, kind),
+            _ => start(&problem, ctx, parent.filter(|_| with_parent), kind),
         };
         theta0
             .and_then(|t| refine(&problem, &t, options, ctx.tolerance))
