@@ -93,7 +93,7 @@ pub struct FitArgs {
     /// Spectral model. `as-needed` (the default): one fluorophore sampled at every grid
     /// wavelength, kept when its ΔE2000 against the matrix is ≤ 1 under d65, a and f11,
     /// and uv where the excitation grid holds the 365 nm LED's rows (or within the
-    /// colour's noise), unless that colour rests on cells the file does not hold, filled
+    /// colour's noise, in ΔE2000 and in χ²), unless that colour rests on cells the file does not hold, filled
     /// from a fit that leaves structure; otherwise the smallest parametric model meeting that bound under
     /// those lights (as `auto --max-delta-e 1 --lights d65,a,f11,uv`; when none meets them
     /// all, whichever of the grid fit, the search's closest and the search under d65, a

@@ -72,8 +72,9 @@ pub struct SynthArgs {
     pub size: Option<String>,
     /// With --image: fitted materials (comma-separated) whose fluorophores (all of them,
     /// shared by every pixel) and reflectances make the image (default:
-    /// fits/measured/CIBA12.json,fits/measured/TEXTYELL.json,fits/measured/postit_pink.json,
-    /// from the repository's root).
+    /// fits/measured/grid/CIBA12.json,fits/measured/grid/TEXTYELL.json,
+    /// fits/measured/grid/postit_pink.json, one-fluorophore grid fits, from the repository's
+    /// root).
     #[arg(long, value_delimiter = ',', requires = "image")]
     pub material: Vec<PathBuf>,
     /// With --image: the file stem of the outputs (default `image`).

@@ -35,6 +35,13 @@ pub fn photon_form_fits_better(energy_cost: f64, photon_cost: f64, sigma: f64) -
 /// lights each, went past twice the RMS in one of six).
 pub const NOISE_COVERAGE: f64 = 3.0;
 
+/// χ² (three degrees of freedom) of a colour difference under one light beyond which the
+/// cells' noise does not explain it ([`colour_noise_chi2`]): noise alone passes it in 1
+/// of 10⁵ draws per light. A ΔE within [`NOISE_COVERAGE`] × the noise's RMS is noise's
+/// doing only where this holds too: the RMS is one number, while the noise spreads
+/// unevenly over the colour's three channels.
+pub const NOISE_CHI2_LIMIT: f64 = 25.9;
+
 /// Per light, the RMS ΔE76 that cell noise of level `sigma` alone gives the measured
 /// patch colour `reference` (XYZ per light) on the grids of `data`.
 pub fn colour_noise(data: &FitData, lights: &[Light], reference: &[Xyz], sigma: f64) -> Vec<f64> {
@@ -97,6 +104,34 @@ pub fn colour_noise_chi2(
             }
         })
         .collect()
+}
+
+/// Per light, [`colour_noise_chi2`] of the difference between the measured patch (cells
+/// the file does not hold filled from `material`) and `material`'s own patch: how far
+/// beyond the cells' noise the fit misses the measured colour, in the χ² of three degrees
+/// of freedom noise alone follows.
+pub fn misfit_colour_chi2(
+    m: &Measurement,
+    material: &Material,
+    data: &FitData,
+    lights: &[Light],
+    sigma: f64,
+) -> Vec<f64> {
+    let predicted = crate::model::predict_like(material, m).to_per_bin();
+    // Against the cells the fit fitted: crosstalk it took out is the instrument's.
+    let cells = match data.crosstalk.as_ref().filter(|c| c.removed) {
+        Some(found) => measured_patch(&super::crosstalk::remove(m, found), &predicted),
+        None => measured_patch(m, &predicted),
+    };
+    let reference: Vec<Xyz> = lights
+        .iter()
+        .map(|l| PatchColorimeter::cached(l, &m.excitation_nm, &m.emission_nm).xyz(&cells))
+        .collect();
+    let model: Vec<Xyz> = lights
+        .iter()
+        .map(|l| PatchColorimeter::cached(l, &m.excitation_nm, &m.emission_nm).xyz(&predicted))
+        .collect();
+    colour_noise_chi2(data, lights, &reference, &model, sigma)
 }
 
 /// [`colour_noise_delta_e2000`] from the patch colours `reference` (XYZ per light) and

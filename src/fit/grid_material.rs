@@ -391,11 +391,6 @@ pub(super) fn shapes(
 /// difference either (the bound `fit --max-delta-e` gives the search, when none is given).
 pub(super) const PLAIN_COLOUR_BOUND: f64 = 1.0;
 
-/// χ² (three degrees of freedom) of a plain reflector's colour difference from the
-/// measured colour, under one light, beyond which cell noise does not explain it: noise
-/// alone passes it in 1 of 10⁵ draws per light ([`assess::colour_noise_chi2`]).
-pub(super) const PLAIN_COLOUR_CHI2: f64 = 25.9;
-
 /// Where a plain reflector misses the colour of a matrix whose fluorescence is below the
 /// noise cell by cell.
 #[derive(Debug, Clone, PartialEq)]
@@ -411,7 +406,7 @@ pub(super) struct PlainColourMiss {
 /// Where the plain reflector `plain` of a matrix whose fluorescence is below the noise
 /// cell by cell misses the colour by more than the bound: the light of largest χ² among
 /// those; None where it is within the bound under every light. It explains the colour
-/// (and is kept) unless that χ² exceeds [`PLAIN_COLOUR_CHI2`].
+/// (and is kept) unless that χ² exceeds [`assess::NOISE_CHI2_LIMIT`].
 pub(super) fn plain_reflector_colour_miss(
     m_fit: &Measurement,
     data: &FitData,

@@ -372,9 +372,12 @@ fn fit_cells(
         );
         let bound = options.max_delta_e.unwrap_or(PLAIN_COLOUR_BOUND);
         match plain_reflector_colour_miss(m_fit, &data, options, &plain, noise_sigma) {
-            Some(miss) if miss.chi2 > PLAIN_COLOUR_CHI2 => warnings.push(format!(
-                "the fluorescence is below the noise cell by cell (a rank-1 fit explains {explained:.3e}, noise alone up to {noise_floor:.3e}), but a plain reflector misses the measured colour under {} by ΔE2000 {:.2}, more than {bound} and more than the cells' noise explains (χ² {:.1} over the colour's three channels; noise alone passes {PLAIN_COLOUR_CHI2} in 1 of 10⁵ draws): fitted as fluorescent",
-                miss.light, miss.delta_e2000, miss.chi2
+            Some(miss) if miss.chi2 > assess::NOISE_CHI2_LIMIT => warnings.push(format!(
+                "the fluorescence is below the noise cell by cell (a rank-1 fit explains {explained:.3e}, noise alone up to {noise_floor:.3e}), but a plain reflector misses the measured colour under {} by ΔE2000 {:.2}, more than {bound} and more than the cells' noise explains (χ² {:.1} over the colour's three channels; noise alone passes {} in 1 of 10⁵ draws): fitted as fluorescent",
+                miss.light,
+                miss.delta_e2000,
+                miss.chi2,
+                assess::NOISE_CHI2_LIMIT
             )),
             miss => {
                 // Where the plain reflector misses by more than the bound, say how far
@@ -383,8 +386,11 @@ fn fit_cells(
                     && let Some(report) = material.fit.as_mut()
                 {
                     report.warnings.push(format!(
-                        "the plain reflector misses the measured colour under {} by ΔE2000 {:.2}, more than {bound}, but no more than the cells' noise explains (χ² {:.1} over the colour's three channels, at most {PLAIN_COLOUR_CHI2}): a fluorophore weaker than the noise may hide there; average repeated measurements to tell",
-                        miss.light, miss.delta_e2000, miss.chi2
+                        "the plain reflector misses the measured colour under {} by ΔE2000 {:.2}, more than {bound}, but no more than the cells' noise explains (χ² {:.1} over the colour's three channels, at most {}): a fluorophore weaker than the noise may hide there; average repeated measurements to tell",
+                        miss.light,
+                        miss.delta_e2000,
+                        miss.chi2,
+                        assess::NOISE_CHI2_LIMIT
                     ));
                 }
                 return Ok((plain, None));

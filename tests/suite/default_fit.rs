@@ -295,11 +295,12 @@ fn a_pinned_yield_keeps_one_fluorophore_and_says_so() {
 
 /// The six real surfaces (skipped when ../shared is absent): the default fit meets the
 /// bound against each matrix under d65, a and f11, and is within 2 under uv (their grid
-/// reaches the 365 nm LED's rows, so uv is judged too). Five keep the grid fit (ΔE2000 ≤
-/// 0.65 under d65, a and f11; postit_pink misses uv by 1.29, within what its measured
-/// colour's noise explains), TEXTYELL included, whose residual shows structure: the
+/// reaches the 365 nm LED's rows, so uv is judged too). Four keep the grid fit (ΔE2000 ≤
+/// 0.65 under d65, a and f11), TEXTYELL included, whose residual shows structure: the
 /// search's smallest model meeting the bound would explain less of that matrix. HERPICER
-/// escalates: its grid fit misses uv by 4.46 (a second, UV-excited blue emitter).
+/// escalates: its grid fit misses uv by 4.46 (a second, UV-excited blue emitter); so
+/// does postit_pink, whose grid fit misses uv by 1.32, within 3 × its measured colour's
+/// noise RMS but along channels the noise hardly moves (χ² 64 over three channels).
 #[test]
 fn measured_surfaces_meet_the_bound_by_default() {
     let Some(files) = common::measured_files() else {
@@ -314,7 +315,12 @@ fn measured_surfaces_meet_the_bound_by_default() {
         let uv = report.delta_e2000["uv"];
         assert!(uv <= 2.0, "{}: ΔE2000 {uv:.2} under uv", m.name);
         let escalated = report.escalation.as_ref().unwrap().escalated;
-        assert_eq!(escalated, m.name == "HERPICER", "{}", m.name);
+        assert_eq!(
+            escalated,
+            ["HERPICER", "postit_pink"].contains(&m.name.as_str()),
+            "{}",
+            m.name
+        );
         if !escalated {
             assert_eq!(report.model, "tabulated", "{}", m.name);
         }
@@ -334,15 +340,35 @@ fn a_colour_that_rests_on_self_filled_cells_escalates() {
     let escalation = report.escalation.as_ref().unwrap();
     assert!(escalation.escalated, "{}", escalation.reason);
     assert!(
-        escalation
-            .reason
-            .contains("cells the file does not hold filled from itself"),
+        escalation.reason.contains("cells the file does not hold"),
         "{}",
         escalation.reason
     );
     assert_eq!(material.fluorophores.len(), 2, "{}", report.model);
     let against_truth = material_delta_e(&material, &truth, &Light::standard());
     assert!(against_truth < 1.0, "{against_truth}");
+}
+
+/// Two dyes at σ 2.6·10⁻³ (`fluorite class --seed 46 --case case148`): one fluorophore
+/// misses d65 by ΔE2000 1.13, within 3 × the measured colour's noise RMS, and was kept,
+/// 7.80 from the truth. That miss lies along channels the noise hardly moves (χ² 30.7 over
+/// the colour's three channels): the default escalates and ends with two fluorophores
+/// within 2.5 of the truth (the measured colour itself lies 2.42 from it).
+#[test]
+fn a_miss_within_the_noise_rms_but_beyond_its_chi_square_escalates() {
+    let (m, truth) = common::class_case(46, "case148").generate().unwrap();
+    let material = material(fit(&m, &FitOptions::default()).unwrap());
+    let report = material.fit.as_ref().unwrap();
+    let escalation = report.escalation.as_ref().unwrap();
+    assert!(escalation.escalated, "{}", escalation.reason);
+    assert!(
+        escalation.reason.contains("but not its χ²"),
+        "{}",
+        escalation.reason
+    );
+    assert_eq!(material.fluorophores.len(), 2, "{}", report.model);
+    let against_truth = material_delta_e(&material, &truth, &Light::standard());
+    assert!(against_truth < 2.5, "{against_truth}");
 }
 
 /// Two dyes, 112 missing cells worth up to ΔE2000 11.2 (`fluorite class --seed 22 --case

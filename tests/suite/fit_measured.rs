@@ -31,9 +31,15 @@ fn every_measured_surface_fits_within_colour_tolerance() {
             path.display(),
             report.warnings
         );
-        // One fluorophore, or two for HERPICER: judged under uv (its grid reaches the
-        // 365 nm LED's rows), the default fit adds its UV-excited blue emitter.
-        let expected = if m.name == "HERPICER" { 2 } else { 1 };
+        // One fluorophore, or two for HERPICER and postit_pink: judged under uv (their
+        // grid reaches the 365 nm LED's rows), one fluorophore misses it beyond the
+        // measured colour's noise (HERPICER's UV-excited blue emitter; postit_pink by
+        // 1.32 along channels the noise hardly moves).
+        let expected = if ["HERPICER", "postit_pink"].contains(&m.name.as_str()) {
+            2
+        } else {
+            1
+        };
         assert_eq!(
             material.fluorophores.len(),
             expected,

@@ -151,9 +151,10 @@ fn the_truth_image_is_the_material_maps_matrix_at_every_pixel() {
         .iter()
         .zip(["CIBA12", "TEXTYELL", "postit_pink"])
     {
-        let fit =
-            fluorite::Material::load(&repository().join(format!("fits/measured/{source}.json")))
-                .unwrap();
+        let fit = fluorite::Material::load(
+            &repository().join(format!("fits/measured/grid/{source}.json")),
+        )
+        .unwrap();
         let s = &fit.fluorophores[0];
         assert_eq!(
             (f.quantum_yield, f.yield_form),

@@ -34,7 +34,9 @@ mod starts;
 
 use candidate::*;
 
-use noise_bounds::{misses_within_noise, noise_pull_weights, noise_widened_bounds};
+use noise_bounds::{
+    misses_within_noise, noise_pull_weights, noise_widened_bounds, skip_one_component_models,
+};
 use starts::*;
 
 /// The axis bands are Gaussian in unless the model name says otherwise.
@@ -254,50 +256,39 @@ pub(super) fn fit_model_from(
     let judged_by_matrix =
         colour_noise.is_some() && !matches!(options.model, ModelChoice::Fixed(_));
     // The first light whose (widened) bound the grid fit misses, with its ΔE2000 and bound.
-    let grid_beyond = lights.iter().find_map(|l| {
+    // A light met only within its noise RMS must be so in χ² too (the grid fit's alone: a
+    // candidate's colour term pulls it along the channels the χ² weighs most, and held to
+    // the χ² the search kept a two-component model 2.14 from a one-pigment truth under uv,
+    // uvtail000 of tests/suite/uv_tail.rs, where it had kept the grid fit, 0.36).
+    let grid_chi2 = colour_noise
+        .as_ref()
+        .map(|_| assess::misfit_colour_chi2(m, &base, &data, lights, sigma))
+        .unwrap_or_default();
+    let grid_beyond = lights.iter().enumerate().find_map(|(i, l)| {
         let grid = *base_report.delta_e2000.get(&l.name)?;
         let limit = light_bounds.get(&l.name).copied().unwrap_or(bound);
-        (grid > limit).then(|| (l.name.clone(), grid, limit))
+        let chi2 = grid_chi2
+            .get(i)
+            .copied()
+            .filter(|_| grid > bound && grid <= limit);
+        let beyond = grid > limit || chi2.is_some_and(|c| c > assess::NOISE_CHI2_LIMIT);
+        beyond.then(|| (l.name.clone(), grid, limit, chi2))
     });
     // The grid fit as the matrix test sees it: computed at the first judgement, once.
     let mut grid_reference: Option<adequacy::GridReference> = None;
-    // --noise-aware-bound: where the grid model (one fluorophore, every sample free) misses
-    // a light by more than its noise explains, a one-component model could meet that
-    // light's bound only through the colour term hiding its misfit, which the noise
-    // weighting no longer does; the search starts at two components. On `fluorite class`
-    // (five seeds) this lowered a median, p90 or max on four and raised none (0xBEEF's
-    // two-dye cases 1.16 / 3.30 → 0.99 / 3.00).
-    //
-    // The smallest one-component structure is still fitted there, as the two-component
-    // models' start only (never chosen), and those models start from the grid fit as
-    // well: on seed 165 case085 of `fluorite class` (two dyes, the grid fit 24.7 from
-    // the measured colour) every two-component model started from the grid fit alone
-    // and ended 25 from the measured colour, where the literal search, starting from its
-    // 1x1 parent, ends within 0.4; on seed 30 case116 the 1x1 parent alone was the worse
-    // start. Over 145 seeds the noise-aware search changed on 830 of 21,750 cases, 423
-    // nearer the truth and 394 further: median / p90 / max of those 0.58 / 1.87 / 27.13
-    // → 0.55 / 1.73 / 10.99 (docs/results.md), at 13 % more of its time.
+    // --noise-aware-bound: where the grid model misses a light beyond its noise, the search
+    // starts at two components, the smallest one-component structure fitted as their start.
     let mut parent_only: Option<(usize, usize, usize)> = None;
-    if judged_by_matrix && let Some((light, grid, limit)) = &grid_beyond {
-        parent_only = jobs.iter().copied().find(|s| s.0 == 1);
-        jobs.retain(|s| s.0 > 1 || Some(*s) == parent_only);
-        skipped = Some(format!(
-            "one-component models: under {light} the grid model (K = 1, every sample free) has ΔE2000 {grid:.2}, beyond the {limit:.2} the measured colour's noise explains (--noise-aware-bound){}",
-            parent_only
-                .map(|(k, a, e)| format!(
-                    "; {} fitted only as a start of the two-component models",
-                    ModelSpec {
-                        components: k,
-                        absorption_bands: a,
-                        emission_bands: e,
-                        reflectance,
-                        domain,
-                        yield_form: YieldForm::Energy
-                    }
-                    .name()
-                ))
-                .unwrap_or_default()
-        ));
+    if judged_by_matrix && let Some((light, grid, limit, chi2)) = &grid_beyond {
+        let (parent, why) = skip_one_component_models(
+            &mut jobs,
+            light,
+            (*grid, *limit, *chi2),
+            reflectance,
+            domain,
+        );
+        parent_only = parent;
+        skipped = Some(why);
     }
     while let Some((components, absorption_bands, emission_bands)) = jobs.pop_front() {
         // This structure's fits, per yield form.
@@ -338,7 +329,9 @@ pub(super) fn fit_model_from(
                     tolerance,
                     light_bounds: &light_bounds,
                     light_weights: &light_weights,
-                    parentless_starts_too: parent_only.is_some(),
+                    parentless_starts_too: parent_only.is_some()
+                        && (std::env::var("FL_FIRSTONLY").is_err()
+                            || !fitted.iter().any(|f| f.spec.components > 1)),
                 },
                 spec,
                 &fitted,

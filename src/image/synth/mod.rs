@@ -38,14 +38,16 @@ use scene::Scene;
 /// Schema tag of the generating parameters (`NAME.synth.json`).
 pub const SCHEMA: &str = "fluorite-image-synth/1";
 
-/// The source materials when none are given: fluorite's fits of three real BFC-450
-/// surfaces whose fluorophores differ (an optical brightener absorbing in the UV and
-/// emitting blue, a yellow-green textile dye, a pink Post-It dye), relative to the
-/// repository's root.
+/// The source materials when none are given: fluorite's grid fits (one fluorophore each,
+/// `fit --model tabulated`) of three real surfaces whose fluorophores differ (an optical
+/// brightener absorbing in the UV and emitting blue, a yellow-green textile dye, a pink
+/// Post-It dye), relative to the repository's root. Grid fits, not the default fits: an
+/// image takes every fluorophore of every source, and the default fit of postit_pink has
+/// two since 2026-12-05 (the grid fits are what the default fits were before).
 pub const DEFAULT_MATERIALS: [&str; 3] = [
-    "fits/measured/CIBA12.json",
-    "fits/measured/TEXTYELL.json",
-    "fits/measured/postit_pink.json",
+    "fits/measured/grid/CIBA12.json",
+    "fits/measured/grid/TEXTYELL.json",
+    "fits/measured/grid/postit_pink.json",
 ];
 
 /// Largest image side (pixels).
