@@ -106,6 +106,20 @@ pub fn colour_noise_chi2(
         .collect()
 }
 
+/// The cells `data` fitted, as a patch: `m` less the crosstalk next to the diagonal where
+/// the fit took it out (that shift of the measured colour is the instrument's, which no
+/// material shows), its missing cells filled from `predicted`.
+pub(super) fn fitted_cells_patch(
+    m: &Measurement,
+    data: &FitData,
+    predicted: &Measurement,
+) -> Measurement {
+    match data.crosstalk.as_ref().filter(|c| c.removed) {
+        Some(found) => measured_patch(&super::crosstalk::remove(m, found), predicted),
+        None => measured_patch(m, predicted),
+    }
+}
+
 /// Per light, [`colour_noise_chi2`] of the difference between the measured patch (cells
 /// the file does not hold filled from `material`) and `material`'s own patch: how far
 /// beyond the cells' noise the fit misses the measured colour, in the χ² of three degrees
@@ -118,11 +132,7 @@ pub fn misfit_colour_chi2(
     sigma: f64,
 ) -> Vec<f64> {
     let predicted = crate::model::predict_like(material, m).to_per_bin();
-    // Against the cells the fit fitted: crosstalk it took out is the instrument's.
-    let cells = match data.crosstalk.as_ref().filter(|c| c.removed) {
-        Some(found) => measured_patch(&super::crosstalk::remove(m, found), &predicted),
-        None => measured_patch(m, &predicted),
-    };
+    let cells = fitted_cells_patch(m, data, &predicted);
     let reference: Vec<Xyz> = lights
         .iter()
         .map(|l| PatchColorimeter::cached(l, &m.excitation_nm, &m.emission_nm).xyz(&cells))

@@ -425,10 +425,7 @@ pub(super) fn plain_reflector_colour_miss(
     // shift of the measured colour is the instrument's, which no material shows. Judged
     // against the measured colour, dye-free twins of `fluorite class`'s draws passed for
     // fluorescent on 54 of 750 (five seeds; 20 nm grids mostly).
-    let cells = match data.crosstalk.as_ref().filter(|c| c.removed) {
-        Some(found) => assess::measured_patch(&super::crosstalk::remove(m_fit, found), &predicted),
-        None => assess::measured_patch(m_fit, &predicted),
-    };
+    let cells = assess::fitted_cells_patch(m_fit, data, &predicted);
     let colours = |cells: &Measurement| -> Vec<crate::colour::Xyz> {
         options
             .lights
