@@ -329,9 +329,7 @@ pub(super) fn fit_model_from(
                     tolerance,
                     light_bounds: &light_bounds,
                     light_weights: &light_weights,
-                    parentless_starts_too: parent_only.is_some()
-                        && (std::env::var("FL_FIRSTONLY").is_err()
-                            || !fitted.iter().any(|f| f.spec.components > 1)),
+                    parentless_starts_too: parent_only.is_some(),
                 },
                 spec,
                 &fitted,
