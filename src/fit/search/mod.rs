@@ -260,17 +260,24 @@ pub(super) fn fit_model_from(
     // candidate's colour term pulls it along the channels the χ² weighs most, and held to
     // the χ² the search kept a two-component model 2.14 from a one-pigment truth under uv,
     // uvtail000 of tests/suite/uv_tail.rs, where it had kept the grid fit, 0.36).
-    let grid_chi2 = colour_noise
-        .as_ref()
-        .map(|_| assess::misfit_colour_chi2(m, &base, &data, lights, sigma))
-        .unwrap_or_default();
-    let grid_beyond = lights.iter().enumerate().find_map(|(i, l)| {
+    // (ΔE2000, widened bound) per light, and whether the miss is within that bound only.
+    let grid_light = |l: &crate::colour::Light| {
         let grid = *base_report.delta_e2000.get(&l.name)?;
-        let limit = light_bounds.get(&l.name).copied().unwrap_or(bound);
+        Some((grid, light_bounds.get(&l.name).copied().unwrap_or(bound)))
+    };
+    let rms_only = |(grid, limit): (f64, f64)| grid > bound && grid <= limit;
+    // Computed only where some light needs it (one prediction of the grid fit).
+    let grid_chi2 = if lights.iter().filter_map(grid_light).any(rms_only) {
+        assess::misfit_colour_chi2(m, &base, &data, lights, sigma)
+    } else {
+        Vec::new()
+    };
+    let grid_beyond = lights.iter().enumerate().find_map(|(i, l)| {
+        let (grid, limit) = grid_light(l)?;
         let chi2 = grid_chi2
             .get(i)
             .copied()
-            .filter(|_| grid > bound && grid <= limit);
+            .filter(|_| rms_only((grid, limit)));
         let beyond = grid > limit || chi2.is_some_and(|c| c > assess::NOISE_CHI2_LIMIT);
         beyond.then(|| (l.name.clone(), grid, limit, chi2))
     });
