@@ -255,11 +255,10 @@ pub(super) fn fit_model_from(
     let mut passed_over: Option<((usize, String), String)> = None;
     let judged_by_matrix =
         colour_noise.is_some() && !matches!(options.model, ModelChoice::Fixed(_));
-    // The first light whose (widened) bound the grid fit misses, with its ΔE2000 and bound.
-    // A light met only within its noise RMS must be so in χ² too (the grid fit's alone: a
-    // candidate's colour term pulls it along the channels the χ² weighs most, and held to
-    // the χ² the search kept a two-component model 2.14 from a one-pigment truth under uv,
-    // uvtail000 of tests/suite/uv_tail.rs, where it had kept the grid fit, 0.36).
+    // The first light whose (widened) bound the grid fit misses. Met within its noise RMS
+    // only, it must be so in χ² too; candidates are not held to that (their colour term
+    // pulls along the χ²'s stiff channels: uvtail000 of tests/suite/uv_tail.rs ended 2.14
+    // from its truth under uv where the grid fit is 0.36).
     // (ΔE2000, widened bound) per light, and whether the miss is within that bound only.
     let grid_light = |l: &crate::colour::Light| {
         let grid = *base_report.delta_e2000.get(&l.name)?;
