@@ -721,11 +721,12 @@ fn floored_bands_with_jacobian(
     u: &[f64],
 ) -> (Vec<f64>, Vec<f64>) {
     let (gaussian, chains) = floor.widen(params);
+    let terms = BandTerms::new(&gaussian);
     let mut jacobian = vec![0.0; u.len() * params.len()];
     let values = u
         .iter()
         .zip(jacobian.chunks_exact_mut(params.len().max(1)))
-        .map(|(&u, g)| bands_value_gradient(&gaussian, u, g))
+        .map(|(&u, g)| terms.value_gradient(u, g))
         .collect();
     floor.chain(&chains, &mut jacobian);
     (values, jacobian)

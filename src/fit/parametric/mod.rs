@@ -15,8 +15,8 @@ use crate::colour::{Light, PatchColorimeter, Xyz, lab_jacobian};
 use crate::error::Result;
 use crate::material::{Fluorophore, Material, YieldForm};
 use crate::parametric::{
-    BandDomain, FluorophoreForms, GaussianBands, MaterialForms, PARAMS_PER_BAND, SigmoidPolynomial,
-    SpectralForm, bands_value_gradient, legendre, position, sigmoid,
+    BandDomain, BandTerms, FluorophoreForms, GaussianBands, MaterialForms, PARAMS_PER_BAND,
+    SigmoidPolynomial, SpectralForm, legendre, position, sigmoid,
 };
 use crate::spectrum::Spectrum;
 
