@@ -296,6 +296,7 @@ pub(super) fn fit_model_from(
         parent_only = parent;
         skipped = Some(why);
     }
+    let start_factors = StartFactors::default();
     while let Some((components, absorption_bands, emission_bands)) = jobs.pop_front() {
         // This structure's fits, per yield form.
         let mut here: Vec<usize> = Vec::new();
@@ -336,6 +337,7 @@ pub(super) fn fit_model_from(
                     light_bounds: &light_bounds,
                     light_weights: &light_weights,
                     parentless_starts_too: parent_only.is_some(),
+                    start_factors: &start_factors,
                 },
                 spec,
                 &fitted,
@@ -750,51 +752,4 @@ fn diagonal_weights(material: &Material) -> Vec<f64> {
         .iter()
         .map(|&l| (1.0 - material.absorbed(l)).max(0.0).powi(2))
         .collect()
-}
-
-/// L-BFGS on the candidate's objective.
-fn refine(
-    problem: &Problem<'_>,
-    theta0: &[f64],
-    options: &FitOptions,
-    tolerance: f64,
-) -> Result<(Vec<f64>, crate::optimise::Refined)> {
-    let (start_cost, start_gradient) = problem.cost_gradient(theta0);
-    if !start_cost.is_finite() || start_gradient.iter().any(|g| !g.is_finite()) {
-        return Err(Error::Fit(
-            "the start has a non-finite cost or gradient".into(),
-        ));
-    }
-    let gradient_norm = start_gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
-    // L-BFGS's first step is the raw gradient: scale the cost so that step moves the
-    // parameters (each of order one) by FIRST_STEP, not by whatever the data's units
-    // make it (a step of 10³ overflows the bands). Later steps are scale-free.
-    let scale = if gradient_norm > 0.0 {
-        FIRST_STEP / gradient_norm
-    } else {
-        1.0
-    };
-    let ceiling = 1e12 * start_cost.max(1e-300) * scale;
-    let function = |theta: &[f64]| {
-        let (cost, gradient) = problem.cost_gradient(theta);
-        if cost.is_finite() && gradient.iter().all(|g| g.is_finite()) {
-            (cost * scale, gradient.iter().map(|g| g * scale).collect())
-        } else {
-            // Far outside the data's reach: a high wall the line search backs off from.
-            (ceiling, vec![0.0; theta.len()])
-        }
-    };
-    let stopping = crate::optimise::Stopping {
-        max_iterations: options.max_iterations.max(2000),
-        gradient_tolerance: tolerance * FIRST_STEP,
-        cost_tolerance: tolerance * start_cost.max(1e-300) * scale,
-    };
-    let mut refined = solve::lbfgs_function(&function, theta0, stopping).map_err(Error::Fit)?;
-    refined.cost_history.iter_mut().for_each(|c| *c /= scale);
-    if refined.theta.iter().any(|t| !t.is_finite()) {
-        return Err(Error::Fit(
-            "the solver left the parameter space (non-finite parameters)".into(),
-        ));
-    }
-    Ok((refined.theta.clone(), refined))
 }
