@@ -101,9 +101,18 @@ impl<'a> Problem<'a> {
             .iter()
             .map(|&l| domain.coordinate(l))
             .collect();
+        let layout = Layout::new(spec);
+        let mut reflectance_basis = Vec::new();
+        if let ReflectanceForm::Polynomial(_) = spec.reflectance {
+            for d in &diagonal {
+                legendre(d.x, layout.reflectance().len(), |_, pn| {
+                    reflectance_basis.push(pn)
+                });
+            }
+        }
         Problem {
             data,
-            layout: Layout::new(spec),
+            layout,
             excitation_floor: WidthFloor::new(&excitation_u),
             emission_floor: WidthFloor::new(&emission_u),
             excitation_u,
@@ -119,6 +128,7 @@ impl<'a> Problem<'a> {
             colour_weight,
             light_weight: vec![1.0; lights.len()],
             reflectance_support,
+            reflectance_basis,
         }
     }
 
@@ -216,11 +226,13 @@ impl<'a> Problem<'a> {
         if let ReflectanceForm::Polynomial(_) = layout.spec.reflectance {
             let coefficients = &theta[layout.reflectance()];
             m.reflectance = self
-                .diagonal
-                .iter()
-                .map(|d| {
+                .reflectance_basis
+                .chunks_exact(coefficients.len().max(1))
+                .map(|basis| {
                     let mut p = 0.0;
-                    legendre(d.x, coefficients.len(), |n, pn| p += coefficients[n] * pn);
+                    for (c, pn) in coefficients.iter().zip(basis) {
+                        p += c * pn;
+                    }
                     sigmoid(p)
                 })
                 .collect();
@@ -570,13 +582,19 @@ impl<'a> Problem<'a> {
         if let ReflectanceForm::Polynomial(_) = layout.spec.reflectance {
             let range = layout.reflectance();
             let count = range.len();
-            for (p, s) in self.diagonal.iter().enumerate() {
+            for (p, basis) in self
+                .reflectance_basis
+                .chunks_exact(count.max(1))
+                .enumerate()
+            {
                 if r_bar[p] == 0.0 {
                     continue;
                 }
                 let r = m.reflectance[p];
                 let dp = r_bar[p] * r * (1.0 - r);
-                legendre(s.x, count, |n, pn| gradient[range.start + n] += dp * pn);
+                for (g, pn) in gradient[range.clone()].iter_mut().zip(basis) {
+                    *g += dp * pn;
+                }
             }
         }
         (cost, gradient)

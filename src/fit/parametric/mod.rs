@@ -245,6 +245,10 @@ pub struct Problem<'a> {
     light_weight: Vec<f64>,
     /// The reflectance's Legendre support (nm).
     pub reflectance_support: [f64; 2],
+    /// P₀(x) … P_d(x) at each diagonal sample's x, row by row (a polynomial reflectance of
+    /// degree d; empty otherwise): fixed by the grid, and their recurrence's divisions
+    /// took 7 % of an evaluation.
+    reflectance_basis: Vec<f64>,
 }
 
 /// The model's quantities on the grids for one parameter vector.

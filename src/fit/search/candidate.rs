@@ -215,7 +215,16 @@ pub(super) fn fit_candidate(
     };
     let refined_starts: Vec<Result<(Vec<f64>, crate::optimise::Refined, f64)>> =
         if rayon::current_thread_index().is_none() {
-            starts.par_iter().map(refine_start).collect()
+            // The nested start, the longest, begins first: begun last, the others' time
+            // came before it on the critical path.
+            let mut order: Vec<usize> = (0..starts.len()).collect();
+            order.sort_by_key(|&i| starts[i].0 != Start::Nested);
+            let mut outcomes: Vec<(usize, _)> = order
+                .par_iter()
+                .map(|&i| (i, refine_start(&starts[i])))
+                .collect();
+            outcomes.sort_by_key(|(i, _)| *i);
+            outcomes.into_iter().map(|(_, o)| o).collect()
         } else {
             starts.iter().map(refine_start).collect()
         };
