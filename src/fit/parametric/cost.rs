@@ -73,10 +73,19 @@ impl<'a> Problem<'a> {
                         .map(|w| scale * (0..3).map(|x| jacobian[channel][x] * w[x]).sum::<f64>())
                         .collect()
                 };
+                let emitted = [0, 1, 2].map(|c| project(emitted, c));
+                let emitted_by_column = [0, 1, 2].map(|c| {
+                    emitted[c]
+                        .iter()
+                        .zip(&density_factor)
+                        .map(|(e, f)| e * f)
+                        .collect()
+                });
                 PatchLight {
                     light_weights: light_weights.to_vec(),
-                    emitted: [0, 1, 2].map(|c| project(emitted, c)),
+                    emitted,
                     reflected: [0, 1, 2].map(|c| project(reflected, c)),
+                    emitted_by_column,
                 }
             })
             .collect();
@@ -324,8 +333,19 @@ impl<'a> Problem<'a> {
                     .collect()
             })
             .collect();
-        let mut model = vec![0.0; n_ex * n_em];
-        for k in 0..k_count {
+        // Without a zeroed buffer first: 0 + x is x, so the first component's terms are
+        // written as the sum's first additions would leave them.
+        let mut model = Vec::with_capacity(n_ex * n_em);
+        match weighted_emission.first() {
+            Some(first) => {
+                for i in 0..n_ex {
+                    let sa = m.scale[0] * m.absorption[0][i] * m.excitation_factor[0][i];
+                    model.extend(first.iter().map(|ue| 0.0 + sa * ue));
+                }
+            }
+            None => model.resize(n_ex * n_em, 0.0),
+        }
+        for k in 1..k_count {
             for (i, row) in model.chunks_exact_mut(n_em).enumerate() {
                 let sa = m.scale[k] * m.absorption[k][i] * m.excitation_factor[k][i];
                 for (f, ue) in row.iter_mut().zip(&weighted_emission[k]) {
@@ -362,24 +382,28 @@ impl<'a> Problem<'a> {
                 }
             }
         }
+        // Each light and channel's sum over the columns in column order, the twelve
+        // sums advancing together: one after another, each was a chain of dependent
+        // additions (perf annotate).
         let mut patch = vec![0.0; n_lights * 3];
-        for (l, light) in self.patches.iter().enumerate() {
-            for channel in 0..3 {
-                let mut v = 0.0;
-                for j in 0..n_em {
-                    v += light.emitted[channel][j]
-                        * self.density_factor[j]
-                        * column_sum[l * n_em + j];
-                    if let Some(p) = self.diagonal_of_column[j] {
-                        v += light.reflected[channel][j] * diag[p].0;
+        for j in 0..n_em {
+            let diagonal = self.diagonal_of_column[j].map(|p| diag[p].0);
+            for (l, light) in self.patches.iter().enumerate() {
+                let sum = column_sum[l * n_em + j];
+                for channel in 0..3 {
+                    let v = &mut patch[l * 3 + channel];
+                    *v += light.emitted_by_column[channel][j] * sum;
+                    if let Some(d) = diagonal {
+                        *v += light.reflected[channel][j] * d;
                     }
                 }
-                patch[l * 3 + channel] = v;
             }
         }
         let mut cost = 0.0;
-        for (row, w) in residual.chunks_exact(n_em).zip(&self.row_weight) {
-            cost += 0.5 * w * row.iter().map(|r| r * r).sum::<f64>();
+        let mut row_square = vec![0.0; n_ex];
+        row_squares(&residual, n_em, &mut row_square);
+        for (square, w) in row_square.iter().zip(&self.row_weight) {
+            cost += 0.5 * w * square;
         }
         for (s, (r, _)) in self.diagonal.iter().zip(&diag) {
             cost += 0.5 * self.row_weight[s.row] * r * r;
@@ -418,11 +442,11 @@ impl<'a> Problem<'a> {
         // ∂cost/∂λ̄e_k through the photon form's row and cap factors.
         let mut mean_bar = vec![0.0; k_count];
         let mut r_bar = vec![0.0; self.diagonal.len()];
-        let mut f_bar = vec![0.0; n_ex * n_em];
+        // Written row by row as 0 − δ (what subtracting from a zeroed buffer leaves).
+        let mut f_bar = Vec::with_capacity(n_ex * n_em);
         let mut pull = vec![0.0; n_em];
-        for (i, ((f_row, r_row), mask_row)) in f_bar
-            .chunks_exact_mut(n_em)
-            .zip(residual.chunks_exact(n_em))
+        for (i, (r_row, mask_row)) in residual
+            .chunks_exact(n_em)
             .zip(self.cell_mask.chunks_exact(n_em))
             .enumerate()
         {
@@ -435,9 +459,13 @@ impl<'a> Problem<'a> {
                 }
             }
             let w = self.row_weight[i];
-            for (((fb, r), mask), p) in f_row.iter_mut().zip(r_row).zip(mask_row).zip(&pull) {
-                *fb -= mask * (w * r + p);
-            }
+            f_bar.extend(
+                r_row
+                    .iter()
+                    .zip(mask_row)
+                    .zip(&pull)
+                    .map(|((r, mask), p)| 0.0 - mask * (w * r + p)),
+            );
         }
         for (p, (s, (r, projection))) in self.diagonal.iter().zip(&diag).enumerate() {
             if s.value.is_none() || *projection == Some(Projection::Free) {
@@ -471,18 +499,15 @@ impl<'a> Problem<'a> {
         }
 
         let mut column_adjoint = vec![0.0; n_em];
+        let mut row_dot = vec![0.0; n_ex];
         for k in 0..k_count {
             column_adjoint.iter_mut().for_each(|v| *v = 0.0);
+            row_dots(&f_bar, &weighted_emission[k], &mut row_dot);
             for (i, row) in f_bar.chunks_exact(n_em).enumerate() {
                 let x = m.excitation_factor[k][i];
                 let a = m.absorption[k][i] * x;
-                let mut t = 0.0;
-                for ((fb, ue), v) in row
-                    .iter()
-                    .zip(&weighted_emission[k])
-                    .zip(column_adjoint.iter_mut())
-                {
-                    t += fb * ue;
+                let t = row_dot[i];
+                for (fb, v) in row.iter().zip(column_adjoint.iter_mut()) {
                     *v += fb * a;
                 }
                 a_bar[k][i] += m.scale[k] * x * t;

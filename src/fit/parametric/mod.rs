@@ -14,6 +14,7 @@
 use crate::colour::{Light, PatchColorimeter, Xyz, lab_jacobian};
 use crate::error::Result;
 use crate::material::{Fluorophore, Material, YieldForm};
+use crate::numeric::{row_dots, row_squares};
 use crate::parametric::{
     BandDomain, BandTerms, FluorophoreForms, GaussianBands, MaterialForms, PARAMS_PER_BAND,
     SigmoidPolynomial, SpectralForm, legendre, position, sigmoid,
@@ -200,6 +201,8 @@ struct PatchLight {
     emitted: [Vec<f64>; 3],
     /// Per Lab channel and emission column: ∂Lab/∂(diagonal at j).
     reflected: [Vec<f64>; 3],
+    /// `emitted` times the density factor f_j: ∂Lab/∂(column sum at j).
+    emitted_by_column: [Vec<f64>; 3],
 }
 
 /// A diagonal position of the fit.

@@ -96,8 +96,8 @@ pub(super) struct CandidateContext<'a> {
     /// (the parent and split starts from the grid fit alone): where the search fits its
     /// one-component parent only as a start, that parent may be the worse start.
     pub(super) parentless_starts_too: bool,
-    /// The search's factors K > 1 starts split from, each computed once.
-    pub(super) start_factors: &'a StartFactors,
+    /// What the search's starts share, each computed once.
+    pub(super) start_cache: &'a StartCache,
 }
 
 /// Whether `big` contains `small`: the same axis, yield form and reflectance kind, and no

@@ -296,7 +296,7 @@ pub(super) fn fit_model_from(
         parent_only = parent;
         skipped = Some(why);
     }
-    let start_factors = StartFactors::default();
+    let start_cache = StartCache::default();
     while let Some((components, absorption_bands, emission_bands)) = jobs.pop_front() {
         // This structure's fits, per yield form.
         let mut here: Vec<usize> = Vec::new();
@@ -337,7 +337,7 @@ pub(super) fn fit_model_from(
                     light_bounds: &light_bounds,
                     light_weights: &light_weights,
                     parentless_starts_too: parent_only.is_some(),
-                    start_factors: &start_factors,
+                    start_cache: &start_cache,
                 },
                 spec,
                 &fitted,

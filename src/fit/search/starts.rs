@@ -3,6 +3,8 @@
 //! seeds of a second component.
 
 use super::*;
+use std::convert::Infallible;
+use std::sync::Mutex;
 
 /// θ of the smaller model `small` (parameters `theta`) in `problem`'s layout, which
 /// contains it: components, bands and reflectance coefficients copied (a higher degree
@@ -105,7 +107,7 @@ pub(super) fn nested_start(
         {
             let room = room(absorption, &taken);
             let kappa = kappa.min(EXTRA_COMPONENT_SHARE * largest).min(0.9 * room);
-            set_component(problem, &mut theta, k, kappa, absorption, emission)?;
+            set_component(problem, ctx, &mut theta, k, kappa, absorption, emission)?;
         }
     }
     problem.clamp_to_box(&mut theta);
@@ -127,6 +129,7 @@ fn room(absorption: &[f64], taken: &[f64]) -> f64 {
 /// grids, with bands fitted to them.
 fn set_component(
     problem: &Problem<'_>,
+    ctx: &CandidateContext<'_>,
     theta: &mut [f64],
     k: usize,
     kappa: f64,
@@ -136,21 +139,20 @@ fn set_component(
     let (data, layout) = (problem.data, problem.layout);
     let spec = layout.spec;
     theta[k] = kappa.clamp(1e-6, START_KAPPA_CAP).sqrt().asin();
-    let a = fit_bands(
+    let a = ctx.start_cache.bands(
         &data.excitation_nm,
         absorption,
         spec.domain,
         spec.absorption_bands,
     )?;
-    theta[layout.absorption(k)]
-        .copy_from_slice(&problem.absorption_solver_params(&a.bands.params()));
-    let e = fit_bands(
+    theta[layout.absorption(k)].copy_from_slice(&problem.absorption_solver_params(&a));
+    let e = ctx.start_cache.bands(
         &data.emission_nm,
         emission,
         spec.domain,
         spec.emission_bands,
     )?;
-    theta[layout.emission(k)].copy_from_slice(&problem.emission_solver_params(&e.bands.params()));
+    theta[layout.emission(k)].copy_from_slice(&problem.emission_solver_params(&e));
     Ok(())
 }
 
@@ -304,7 +306,7 @@ pub(super) fn start(
         } else {
             *kappa
         };
-        set_component(problem, &mut theta, k, kappa, absorption, emission)?;
+        set_component(problem, ctx, &mut theta, k, kappa, absorption, emission)?;
     }
     if let ReflectanceForm::Polynomial(degree) = spec.reflectance
         && !copied
@@ -355,36 +357,66 @@ pub(super) fn start_kappa(f: &crate::Fluorophore, form: YieldForm) -> f64 {
 /// parent (spec and parameters' bits) and K.
 type FactorKey = (Start, Option<(ModelSpec, Vec<u64>)>, usize);
 
-/// The factors K > 1 starts split their components from, each computed once per search.
-/// They depend on the search's cells, noise and grid fit, and on the start's kind, parent
-/// and K alone, so the candidates of one search share them: CIBA12's noise-aware search
-/// factorised the same split for each of its five two-component structures, 13 % of its
-/// time in `masked_nmf` and `fit_factor`.
+/// Which bands a start fits to a spectrum: its grid, its values (bits), the band axis
+/// and the number of bands.
+type BandKey = (Vec<u64>, Vec<u64>, BandDomain, usize);
+
+/// What the starts of one search share, each computed once: the factors K > 1 starts
+/// split their components from, and the bands fitted to a start's spectra. They depend
+/// on the search's cells, noise and grid fit and on their keys alone, and the candidates
+/// of one search ask for the same ones: CIBA12's noise-aware search factorised the same
+/// split for each of its five two-component structures (13 % of its time in `masked_nmf`
+/// and `fit_factor`), and fitted the same spectra with the same bands again where two
+/// structures share a band count (a third of the 9 % its start bands took).
 #[derive(Default)]
-pub(super) struct StartFactors {
-    computed: std::sync::Mutex<Vec<(FactorKey, Factors)>>,
+pub(super) struct StartCache {
+    factors: Mutex<Vec<(FactorKey, Factors)>>,
+    bands: Mutex<Vec<(BandKey, Vec<f64>)>>,
 }
 
-impl StartFactors {
-    /// The factors for `key`, computed by `compute` the first time (outside the lock:
-    /// a candidate's starts, which run in parallel, ask for different keys).
-    fn get_or_compute(&self, key: FactorKey, compute: impl FnOnce() -> Factors) -> Factors {
-        let lookup = |computed: &Vec<(FactorKey, Factors)>| {
-            computed
-                .iter()
-                .find(|(k, _)| *k == key)
-                .map(|(_, f)| f.clone())
-        };
-        if let Some(f) = self.computed.lock().ok().as_deref().and_then(lookup) {
-            return f;
-        }
-        let factors = compute();
-        if let Ok(mut computed) = self.computed.lock()
-            && lookup(&computed).is_none()
-        {
-            computed.push((key, factors.clone()));
-        }
-        factors
+/// The value memoised under `key` in `memo`, computed by `compute` the first time
+/// (outside the lock: a candidate's starts, which run in parallel, mostly ask for
+/// different keys). A failed computation is not kept.
+fn memoised<K: PartialEq, V: Clone, E>(
+    memo: &Mutex<Vec<(K, V)>>,
+    key: K,
+    compute: impl FnOnce() -> std::result::Result<V, E>,
+) -> std::result::Result<V, E> {
+    let lookup = |kept: &Vec<(K, V)>| kept.iter().find(|(k, _)| *k == key).map(|(_, v)| v.clone());
+    if let Some(v) = memo.lock().ok().as_deref().and_then(lookup) {
+        return Ok(v);
+    }
+    let value = compute()?;
+    if let Ok(mut kept) = memo.lock()
+        && lookup(&kept).is_none()
+    {
+        kept.push((key, value.clone()));
+    }
+    Ok(value)
+}
+
+impl StartCache {
+    /// The factors for `key`, computed by `compute` the first time.
+    fn factors(&self, key: FactorKey, compute: impl FnOnce() -> Factors) -> Factors {
+        memoised(&self.factors, key, || Ok::<_, Infallible>(compute()))
+            .unwrap_or_else(|never| match never {})
+    }
+
+    /// The raw parameters of `n_bands` bands on `domain` fitted to `values` on `nm`
+    /// ([`fit_bands`]).
+    fn bands(
+        &self,
+        nm: &[f64],
+        values: &[f64],
+        domain: BandDomain,
+        n_bands: usize,
+    ) -> Result<Vec<f64>> {
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect();
+        memoised(
+            &self.bands,
+            (bits(nm), bits(values), domain, n_bands),
+            || fit_bands(nm, values, domain, n_bands).map(|fit| fit.bands.params()),
+        )
     }
 }
 
@@ -408,7 +440,7 @@ pub(super) fn split_components(
         one_component.map(|(spec, theta)| (*spec, theta.iter().map(|t| t.to_bits()).collect())),
         problem.layout.spec.components,
     );
-    let factors = ctx.start_factors.get_or_compute(key, || {
+    let factors = ctx.start_cache.factors(key, || {
         split_factors(problem, ctx, one_component, kind, &column_factor)
     });
     factors
