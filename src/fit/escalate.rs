@@ -33,6 +33,7 @@
 
 use std::collections::BTreeMap;
 
+use super::assess::{SECOND_FLUOROPHORE_ENERGY, second_fluorophore_energy};
 use super::*;
 use crate::material::Escalation;
 
@@ -401,6 +402,9 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
     let mut held_to = BTreeMap::new();
     // Misses within the ΔE allowance whose χ² the noise does not explain: light → χ².
     let mut beyond_chi2: BTreeMap<String, f64> = BTreeMap::new();
+    // Misses within the noise while the residual holds a second fluorophore: the lights
+    // and that component's energy in units of σ²(√m + √n)².
+    let mut second_fluorophore: Option<(Vec<String>, f64)> = None;
     let misses = if misses.is_empty() {
         misses
     } else {
@@ -438,6 +442,27 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
             .filter(|l| bounds.get(*l).is_some_and(|b| kept[*l] <= *b))
             .filter_map(|l| chi2.get(l).map(|c| (l.clone(), *c)))
             .collect();
+        // Nor is a miss the noise would explain noise's doing where the matrix shows a
+        // second fluorophore: what one fluorophore leaves away from the diagonal holds a
+        // rank-1 component beyond what noise reaches (the test the noise-aware search
+        // holds its one-component candidates to). Over 145 `fluorite class` seeds the
+        // default fit changed on 187 of 21,750 cases (101 nearer the truth, 86 further;
+        // those 1.17 / 3.09 / 19.80 → 1.09 / 2.79 / 5.04), on held-out seeds 201–220 on
+        // 27 (16 / 11; per-seed p90 lower on 9, higher on 2); seed 198 case059, two dyes
+        // kept as one within the uv noise 14.87 from its measured colour, 19.80 → 4.65.
+        let (mut kept, mut noise_explained) = (kept, noise_explained);
+        if !noise_explained.is_empty() {
+            let energy = second_fluorophore_energy(
+                &crate::model::predict_like(material, m),
+                m,
+                &data,
+                report.noise_sigma,
+            );
+            if energy > SECOND_FLUOROPHORE_ENERGY {
+                second_fluorophore = Some((noise_explained.keys().cloned().collect(), energy));
+                kept.append(&mut noise_explained);
+            }
+        }
         excused = noise_explained
             .into_keys()
             .filter_map(|l| bounds.get(&l).map(|b| (l, *b)))
@@ -468,7 +493,7 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
     // dye's uv colour) where the search comes within 0.43 (docs/results.md).
     let trigger = if !misses.is_empty() {
         Some(format!(
-            "one fluorophore misses ΔE2000 ≤ {ESCALATION_BOUND} ({}){}{}",
+            "one fluorophore misses ΔE2000 ≤ {ESCALATION_BOUND} ({}){}{}{}",
             per_light(&misses),
             if beyond_chi2.is_empty() {
                 String::new()
@@ -485,6 +510,13 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
                     assess::NOISE_CHI2_LIMIT
                 )
             },
+            second_fluorophore
+                .as_ref()
+                .map(|(lights, energy)| format!(
+                    "; {} within the measured colour's noise, but what one fluorophore leaves away from the diagonal holds a rank-1 component of {energy:.1} × σ²(√m + √n)² (a second fluorophore, beyond the {SECOND_FLUOROPHORE_ENERGY} noise reaches)",
+                    lights.join(", ")
+                ))
+                .unwrap_or_default(),
             structure
                 .as_ref()
                 .map(|s| format!(" and {s}"))

@@ -371,6 +371,29 @@ fn a_miss_within_the_noise_rms_but_beyond_its_chi_square_escalates() {
     assert!(against_truth < 2.5, "{against_truth}");
 }
 
+/// Two dyes at σ 2.6·10⁻³ (`fluorite class --seed 198 --case case059`): one fluorophore
+/// misses uv by ΔE2000 14.87, within 3 × the measured colour's noise RMS and its χ², and
+/// was kept, 19.80 from the truth. What it leaves away from the diagonal holds a rank-1
+/// component of 5.2 × σ²(√m + √n)², beyond the 5 noise reaches: a second fluorophore, so
+/// the miss is no noise. The default escalates and ends with two fluorophores within the
+/// floor the measured colour sets (4.34 from the truth, plus the search's bound of 1).
+#[test]
+fn a_miss_within_the_noise_escalates_where_the_residual_holds_a_second_fluorophore() {
+    let (m, truth) = common::class_case(198, "case059").generate().unwrap();
+    let material = material(fit(&m, &FitOptions::default()).unwrap());
+    let report = material.fit.as_ref().unwrap();
+    let escalation = report.escalation.as_ref().unwrap();
+    assert!(escalation.escalated, "{}", escalation.reason);
+    assert!(
+        escalation.reason.contains("a second fluorophore"),
+        "{}",
+        escalation.reason
+    );
+    assert_eq!(material.fluorophores.len(), 2, "{}", report.model);
+    let against_truth = material_delta_e(&material, &truth, &Light::standard());
+    assert!(against_truth < 4.34 + 1.0, "{against_truth}");
+}
+
 /// Two dyes, 112 missing cells worth up to ΔE2000 11.2 (`fluorite class --seed 22 --case
 /// case111`), where no model meets the bound: every two-component candidate misses f11 by
 /// 0.35–0.40, the grid fit by 0.24, but only with those cells filled from itself. Judged

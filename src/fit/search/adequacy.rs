@@ -17,8 +17,8 @@ use crate::material::Material;
 use crate::measurement::Measurement;
 use crate::model::predict_like;
 
-use super::super::data::{Cell, FitData};
-use super::super::init::{noise_rank_one_energy, rank_one};
+use super::super::assess::{SECOND_FLUOROPHORE_ENERGY, second_fluorophore_energy};
+use super::super::data::FitData;
 use super::{Fitted, worst};
 
 /// Standard deviations of the χ² spread a candidate's extra residual may exceed its mean by
@@ -100,54 +100,6 @@ pub(super) enum Verdict {
     /// component cannot explain (a second fluorophore): look on up the ladder for a
     /// candidate that passes, for this reason.
     LookFurther(String),
-}
-
-/// The energy of the non-negative rank-1 component of what the grid model leaves, in units
-/// of σ²(√m + √n)², above which it counts as a second fluorophore
-/// ([`Verdict::LookFurther`]). The grid fit asks the matrix the same question before it
-/// fits any fluorescence (pure noise explains at most 0.86 there). Measured on `fluorite
-/// class` (five seeds, every case the test judged): at most 6.4 on 522 of 524 one-dye
-/// truths (91 and 135 on two whose grid fit ends 0.59 and 0.32 from the truth), above 5 on
-/// 151 of 188 two-dye truths (a weak second dye leaves nothing). At 5 against the mean
-/// squared residual at 3 σ² it was taking before: 0xBEEF p90 1.67 → 1.53, max 4.95 →
-/// 4.79, seed 12 p90 1.46 → 1.42, the default seed's max 2.70 → 2.78; 3 and 8 within 0.1.
-pub const SECOND_FLUOROPHORE_ENERGY: f64 = 5.0;
-
-/// Sweeps of the rank-1 fit of the grid model's residual: 30 gave the class the same
-/// figures as the grid fit's 200 (default seed and 0xBEEF), the search 0.7 ms sooner.
-const RANK_ONE_SWEEPS: usize = 30;
-
-/// What the grid model (its matrix `predicted`) leaves in the off-diagonal cells of `data`
-/// more than one emission step from their excitation wavelength (where the crosstalk next
-/// to the diagonal sits, up to 350 σ² per cell on one-dye truths, whatever the
-/// fluorophores): the energy of its best non-negative rank-1 component in units of
-/// σ²(√m + √n)², m × n the matrix. A second fluorophore shows there as a positive excitation × emission
-/// product the single component could not take.
-fn second_fluorophore_energy(
-    predicted: &Measurement,
-    m: &Measurement,
-    data: &FitData,
-    sigma: f64,
-) -> f64 {
-    let em = &m.emission_nm;
-    let step = |j: usize| {
-        let below = j.checked_sub(1).map(|b| em[j] - em[b]);
-        let above = em.get(j + 1).map(|a| a - em[j]);
-        below.into_iter().chain(above).fold(0.0f64, f64::max)
-    };
-    let mut left = data.clone();
-    left.off_diagonal = data
-        .off_diagonal
-        .iter()
-        .filter(|c| (em[c.column] - m.excitation_nm[c.row]).abs() > step(c.column) + 1e-6)
-        .map(|c| Cell {
-            value: c.value - predicted.get(c.row, c.column),
-            ..*c
-        })
-        .filter(|c| c.value.is_finite())
-        .collect();
-    let explained = rank_one(&left, RANK_ONE_SWEEPS).explained(&left);
-    explained.max(0.0) / noise_rank_one_energy(sigma, m.n_excitation(), m.n_emission()).max(1e-300)
 }
 
 /// The grid fit as the matrix test sees it: what it leaves of the matrix, and whether it
