@@ -37,6 +37,20 @@ fn material(outcome: FitOutcome) -> Material {
     }
 }
 
+/// The default fit of class draw `case` of `seed`, which must escalate for a reason naming
+/// `reason` and end with two fluorophores: its largest ΔE2000 against the truth under the
+/// standard lights.
+fn escalated_to_two_fluorophores(seed: u64, case: &str, reason: &str) -> f64 {
+    let (m, truth) = common::class_case(seed, case).generate().unwrap();
+    let material = material(fit(&m, &FitOptions::default()).unwrap());
+    let report = material.fit.as_ref().unwrap();
+    let escalation = report.escalation.as_ref().unwrap();
+    assert!(escalation.escalated, "{}", escalation.reason);
+    assert!(escalation.reason.contains(reason), "{}", escalation.reason);
+    assert_eq!(material.fluorophores.len(), 2, "{}", report.model);
+    material_delta_e(&material, &truth, &Light::standard())
+}
+
 /// ΔE2000 per light between the measured patch (every measured cell as measured, the
 /// missing ones from the material) and the material's own patch, on the matrix's grids.
 fn delta_e_to_matrix(material: &Material, m: &Measurement) -> Vec<(String, f64)> {
@@ -334,18 +348,8 @@ fn measured_surfaces_meet_the_bound_by_default() {
 /// from the truth; the default escalates on it and ends within 1 of the truth.
 #[test]
 fn a_colour_that_rests_on_self_filled_cells_escalates() {
-    let (m, truth) = common::class_case(30, "case033").generate().unwrap();
-    let material = material(fit(&m, &FitOptions::default()).unwrap());
-    let report = material.fit.as_ref().unwrap();
-    let escalation = report.escalation.as_ref().unwrap();
-    assert!(escalation.escalated, "{}", escalation.reason);
-    assert!(
-        escalation.reason.contains("cells the file does not hold"),
-        "{}",
-        escalation.reason
-    );
-    assert_eq!(material.fluorophores.len(), 2, "{}", report.model);
-    let against_truth = material_delta_e(&material, &truth, &Light::standard());
+    let against_truth =
+        escalated_to_two_fluorophores(30, "case033", "cells the file does not hold");
     assert!(against_truth < 1.0, "{against_truth}");
 }
 
@@ -356,18 +360,7 @@ fn a_colour_that_rests_on_self_filled_cells_escalates() {
 /// within 2.5 of the truth (the measured colour itself lies 2.42 from it).
 #[test]
 fn a_miss_within_the_noise_rms_but_beyond_its_chi_square_escalates() {
-    let (m, truth) = common::class_case(46, "case148").generate().unwrap();
-    let material = material(fit(&m, &FitOptions::default()).unwrap());
-    let report = material.fit.as_ref().unwrap();
-    let escalation = report.escalation.as_ref().unwrap();
-    assert!(escalation.escalated, "{}", escalation.reason);
-    assert!(
-        escalation.reason.contains("but not its χ²"),
-        "{}",
-        escalation.reason
-    );
-    assert_eq!(material.fluorophores.len(), 2, "{}", report.model);
-    let against_truth = material_delta_e(&material, &truth, &Light::standard());
+    let against_truth = escalated_to_two_fluorophores(46, "case148", "but not its χ²");
     assert!(against_truth < 2.5, "{against_truth}");
 }
 
@@ -380,18 +373,7 @@ fn a_miss_within_the_noise_rms_but_beyond_its_chi_square_escalates() {
 /// the measured colour sets (4.34 from the truth, plus the search's bound of 1).
 #[test]
 fn a_miss_within_the_noise_escalates_where_the_residual_holds_a_second_fluorophore() {
-    let (m, truth) = common::class_case(198, "case059").generate().unwrap();
-    let material = material(fit(&m, &FitOptions::default()).unwrap());
-    let report = material.fit.as_ref().unwrap();
-    let escalation = report.escalation.as_ref().unwrap();
-    assert!(escalation.escalated, "{}", escalation.reason);
-    assert!(
-        escalation.reason.contains("a second fluorophore"),
-        "{}",
-        escalation.reason
-    );
-    assert_eq!(material.fluorophores.len(), 2, "{}", report.model);
-    let against_truth = material_delta_e(&material, &truth, &Light::standard());
+    let against_truth = escalated_to_two_fluorophores(198, "case059", "a second fluorophore");
     assert!(against_truth < 4.34 + 1.0, "{against_truth}");
 }
 
@@ -403,20 +385,11 @@ fn a_miss_within_the_noise_escalates_where_the_residual_holds_a_second_fluoropho
 /// test: two fluorophores, nearer the truth than the measured colour is.
 #[test]
 fn a_noise_excused_miss_escalates_to_the_noise_aware_search() {
-    let (m, truth) = common::class_case(fluorite::evaluate::class::DEFAULT_SEED, "case011")
-        .generate()
-        .unwrap();
-    let material = material(fit(&m, &FitOptions::default()).unwrap());
-    let report = material.fit.as_ref().unwrap();
-    let escalation = report.escalation.as_ref().unwrap();
-    assert!(escalation.escalated, "{}", escalation.reason);
-    assert!(
-        escalation.reason.contains("noise-aware search"),
-        "{}",
-        escalation.reason
+    let against_truth = escalated_to_two_fluorophores(
+        fluorite::evaluate::class::DEFAULT_SEED,
+        "case011",
+        "noise-aware search",
     );
-    assert_eq!(material.fluorophores.len(), 2, "{}", report.model);
-    let against_truth = material_delta_e(&material, &truth, &Light::standard());
     assert!(against_truth < 4.06, "{against_truth}");
 }
 
