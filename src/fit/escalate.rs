@@ -153,8 +153,6 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         )));
         return Ok(grid);
     }
-    // The search starts from the cells this grid fit used (crosstalk removed or kept as
-    // it decided), whichever lights it judges.
     // Where a light's miss lay within the measured colour's noise and escalated only for
     // the second fluorophore in the residual, the search holds each light to that noise
     // too (`--noise-aware-bound`, with its matrix test of candidates): held to ΔE2000 1
@@ -164,6 +162,8 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
     // 0.98 / 2.54 / 10.99; per-seed p90 lower on 71, higher on 17); held-out seeds
     // 201–220: 89, 67 nearer, 22 further.
     let noise_aware = verdict.second_fluorophore || options.noise_aware_bound;
+    // The search starts from the cells this grid fit used (crosstalk removed or kept as
+    // it decided), whichever lights it judges.
     let search = |names: &[&str]| {
         search::fit_model_from(
             m,
@@ -450,7 +450,7 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
                 report.noise_sigma,
             ))
             .collect();
-        let (kept, noise_explained): (BTreeMap<_, _>, BTreeMap<_, _>) =
+        let (mut kept, mut noise_explained): (BTreeMap<_, _>, BTreeMap<_, _>) =
             misses.into_iter().partition(|(l, de)| {
                 bounds.get(l).is_none_or(|b| de > b)
                     || chi2.get(l).is_some_and(|c| *c > assess::NOISE_CHI2_LIMIT)
@@ -468,7 +468,6 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
         // those 1.17 / 3.09 / 19.80 → 1.09 / 2.79 / 5.04), on held-out seeds 201–220 on
         // 27 (16 / 11; per-seed p90 lower on 9, higher on 2); seed 198 case059, two dyes
         // kept as one within the uv noise 14.87 from its measured colour, 19.80 → 4.65.
-        let (mut kept, mut noise_explained) = (kept, noise_explained);
         if !noise_explained.is_empty() {
             let energy = second_fluorophore_energy(
                 &crate::model::predict_like(material, m),

@@ -11,8 +11,8 @@ use std::ops::RangeInclusive;
 use nalgebra::{DMatrix, DVector};
 
 use super::{
-    BandDomain, GaussianBands, PARAMS_PER_BAND, SigmoidPolynomial, bands_value_gradient, legendre,
-    logit, position, sigmoid,
+    BandDomain, BandTerms, GaussianBands, PARAMS_PER_BAND, SigmoidPolynomial, legendre, logit,
+    position, sigmoid,
 };
 use crate::error::{Error, Result};
 
@@ -414,12 +414,12 @@ impl BandProblem {
     /// a candidate's half maximum are not searched again, so candidates are distinct peaks
     /// rather than noise on one.
     fn candidate_bands(&self, params: &[f64], count: usize) -> Vec<[f64; PARAMS_PER_BAND]> {
-        let mut scratch = vec![0.0; params.len()];
+        let (terms, mut scratch) = (BandTerms::new(params), vec![0.0; params.len()]);
         let residual: Vec<f64> = self
             .u
             .iter()
             .zip(&self.y)
-            .map(|(&u, &y)| y - bands_value_gradient(params, u, &mut scratch))
+            .map(|(&u, &y)| y - terms.value_gradient(u, &mut scratch))
             .collect();
         let mut searched = vec![false; residual.len()];
         let mut candidates = Vec::with_capacity(count);
@@ -524,10 +524,10 @@ impl BandProblem {
                     .into(),
             ));
         }
-        let mut scratch = vec![0.0; params.len()];
+        let (terms, mut scratch) = (BandTerms::new(params), vec![0.0; params.len()]);
         let (mut sum_sq, mut max_abs) = (0.0f64, 0.0f64);
         for (&u, &y) in self.u.iter().zip(&self.y) {
-            let r = bands_value_gradient(params, u, &mut scratch) - y;
+            let r = terms.value_gradient(u, &mut scratch) - y;
             sum_sq += r * r;
             max_abs = max_abs.max(r.abs());
         }
@@ -564,7 +564,7 @@ impl LeastSquares for BandProblem {
         self.u.len()
     }
 
-    /// The same values and derivatives as [`bands_value_gradient`], band by band so that
+    /// The same values and derivatives as [`BandTerms::value_gradient`], band by band so that
     /// each sample costs one exponential per band.
     fn evaluate(&self, params: &[f64], residuals: &mut [f64], mut jacobian: Option<&mut [f64]>) {
         let m = self.u.len();

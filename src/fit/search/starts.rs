@@ -366,8 +366,8 @@ type BandKey = (Vec<u64>, Vec<u64>, BandDomain, usize);
 /// on the search's cells, noise and grid fit and on their keys alone, and the candidates
 /// of one search ask for the same ones: CIBA12's noise-aware search factorised the same
 /// split for each of its five two-component structures (13 % of its time in `masked_nmf`
-/// and `fit_factor`), and fitted the same spectra with the same bands again where two
-/// structures share a band count (a third of the 9 % its start bands took).
+/// and `fit_factor`), and fitted the same spectra with the same bands again wherever two
+/// structures share a band count (its start bands took 9 %).
 #[derive(Default)]
 pub(super) struct StartCache {
     factors: Mutex<Vec<(FactorKey, Factors)>>,
