@@ -338,7 +338,8 @@ fn prepared(
 ///   bound (default d65, a, f11, uv): names, CSV paths, ``(wavelengths, values)`` pairs,
 ///   objects with ``.wavelengths``/``.values``, or a list of them.
 /// - ``model``: ``"as-needed"`` (default: one fluorophore on the grid, escalated to the
-///   smallest parametric model meeting ΔE2000 ≤ 1 when it does not explain the matrix),
+///   first parametric model the noise-aware search keeps, each light held to ΔE2000 ≤ 1
+///   or its measured colour's noise, when it does not explain the matrix),
 ///   ``"tabulated"``, ``"auto"`` (the model search) or ``"gaussian:KxB[/E][+rD|+rt]"``;
 ///   ``max_delta_e`` implies ``"auto"`` and sets its bound.
 /// - ``yield_form``: ``"auto"``, ``"energy"`` or ``"photon"``; ``quantum_yield`` or

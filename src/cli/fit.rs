@@ -94,8 +94,9 @@ pub struct FitArgs {
     /// wavelength, kept when its ΔE2000 against the matrix is ≤ 1 under d65, a and f11,
     /// and uv where the excitation grid holds the 365 nm LED's rows (or within the
     /// colour's noise, in ΔE2000 and in χ²), unless that colour rests on cells the file does not hold, filled
-    /// from a fit that leaves structure; otherwise the smallest parametric model meeting that bound under
-    /// those lights (as `auto --max-delta-e 1 --lights d65,a,f11,uv`; when none meets them
+    /// from a fit that leaves structure; otherwise the first parametric model the noise-aware search keeps under
+    /// those lights (as `auto --max-delta-e 1 --noise-aware-bound --lights d65,a,f11,uv`: each light held to
+    /// that bound or its measured colour's noise, candidates tested against the matrix; when none meets them
     /// all, whichever of the grid fit, the search's closest and the search under d65, a
     /// and f11 alone exceeds the bounds least in total, with a warning); the summary and the JSON (`fit.escalation`) say which and why. Raw or
     /// arbitrary-scale EEMs, --quantum-yield/--concentration and --solver other than

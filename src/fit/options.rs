@@ -32,8 +32,9 @@ pub const NOISE_PULL_SHARE: f64 = 0.2;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ModelChoice {
     /// The default (`as-needed`): the one-fluorophore grid fit when it explains the
-    /// matrix, else the smallest parametric model meeting ΔE2000 ≤ 1 under d65, a and
-    /// f11 (see [`crate::fit::escalate`]). Matrices without a calibrated diagonal and fits
+    /// matrix, else the first parametric model the noise-aware search keeps under d65, a
+    /// and f11 (and uv where the grid holds its LED's rows), each held to ΔE2000 ≤ 1 or
+    /// its measured colour's noise (see [`crate::fit::escalate`]). Matrices without a calibrated diagonal and fits
     /// with a pinned yield or concentration keep the grid fit.
     #[default]
     AsNeeded,
