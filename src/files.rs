@@ -59,12 +59,40 @@ pub fn stage_beside(path: &Path) -> Result<PathBuf> {
     Ok(tmp)
 }
 
-/// Moves a file written with [`stage_beside`] into place (atomically: a rename).
+/// Moves a file written with [`stage_beside`] into place (atomically: a rename), or
+/// copies it into a target that is no regular file ([`is_stream`]).
 pub fn persist_staged(tmp: &Path, path: &Path) -> Result<()> {
     let mut pending = staged();
     refuse_if_interrupted(path)?;
     pending.retain(|p| p != tmp);
+    if is_stream(path) {
+        let copied = std::fs::File::open(tmp).and_then(|mut from| {
+            let mut to = std::fs::OpenOptions::new().write(true).open(path)?;
+            std::io::copy(&mut from, &mut to).map(|_| ())
+        });
+        let _ = std::fs::remove_file(tmp);
+        return copied.map_err(|e| Error::io(path, e));
+    }
     std::fs::rename(tmp, path).map_err(|e| Error::io(path, e))
+}
+
+/// Whether `path` names something other than a regular file or a folder: a device
+/// (`/dev/null`, `/dev/stdout`), a FIFO or a socket. Renaming a temporary file over it
+/// would replace it (as root, `/dev/null` itself became a file holding a report, and the
+/// next program reading it read the report), so such targets are written in place: they
+/// keep no file that a half-finished write could leave behind.
+fn is_stream(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
+/// Writes `bytes` into the existing target `path` ([`is_stream`]), as it stands.
+fn write_in_place(path: &Path, bytes: &[u8]) -> Result<()> {
+    refuse_if_interrupted(path)?;
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(path)
+        .and_then(|mut f| f.write_all(bytes))
+        .map_err(|e| Error::io(path, e))
 }
 
 /// Removes a file written with [`stage_beside`] that will not be kept.
@@ -89,8 +117,11 @@ fn refuse_if_interrupted(path: &Path) -> Result<()> {
 
 /// Writes `bytes` to `path` atomically: into a temporary file in the same folder, then
 /// renamed over the target, so an interrupted or failed run never leaves a half-written
-/// file. The folder must exist.
+/// file. The folder must exist. A device or FIFO (`/dev/null`) is written in place.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    if is_stream(path) {
+        return write_in_place(path, bytes);
+    }
     let tmp = temporary_beside(path, bytes)?;
     let mut pending = staged();
     refuse_if_interrupted(path)?;
@@ -145,7 +176,7 @@ fn temporary_beside(path: &Path, bytes: &[u8]) -> Result<tempfile::NamedTempFile
 /// Writes several files all-or-nothing as far as the file system allows: every file is
 /// first written to a temporary file beside its target; only when all are written are
 /// they renamed into place. A folder in the way of a target is an error before anything
-/// is written.
+/// is written. Devices and FIFOs among the targets are written in place, after the rest.
 pub fn write_files(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
     for (path, _) in files {
         if path.is_dir() {
@@ -158,6 +189,7 @@ pub fn write_files(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
             ));
         }
     }
+    let (streams, files): (Vec<_>, Vec<_>) = files.iter().partition(|(p, _)| is_stream(p));
     let mut written = Vec::with_capacity(files.len());
     for (path, bytes) in files {
         written.push((path, temporary_beside(path, bytes)?));
@@ -169,6 +201,10 @@ pub fn write_files(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
     for (path, tmp) in written {
         pending.retain(|p| p != tmp.path());
         tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    }
+    drop(pending);
+    for (path, bytes) in streams {
+        write_in_place(path, bytes)?;
     }
     Ok(())
 }

@@ -49,6 +49,7 @@ mod render;
 mod render_compare;
 mod render_map;
 mod reproducible_outputs;
+mod special_outputs;
 mod stability;
 mod synth_components;
 mod units_percent;
