@@ -60,7 +60,7 @@ pub fn stage_beside(path: &Path) -> Result<PathBuf> {
 }
 
 /// Moves a file written with [`stage_beside`] into place (atomically: a rename), or
-/// copies it into a target that is no regular file ([`is_stream`]).
+/// copies it into a target that is no regular file (a device or a FIFO).
 pub fn persist_staged(tmp: &Path, path: &Path) -> Result<()> {
     let mut pending = staged();
     refuse_if_interrupted(path)?;
