@@ -339,7 +339,8 @@ fn prepared(
 ///   objects with ``.wavelengths``/``.values``, or a list of them.
 /// - ``model``: ``"as-needed"`` (default: one fluorophore on the grid, escalated to the
 ///   first parametric model the noise-aware search keeps, each light held to ΔE2000 ≤ 1
-///   or its measured colour's noise, when it does not explain the matrix),
+///   or its measured colour's noise, when it does not explain the matrix; a miss the
+///   crosstalk it removed explains does not escalate),
 ///   ``"tabulated"``, ``"auto"`` (the model search) or ``"gaussian:KxB[/E][+rD|+rt]"``;
 ///   ``max_delta_e`` implies ``"auto"`` and sets its bound.
 /// - ``yield_form``: ``"auto"``, ``"energy"`` or ``"photon"``; ``quantum_yield`` or

@@ -93,7 +93,8 @@ pub struct FitArgs {
     /// Spectral model. `as-needed` (the default): one fluorophore sampled at every grid
     /// wavelength, kept when its ΔE2000 against the matrix is ≤ 1 under d65, a and f11,
     /// and uv where the excitation grid holds the 365 nm LED's rows (or within the
-    /// colour's noise, in ΔE2000 and in χ²), unless that colour rests on cells the file does not hold, filled
+    /// colour's noise, in ΔE2000 and in χ², or within 1 of the cells it fitted where the
+    /// rest of the miss is the crosstalk next to the diagonal it removed), unless that colour rests on cells the file does not hold, filled
     /// from a fit that leaves structure; otherwise the first parametric model the noise-aware search keeps under
     /// those lights (as `auto --max-delta-e 1 --noise-aware-bound --lights d65,a,f11,uv`: each light held to
     /// that bound or its measured colour's noise, candidates tested against the matrix; when none meets them

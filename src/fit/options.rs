@@ -34,7 +34,9 @@ pub enum ModelChoice {
     /// The default (`as-needed`): the one-fluorophore grid fit when it explains the
     /// matrix, else the first parametric model the noise-aware search keeps under d65, a
     /// and f11 (and uv where the grid holds its LED's rows), each held to ΔE2000 ≤ 1 or
-    /// its measured colour's noise (see [`crate::fit::escalate`]). Matrices without a calibrated diagonal and fits
+    /// its measured colour's noise (see [`crate::fit::escalate`]); a miss the crosstalk it
+    /// removed explains (within 1 of the cells it fitted) does not escalate. Matrices
+    /// without a calibrated diagonal and fits
     /// with a pinned yield or concentration keep the grid fit.
     #[default]
     AsNeeded,
