@@ -4,8 +4,8 @@
 
 Run against a release build (`pip install ./python`) and, for the command-line figure,
 a release binary (`cargo build --release`; default target/release/fluorite), on an
-otherwise idle machine (a fit takes a few milliseconds: other processes' noise is of the
-same order as the overhead measured).
+otherwise idle machine (a fast-path fit such as CIBA12.BFC's takes half a millisecond:
+other processes' noise is of the same order as the overhead measured).
 
 1. `fluorite.fit(measurement)`, wall time in Python, against the same default fit timed
    inside Rust around the whole library call (`fluorite._fluorite._fit_seconds`: no
