@@ -37,6 +37,32 @@ pub(super) fn own_colour_misses(
         .collect()
 }
 
+/// The lights among `lights` under which `material`, a fit of the cells of `m` less the
+/// crosstalk next to the diagonal it removed (its report's `crosstalk`), comes within
+/// `bound` of the colour of those cells, with that ΔE2000: where it misses the measured
+/// colour there, the rest of the miss is the crosstalk's, a monochromator offset that
+/// moves the measured colour as no material does. Empty where the fit kept the cells as
+/// measured (or has no report).
+pub(super) fn crosstalk_explained(
+    m: &Measurement,
+    material: &Material,
+    lights: &[Light],
+    bound: f64,
+) -> BTreeMap<String, f64> {
+    let removed = material
+        .fit
+        .as_ref()
+        .and_then(|f| f.crosstalk.as_ref())
+        .filter(|c| c.removed);
+    let Some(found) = removed.filter(|_| !lights.is_empty()) else {
+        return BTreeMap::new();
+    };
+    own_colour_delta_e(m, material, found, lights)
+        .into_iter()
+        .filter(|(_, de)| *de <= bound)
+        .collect()
+}
+
 /// Per light, ΔE2000 between `material`'s patch and the colour of the cells of `m` less
 /// `found` (its missing cells filled from the material, as the report's reference has):
 /// how far the material is from the cells it was fitted to.

@@ -378,7 +378,7 @@ struct Verdict {
     /// Lights missed by less than the measured colour's noise explains, with that bound.
     excused: BTreeMap<String, f64>,
     /// Lights missed only by the crosstalk the grid fit removed, with the ΔE2000 from the
-    /// cells it fitted ([`crosstalk_explained`]).
+    /// cells it fitted (`crosstalk_check::crosstalk_explained`).
     crosstalk_explained: BTreeMap<String, f64>,
     /// Whether its colour rests on cells it filled itself (the unconfirmed-fill warning).
     unconfirmed: bool,
@@ -420,7 +420,13 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
     // the measured colour, 709 one-dye draws over 145 `fluorite class` seeds escalated to
     // two components, nearly all with crosstalk above 0.02, and 583 ended further from
     // the truth than the grid fit (docs/results.md, "A miss the crosstalk explains").
-    let crosstalk_explained = crosstalk_explained(m, material, &misses);
+    let names: Vec<&str> = misses.keys().map(String::as_str).collect();
+    let crosstalk_explained = super::crosstalk_check::crosstalk_explained(
+        m,
+        material,
+        &lights_named(&names),
+        ESCALATION_BOUND,
+    );
     let misses: BTreeMap<String, f64> = misses
         .into_iter()
         .filter(|(l, _)| !crosstalk_explained.contains_key(l))
@@ -573,30 +579,6 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
         unconfirmed,
         bounds: held_to,
     }
-}
-
-/// The lights among `misses` whose miss of the measured colour the crosstalk the grid
-/// fit `material` removed explains: within [`ESCALATION_BOUND`] of the colour of the cells
-/// it fitted (those less that crosstalk, missing ones filled from the fit as the report's
-/// reference is), with that ΔE2000. Empty where the fit kept the cells as measured.
-fn crosstalk_explained(
-    m: &Measurement,
-    material: &Material,
-    misses: &BTreeMap<String, f64>,
-) -> BTreeMap<String, f64> {
-    let removed = material
-        .fit
-        .as_ref()
-        .and_then(|f| f.crosstalk.as_ref())
-        .filter(|c| c.removed);
-    let Some(found) = removed.filter(|_| !misses.is_empty()) else {
-        return BTreeMap::new();
-    };
-    let names: Vec<&str> = misses.keys().map(String::as_str).collect();
-    super::crosstalk_check::own_colour_delta_e(m, material, found, &lights_named(&names))
-        .into_iter()
-        .filter(|(_, de)| *de <= ESCALATION_BOUND)
-        .collect()
 }
 
 /// `; within the bound of the cells it fitted, less the crosstalk it removed (f11 0.62) …`,
