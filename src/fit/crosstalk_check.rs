@@ -1,7 +1,11 @@
 //! Whether a fit of the cells less their crosstalk ([`super::crosstalk`]) still holds
 //! the colour of the cells it fitted: where it misses by far more than their noise
 //! explains, removing the crosstalk may have tipped the fit to another optimum, and the
-//! grid fit (`tabulated`) compares it with the fit of the cells as measured.
+//! grid fit (`tabulated`) compares it with the fit of the cells as measured. And where
+//! such a fit comes within the bound of the cells it fitted while missing the measured
+//! colour, the rest of that miss is the crosstalk's ([`crosstalk_explained`]): the default
+//! fit does not escalate for it, nor does the noise-aware search take it for a light one
+//! fluorophore cannot meet.
 
 use std::collections::BTreeMap;
 

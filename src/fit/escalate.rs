@@ -14,6 +14,10 @@
 //! there pulled low to trade for it); judged under uv it escalates to
 //! gaussian:2x2/1+rt/photon (uv 0.60; docs/results.md, "UV-tail pigments").
 //!
+//! A light the grid fit misses only by the crosstalk next to the diagonal it removed (a
+//! monochromator offset: within the bound of the cells it fitted, less that crosstalk)
+//! does not escalate either; its report's ΔE2000 stays against the cells as measured.
+//!
 //! The grid fit's own figures decide, so a matrix one fluorophore explains costs nothing
 //! beyond them: its ΔE2000 against the measurement, which its report holds. A residual
 //! above the noise (the "structure one fluorophore does not explain" warning) alone does
@@ -108,19 +112,27 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
         .as_mut()
         .expect("fitted materials carry a report");
     let Some(trigger) = verdict.trigger.clone() else {
+        // The lights above the bound are named in the notes that follow.
+        let or_explained = if verdict.excused.is_empty() && verdict.crosstalk_explained.is_empty() {
+            ""
+        } else {
+            " (bar a miss explained next)"
+        };
         report.escalation = Some(Escalation {
             escalated: false,
             reason: match &verdict.structure {
                 None => format!(
-                    "one fluorophore explains the matrix: residual within {} × the noise and ΔE2000 ≤ {ESCALATION_BOUND} under {} ({}){}{}",
+                    "one fluorophore explains the matrix: residual within {} × the noise and ΔE2000 ≤ {ESCALATION_BOUND}{} under {} ({}){}{}",
                     assess::RESIDUAL_NOISE_FACTOR,
+                    or_explained,
                     judged.join(", "),
                     per_light(&verdict.grid_delta_e2000),
                     noise_note(&verdict.excused),
                     crosstalk_note(&verdict.crosstalk_explained)
                 ),
                 Some(structure) => format!(
-                    "one fluorophore kept: it meets ΔE2000 ≤ {ESCALATION_BOUND} under {} ({}){}{}, although {structure}; fit --model auto for the model of lowest BIC",
+                    "one fluorophore kept: it meets ΔE2000 ≤ {ESCALATION_BOUND}{} under {} ({}){}{}, although {structure}; fit --model auto for the model of lowest BIC",
+                    or_explained,
                     judged.join(", "),
                     per_light(&verdict.grid_delta_e2000),
                     noise_note(&verdict.excused),
@@ -581,8 +593,8 @@ fn judge(m: &Measurement, material: &Material, judged: &[&str]) -> Verdict {
     }
 }
 
-/// `; within the bound of the cells it fitted, less the crosstalk it removed (f11 0.62) …`,
-/// or nothing.
+/// `; within ΔE2000 1 of the cells it fitted, less the crosstalk next to the diagonal it
+/// removed (f11 0.33): …`, or nothing.
 fn crosstalk_note(explained: &BTreeMap<String, f64>) -> String {
     if explained.is_empty() {
         return String::new();

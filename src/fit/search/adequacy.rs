@@ -112,21 +112,27 @@ pub(super) struct GridReference {
     parameters: usize,
     /// [`second_fluorophore_energy`] of its residual.
     second: f64,
-    /// Whether it meets every light's bound of the search.
+    /// Whether it meets every light's bound of the search (or misses only by the
+    /// crosstalk it removed, under the lights of `crosstalk_lights`).
     meets_bounds: bool,
+    /// The lights it misses only by the crosstalk next to the diagonal it removed (within
+    /// the bound of the cells it fitted; `crosstalk_check::crosstalk_explained`).
+    crosstalk_lights: Vec<String>,
     /// Its largest ΔE2000 against the measurement.
     worst: f64,
 }
 
 impl GridReference {
     /// The grid fit `base` of `m`'s cells `data` at noise level `sigma`; `meets_bounds`
-    /// as the search judged its ΔE2000.
+    /// as the search judged its ΔE2000, `crosstalk_lights` the lights it misses only by
+    /// the crosstalk it removed.
     pub fn new(
         base: &Material,
         m: &Measurement,
         data: &FitData,
         sigma: f64,
         meets_bounds: bool,
+        crosstalk_lights: Vec<String>,
     ) -> Self {
         let predicted = predict_like(base, m);
         let report = base.fit.as_ref();
@@ -135,6 +141,7 @@ impl GridReference {
             parameters: report.map_or(0, |r| r.parameter_count),
             second: second_fluorophore_energy(&predicted, m, data, sigma),
             meets_bounds,
+            crosstalk_lights,
             worst: report.map_or(f64::NAN, |r| worst(&r.delta_e2000)),
         }
     }
@@ -185,8 +192,16 @@ pub(super) fn judge(
     if !grid.meets_bounds {
         return Verdict::Keep;
     }
+    let meets = if grid.crosstalk_lights.is_empty() {
+        "it meets the bound too".to_string()
+    } else {
+        format!(
+            "it meets the bound too, bar {} where it misses the measured colour only by the crosstalk next to the diagonal it removed (within the bound of the cells it fitted)",
+            grid.crosstalk_lights.join(", ")
+        )
+    };
     Verdict::KeepGrid(format!(
-        "kept the grid fit: {name} met the bound, but {}: pulled onto the measured colour, its bands miss the matrix; what the grid model leaves holds no second fluorophore ({second:.1} × σ²(√m + √n)²) and it meets the bound too (worst ΔE2000 {:.2})",
+        "kept the grid fit: {name} met the bound, but {}: pulled onto the measured colour, its bands miss the matrix; what the grid model leaves holds no second fluorophore ({second:.1} × σ²(√m + √n)²) and {meets} (worst ΔE2000 {:.2} against the measured colour)",
         test.describe(),
         grid.worst
     ))

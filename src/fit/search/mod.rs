@@ -271,6 +271,9 @@ pub(super) fn fit_model_from(
     } else {
         Vec::new()
     };
+    // Lights the grid fit misses only by the crosstalk it removed (for the matrix test's
+    // words where it keeps the grid fit).
+    let mut crosstalk_lights: Vec<String> = Vec::new();
     let grid_beyond = lights.iter().enumerate().find_map(|(i, l)| {
         let (grid, limit) = grid_light(l)?;
         let chi2 = grid_chi2
@@ -283,11 +286,18 @@ pub(super) fn fit_model_from(
         // 145 `fluorite class` seeds the noise-aware search changed on 620 cases, 342
         // nearer the truth and 244 further, per-seed p90 lower on 47 and higher on 11
         // (held out 201–220: 57 / 40, lower on 9, higher on none; docs/results.md).
-        let explained = || {
-            !super::crosstalk_check::crosstalk_explained(m, &base, std::slice::from_ref(l), bound)
-                .is_empty()
-        };
-        (beyond && !explained()).then(|| (l.name.clone(), grid, limit, chi2))
+        let explained = beyond
+            && !super::crosstalk_check::crosstalk_explained(
+                m,
+                &base,
+                std::slice::from_ref(l),
+                bound,
+            )
+            .is_empty();
+        if explained {
+            crosstalk_lights.push(l.name.clone());
+        }
+        (beyond && !explained).then(|| (l.name.clone(), grid, limit, chi2))
     });
     // The grid fit as the matrix test sees it: computed at the first judgement, once.
     let mut grid_reference: Option<adequacy::GridReference> = None;
@@ -429,7 +439,14 @@ pub(super) fn fit_model_from(
             // the median against the truth from 0.42–0.49 to 0.26–0.30 (docs/results.md).
             if judged_by_matrix {
                 let grid = grid_reference.get_or_insert_with(|| {
-                    adequacy::GridReference::new(&base, m, &data, sigma, grid_beyond.is_none())
+                    adequacy::GridReference::new(
+                        &base,
+                        m,
+                        &data,
+                        sigma,
+                        grid_beyond.is_none(),
+                        crosstalk_lights.clone(),
+                    )
                 });
                 match adequacy::judge(&fitted[pick.0], grid, m, &data, sigma) {
                     adequacy::Verdict::Keep => {}
