@@ -7,11 +7,11 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use fluorite::Material;
-use fluorite::colour::{Light, PatchColorimeter, delta_e2000};
+use fluorite::colour::Light;
 use fluorite::evaluate::stability::material_delta_e;
 use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, fit};
 use fluorite::formats::read;
-use fluorite::measurement::{Measurement, Units};
+use fluorite::measurement::Measurement;
 use fluorite::synth::{Band, SynthComponent, SynthSpec};
 
 use crate::common;
@@ -51,30 +51,8 @@ fn escalated_to_two_fluorophores(seed: u64, case: &str, reason: &str) -> f64 {
     material_delta_e(&material, &truth, &Light::standard())
 }
 
-/// ΔE2000 per light between the measured patch (every measured cell as measured, the
-/// missing ones from the material) and the material's own patch, on the matrix's grids.
-fn delta_e_to_matrix(material: &Material, m: &Measurement) -> Vec<(String, f64)> {
-    let predicted = fluorite::model::predict(
-        material,
-        &m.name,
-        &m.excitation_nm,
-        &m.emission_nm,
-        Units::PerBin,
-        m.has_diagonal,
-    );
-    let measured = m.to_per_bin().filled_from(&predicted);
-    lights()
-        .iter()
-        .map(|light| {
-            let colorimeter = PatchColorimeter::new(light, &m.excitation_nm, &m.emission_nm);
-            let de = delta_e2000(colorimeter.lab(&measured), colorimeter.lab(&predicted));
-            (light.name.clone(), de)
-        })
-        .collect()
-}
-
 fn assert_within_bound(what: &str, material: &Material, m: &Measurement) {
-    for (light, de) in delta_e_to_matrix(material, m) {
+    for (light, de) in common::delta_e_to_matrix(material, m, &LIGHTS) {
         assert!(
             de <= BOUND,
             "{what}: ΔE2000 {de:.3} under {light} against the matrix ({})",
@@ -243,7 +221,7 @@ fn model_tabulated_keeps_one_fluorophore() {
     assert_eq!(report.model, "tabulated");
     assert!(report.model_search.is_none() && report.escalation.is_none());
     assert!(report.rel_residual_fluorescence > 0.3, "{report:?}");
-    let worst = delta_e_to_matrix(&one, &m)
+    let worst = common::delta_e_to_matrix(&one, &m, &LIGHTS)
         .into_iter()
         .fold(0.0f64, |a, (_, de)| a.max(de));
     assert!(

@@ -272,3 +272,32 @@ pub fn run_in(args: &[&str], dir: &Path) -> std::process::Output {
 pub fn stderr(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
+
+/// ΔE2000 per named light between the measured patch of `m` (every measured cell as
+/// measured, the missing ones from `material`) and `material`'s own patch, on the
+/// matrix's grids: the colour check the tests make apart from the fit's report.
+pub fn delta_e_to_matrix(
+    material: &fluorite::Material,
+    m: &fluorite::measurement::Measurement,
+    lights: &[&str],
+) -> Vec<(String, f64)> {
+    use fluorite::colour::{Light, PatchColorimeter, delta_e2000};
+    let predicted = fluorite::model::predict(
+        material,
+        &m.name,
+        &m.excitation_nm,
+        &m.emission_nm,
+        fluorite::measurement::Units::PerBin,
+        m.has_diagonal,
+    );
+    let measured = m.to_per_bin().filled_from(&predicted);
+    lights
+        .iter()
+        .map(|name| {
+            let light = Light::builtin(name).unwrap();
+            let colorimeter = PatchColorimeter::new(&light, &m.excitation_nm, &m.emission_nm);
+            let de = delta_e2000(colorimeter.lab(&measured), colorimeter.lab(&predicted));
+            (name.to_string(), de)
+        })
+        .collect()
+}
