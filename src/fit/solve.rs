@@ -3,6 +3,7 @@
 //! Nelder-Mead on the cost alone (no derivatives: the baseline that shows what they buy).
 
 use std::cell::RefCell;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use argmin::core::{CostFunction, Gradient, IterState, Jacobian, Operator, State};
 use argmin::solver::gaussnewton::GaussNewtonLS;
@@ -236,6 +237,9 @@ struct FunctionProblem<'a> {
     /// The last (θ, cost, θ-gradient): the line search asks for the cost and the gradient
     /// of the same point separately, and one pass computes both.
     cache: RefCell<Option<Evaluation>>,
+    /// Set by another thread when this fit's result is no longer wanted: the next
+    /// evaluation fails, which ends the run.
+    cancel: Option<&'a AtomicBool>,
 }
 
 impl<'a> FunctionProblem<'a> {
@@ -243,18 +247,22 @@ impl<'a> FunctionProblem<'a> {
         FunctionProblem {
             function,
             cache: RefCell::new(None),
+            cancel: None,
         }
     }
 
-    fn evaluate(&self, theta: &[f64]) -> (f64, Vec<f64>) {
+    fn evaluate(&self, theta: &[f64]) -> Result<(f64, Vec<f64>), argmin::core::Error> {
+        if self.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            return Err(argmin::core::Error::msg(CANCELLED));
+        }
         if let Some((t, c, g)) = self.cache.borrow().as_ref()
             && t.as_slice() == theta
         {
-            return (*c, g.clone());
+            return Ok((*c, g.clone()));
         }
         let (cost, gradient) = (self.function)(theta);
         *self.cache.borrow_mut() = Some((theta.to_vec(), cost, gradient.clone()));
-        (cost, gradient)
+        Ok((cost, gradient))
     }
 }
 
@@ -262,7 +270,7 @@ impl CostFunction for FunctionProblem<'_> {
     type Param = DVector<f64>;
     type Output = f64;
     fn cost(&self, theta: &Self::Param) -> Result<f64, argmin::core::Error> {
-        Ok(self.evaluate(theta.as_slice()).0)
+        Ok(self.evaluate(theta.as_slice())?.0)
     }
 }
 
@@ -270,9 +278,12 @@ impl Gradient for FunctionProblem<'_> {
     type Param = DVector<f64>;
     type Gradient = DVector<f64>;
     fn gradient(&self, theta: &Self::Param) -> Result<Self::Gradient, argmin::core::Error> {
-        Ok(DVector::from_vec(self.evaluate(theta.as_slice()).1))
+        Ok(DVector::from_vec(self.evaluate(theta.as_slice())?.1))
     }
 }
+
+/// What a cancelled run's error says.
+const CANCELLED: &str = "cancelled: its result was no longer wanted";
 
 /// Minimises `function` from `theta0` with L-BFGS and a More-Thuente line search.
 pub fn lbfgs_function(
@@ -280,16 +291,80 @@ pub fn lbfgs_function(
     theta0: &[f64],
     stopping: Stopping,
 ) -> Result<Refined, String> {
-    let problem = FunctionProblem::new(function);
+    lbfgs_function_until(function, theta0, stopping, None)
+}
+
+/// [`lbfgs_function`], ended with an error at the first evaluation after `cancel` is set
+/// (a fit begun ahead of the decision that needs it, which that decision made moot).
+pub fn lbfgs_function_until(
+    function: CostGradient<'_>,
+    theta0: &[f64],
+    stopping: Stopping,
+    cancel: Option<&AtomicBool>,
+) -> Result<Refined, String> {
+    let problem = FunctionProblem {
+        cancel,
+        ..FunctionProblem::new(function)
+    };
     let solver = LBFGS::new(MoreThuenteLineSearch::new(), LBFGS_MEMORY)
         .with_tolerance_grad(stopping.gradient_tolerance)
         .and_then(|s| s.with_tolerance_cost(stopping.cost_tolerance))
         .map_err(|e| e.to_string())?;
-    run(
+    let refined = run(
         problem,
         solver,
         start_at(theta0, stopping),
         theta0,
         "L-BFGS",
-    )
+    )?;
+    // argmin's L-BFGS ends a run whose line search fails (as the cancelled evaluation
+    // makes it) with a termination status, not an error.
+    match cancel {
+        Some(c) if c.load(Ordering::Relaxed) => Err(CANCELLED.to_string()),
+        _ => Ok(refined),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A quadratic bowl with its minimum at (1, −2).
+    fn bowl(theta: &[f64]) -> (f64, Vec<f64>) {
+        let (x, y) = (theta[0] - 1.0, theta[1] + 2.0);
+        (x * x + 4.0 * y * y, vec![2.0 * x, 8.0 * y])
+    }
+
+    fn stopping() -> Stopping {
+        Stopping {
+            max_iterations: 100,
+            gradient_tolerance: 1e-10,
+            cost_tolerance: 0.0,
+        }
+    }
+
+    #[test]
+    fn an_uncancelled_run_reaches_the_minimum() {
+        let flag = AtomicBool::new(false);
+        let refined = lbfgs_function_until(&bowl, &[5.0, 5.0], stopping(), Some(&flag)).unwrap();
+        assert!((refined.theta[0] - 1.0).abs() < 1e-6, "{:?}", refined.theta);
+        assert!((refined.theta[1] + 2.0).abs() < 1e-6, "{:?}", refined.theta);
+    }
+
+    #[test]
+    fn a_cancelled_run_ends_with_an_error_at_its_next_evaluation() {
+        let flag = AtomicBool::new(false);
+        let evaluations = std::cell::Cell::new(0);
+        let counting = |theta: &[f64]| {
+            evaluations.set(evaluations.get() + 1);
+            if evaluations.get() == 3 {
+                flag.store(true, Ordering::Relaxed);
+            }
+            bowl(theta)
+        };
+        let error = lbfgs_function_until(&counting, &[5.0, 5.0], stopping(), Some(&flag))
+            .expect_err("cancelled");
+        assert!(error.contains(CANCELLED), "{error}");
+        assert_eq!(evaluations.get(), 3);
+    }
 }

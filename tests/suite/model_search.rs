@@ -525,3 +525,50 @@ fn two_dyes_the_grid_model_averages_are_found_from_the_other_starts() {
     let from_truth = material_delta_e(&material, &truth, &Light::standard());
     assert!(from_truth < 1.0, "{}: {from_truth:.2}", report.model);
 }
+
+/// Outside a rayon pool (one file) the search fits the next structure's energy form
+/// beside this structure's photon form, and cancels it where the search stops here;
+/// inside a pool (a batch) it fits them in turn. Both choose the same material to the last
+/// bit: where the search runs its ladder to the end with every photon form fitted (CIBA12
+/// with `--noise-aware-bound`) and where it stops with the next fit begun (HERPICER at
+/// ΔE2000 1 stops at 2x2/1+rt/photon, 2x1/2+rt begun beside it).
+#[test]
+fn fitting_ahead_changes_no_result() {
+    let Some(ciba) = common::measured("CIBA12.BFC") else {
+        return;
+    };
+    let Some(herpicer) = common::measured("HERPICER.BFC") else {
+        return;
+    };
+    let noise_aware = FitOptions {
+        noise_aware_bound: true,
+        ..search_options(1.0)
+    };
+    // The material as JSON, its times left out.
+    let fitted = |path: &Path, options: &FitOptions| {
+        let m = read(path, &Default::default()).unwrap();
+        let mut material = material(fit(&m, options).unwrap());
+        let report = material.fit.as_mut().unwrap();
+        report.seconds = 0.0;
+        let search = report.model_search.as_mut().unwrap();
+        search.seconds = 0.0;
+        search.candidates.iter_mut().for_each(|c| c.seconds = 0.0);
+        serde_json::to_string(&material).unwrap()
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    for (path, options, last) in [
+        (&ciba, &noise_aware, "gaussian:2x3+r7/photon"),
+        (&herpicer, &search_options(1.0), "gaussian:2x2/1+rt/photon"),
+    ] {
+        let alone = fitted(path, options);
+        let in_turn = pool.install(|| fitted(path, options));
+        assert_eq!(alone, in_turn, "{}", path.display());
+        // The case is the one described: the search's last candidate.
+        let material: Material = serde_json::from_str(&alone).unwrap();
+        let search = material.fit.unwrap().model_search.unwrap();
+        assert_eq!(search.candidates.last().unwrap().model, last);
+    }
+}

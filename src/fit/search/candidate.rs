@@ -3,6 +3,7 @@
 
 use super::*;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Whether the energy form's photon law binds in `material` and may cost fit: for some
 /// fluorophore it alone sets the smallest feasible c (Q at λmin/λ̄e < 1), and either c
@@ -31,24 +32,44 @@ pub(super) fn choose_form(
     here: &[usize],
     auto_form: bool,
 ) -> Option<(usize, String)> {
-    let energy = here
-        .iter()
-        .copied()
-        .find(|&i| fitted[i].spec.yield_form == YieldForm::Energy);
-    let photon = here
-        .iter()
-        .copied()
-        .find(|&i| fitted[i].spec.yield_form == YieldForm::Photon);
-    let meets = |i: usize| fitted[i].within;
-    let describe = |i: usize| format!("{} {:.2}", fitted[i].spec.name(), fitted[i].worst);
+    let of_form = |form: YieldForm| {
+        here.iter()
+            .copied()
+            .find(|&i| fitted[i].spec.yield_form == form)
+    };
+    let (energy, photon) = (of_form(YieldForm::Energy), of_form(YieldForm::Photon));
+    let (form, why) = choose_between(
+        energy.map(|i| &fitted[i]),
+        photon.map(|i| &fitted[i]),
+        auto_form,
+    )?;
+    Some((
+        if form == YieldForm::Energy {
+            energy?
+        } else {
+            photon?
+        },
+        why,
+    ))
+}
+
+/// [`choose_form`] between one structure's `energy` and `photon` fits: which form, and
+/// why.
+pub(super) fn choose_between(
+    energy: Option<&Fitted>,
+    photon: Option<&Fitted>,
+    auto_form: bool,
+) -> Option<(YieldForm, String)> {
+    let meets = |f: &Fitted| f.within;
+    let describe = |f: &Fitted| format!("{} {:.2}", f.spec.name(), f.worst);
     match (energy, photon) {
-        (Some(e), Some(p)) if meets(p) && (!meets(e) || fitted[p].cost < fitted[e].cost) => Some((
-            p,
+        (Some(e), Some(p)) if meets(p) && (!meets(e) || p.cost < e.cost) => Some((
+            YieldForm::Photon,
             if meets(e) {
                 format!(
                     "photon form: the energy form's photon law binds (it sets c_min, and c is pinned or the energy form misses) and the photon form fits better (objective {:.4e} vs {:.4e}; worst ΔE2000 {} vs {})",
-                    fitted[p].cost,
-                    fitted[e].cost,
+                    p.cost,
+                    e.cost,
                     describe(p),
                     describe(e)
                 )
@@ -61,11 +82,11 @@ pub(super) fn choose_form(
             },
         )),
         (Some(e), photon) if meets(e) => Some((
-            e,
+            YieldForm::Energy,
             match (photon, auto_form) {
                 (Some(p), _) => format!(
                     "energy form: its photon law binds, but the photon form fits no better (objective {:.4e} vs {:.4e})",
-                    fitted[p].cost, fitted[e].cost
+                    p.cost, e.cost
                 ),
                 (None, true) => {
                     "energy form (the paper's constant Q): its photon law does not bind".into()
@@ -73,12 +94,13 @@ pub(super) fn choose_form(
                 (None, false) => "energy form, as asked".into(),
             },
         )),
-        (None, Some(p)) if meets(p) => Some((p, "photon form, as asked".into())),
+        (None, Some(p)) if meets(p) => Some((YieldForm::Photon, "photon form, as asked".into())),
         _ => None,
     }
 }
 
 /// What every candidate fit of one search shares.
+#[derive(Clone, Copy)]
 pub(super) struct CandidateContext<'a> {
     pub(super) m: &'a Measurement,
     pub(super) base: &'a Material,
@@ -98,6 +120,21 @@ pub(super) struct CandidateContext<'a> {
     pub(super) parentless_starts_too: bool,
     /// What the search's starts share, each computed once.
     pub(super) start_cache: &'a StartCache,
+    /// Whether a candidate refines its starts in parallel: not inside a rayon pool (the
+    /// class sweep, batches, images), where the outer loop already fills the cores, and a
+    /// nested join would steal other fits' work into this one's time (the class's
+    /// per-case search median 4.6 → 6.0 ms, its total unchanged).
+    pub(super) parallel: bool,
+    /// Set when the candidate's result is no longer wanted (it was begun ahead of the
+    /// decision that needs it): its refinements stop at their next evaluation.
+    pub(super) cancel: Option<&'a AtomicBool>,
+}
+
+impl CandidateContext<'_> {
+    /// Whether this candidate's result is no longer wanted.
+    fn cancelled(&self) -> bool {
+        self.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
+    }
 }
 
 /// Whether `big` contains `small`: the same axis, yield form and reflectance kind, and no
@@ -191,10 +228,7 @@ pub(super) fn fit_candidate(
     // Each start is refined on its own, so a single fit refines them in parallel (the
     // nested start, the longest, took 60–75 % of CIBA12's two-component fits); they are
     // then compared in the order above, so the kept optimum is the one a sequential loop
-    // keeps. Inside a rayon pool (the class sweep, batches, images) the outer loop already
-    // fills the cores, and a nested join would steal other fits' work into this one's
-    // time (the class's per-case search median 4.6 → 6.0 ms, its total unchanged), so
-    // there they run in turn.
+    // keeps. Inside a rayon pool they run in turn (`CandidateContext::parallel`).
     let refine_start = |&(kind, with_parent): &(Start, bool)| {
         let theta0 = match kind {
             Start::Twin => energy_twin
@@ -207,27 +241,26 @@ pub(super) fn fit_candidate(
             _ => start(&problem, ctx, parent.filter(|_| with_parent), kind),
         };
         theta0
-            .and_then(|t| refine(&problem, &t, options, ctx.tolerance))
+            .and_then(|t| refine(&problem, &t, options, ctx.tolerance, ctx.cancel))
             .map(|(theta, refined)| {
                 let cost = problem.cost_gradient(&theta).0;
                 (theta, refined, cost)
             })
     };
-    let refined_starts: Vec<Result<(Vec<f64>, crate::optimise::Refined, f64)>> =
-        if rayon::current_thread_index().is_none() {
-            // The nested start, the longest, begins first: begun last, the others' time
-            // came before it on the critical path.
-            let mut order: Vec<usize> = (0..starts.len()).collect();
-            order.sort_by_key(|&i| starts[i].0 != Start::Nested);
-            let mut outcomes: Vec<(usize, _)> = order
-                .par_iter()
-                .map(|&i| (i, refine_start(&starts[i])))
-                .collect();
-            outcomes.sort_by_key(|(i, _)| *i);
-            outcomes.into_iter().map(|(_, o)| o).collect()
-        } else {
-            starts.iter().map(refine_start).collect()
-        };
+    let refined_starts: Vec<Result<(Vec<f64>, crate::optimise::Refined, f64)>> = if ctx.parallel {
+        // The nested start, the longest, begins first: begun last, the others' time
+        // came before it on the critical path.
+        let mut order: Vec<usize> = (0..starts.len()).collect();
+        order.sort_by_key(|&i| starts[i].0 != Start::Nested);
+        let mut outcomes: Vec<(usize, _)> = order
+            .par_iter()
+            .map(|&i| (i, refine_start(&starts[i])))
+            .collect();
+        outcomes.sort_by_key(|(i, _)| *i);
+        outcomes.into_iter().map(|(_, o)| o).collect()
+    } else {
+        starts.iter().map(refine_start).collect()
+    };
     let mut best: Option<(Vec<f64>, crate::optimise::Refined, f64)> = None;
     let mut last_error: Option<Error> = None;
     for outcome in refined_starts {
@@ -258,6 +291,9 @@ pub(super) fn fit_candidate(
             };
             best = Some((theta, refined, cost));
         }
+    }
+    if ctx.cancelled() {
+        return Err(Error::Fit(format!("{}: no longer wanted", spec.name())));
     }
     let Some((theta, refined, cost)) = best else {
         return Err(last_error.unwrap_or_else(|| Error::Fit("no start".into())));
@@ -346,6 +382,7 @@ fn refine(
     theta0: &[f64],
     options: &FitOptions,
     tolerance: f64,
+    cancel: Option<&AtomicBool>,
 ) -> Result<(Vec<f64>, crate::optimise::Refined)> {
     let (start_cost, start_gradient) = problem.cost_gradient(theta0);
     if !start_cost.is_finite() || start_gradient.iter().any(|g| !g.is_finite()) {
@@ -377,7 +414,8 @@ fn refine(
         gradient_tolerance: tolerance * FIRST_STEP,
         cost_tolerance: tolerance * start_cost.max(1e-300) * scale,
     };
-    let mut refined = solve::lbfgs_function(&function, theta0, stopping).map_err(Error::Fit)?;
+    let mut refined =
+        solve::lbfgs_function_until(&function, theta0, stopping, cancel).map_err(Error::Fit)?;
     refined.cost_history.iter_mut().for_each(|c| *c /= scale);
     if refined.theta.iter().any(|t| !t.is_finite()) {
         return Err(Error::Fit(
