@@ -294,8 +294,9 @@ pub fn lbfgs_function(
     lbfgs_function_until(function, theta0, stopping, None)
 }
 
-/// [`lbfgs_function`], ended with an error at the first evaluation after `cancel` is set
-/// (a fit begun ahead of the decision that needs it, which that decision made moot).
+/// [`lbfgs_function`], ended at the first evaluation after `cancel` is set (a fit begun
+/// ahead of the decision that needs it, which that decision made moot): whenever the flag
+/// is set by the time the run returns, the result is an error, never a partial fit.
 pub fn lbfgs_function_until(
     function: CostGradient<'_>,
     theta0: &[f64],

@@ -120,10 +120,12 @@ pub(super) struct CandidateContext<'a> {
     pub(super) parentless_starts_too: bool,
     /// What the search's starts share, each computed once.
     pub(super) start_cache: &'a StartCache,
-    /// Whether a candidate refines its starts in parallel: not inside a rayon pool (the
-    /// class sweep, batches, images), where the outer loop already fills the cores, and a
-    /// nested join would steal other fits' work into this one's time (the class's
-    /// per-case search median 4.6 → 6.0 ms, its total unchanged).
+    /// Whether the search runs its fits in parallel: a candidate's starts, and the next
+    /// structure's energy form beside this one's photon form (`ahead`). Set when the
+    /// search itself runs outside a rayon pool, and kept inside the joins it makes; not
+    /// inside a caller's pool (the class sweep, batches, images), where the outer loop
+    /// already fills the cores, and a nested join would steal other fits' work into this
+    /// one's time (the class's per-case search median 4.6 → 6.0 ms, its total unchanged).
     pub(super) parallel: bool,
     /// Set when the candidate's result is no longer wanted (it was begun ahead of the
     /// decision that needs it): its refinements stop at their next evaluation.
@@ -228,7 +230,7 @@ pub(super) fn fit_candidate(
     // Each start is refined on its own, so a single fit refines them in parallel (the
     // nested start, the longest, took 60–75 % of CIBA12's two-component fits); they are
     // then compared in the order above, so the kept optimum is the one a sequential loop
-    // keeps. Inside a rayon pool they run in turn (`CandidateContext::parallel`).
+    // keeps. Inside a caller's rayon pool they run in turn (`CandidateContext::parallel`).
     let refine_start = |&(kind, with_parent): &(Start, bool)| {
         let theta0 = match kind {
             Start::Twin => energy_twin
