@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use super::adequacy::{GridReference, Verdict, judge};
-use super::candidate::{CandidateContext, fit_candidate};
+use super::candidate::{CandidateContext, choose_between, fit_candidate};
 use super::{Fitted, ModelSpec};
 use crate::error::Result;
 use crate::fit::data::FitData;
@@ -73,19 +73,19 @@ pub(super) fn fit_beside(
     (this, later)
 }
 
-/// Whether the search stops at a structure whose yield forms chose `choice` (the form of
-/// [`super::candidate::choose_between`]'s answer; `energy` and `photon` are its fits):
-/// any choice stops it, unless the matrix test, where one is given (the grid reference,
-/// the measurement, its cells and σ), sends the search on.
+/// Whether the search stops at a structure whose yield forms were fitted as `energy` and
+/// `photon`: where [`choose_between`] picks one (`auto_form` as the search's), unless the
+/// matrix test, where one is given (the grid reference, the measurement, its cells and
+/// σ), sends the search on.
 pub(super) fn stops_at(
-    choice: Option<YieldForm>,
     energy: Option<&Fitted>,
     photon: Option<&Fitted>,
+    auto_form: bool,
     matrix_test: Option<(&GridReference, &Measurement, &FitData, f64)>,
 ) -> bool {
-    let pick = match choice {
-        Some(YieldForm::Energy) => energy,
-        Some(YieldForm::Photon) => photon,
+    let pick = match choose_between(energy, photon, auto_form) {
+        Some((YieldForm::Energy, _)) => energy,
+        Some((YieldForm::Photon, _)) => photon,
         None => None,
     };
     let Some(pick) = pick else {

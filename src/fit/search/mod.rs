@@ -393,10 +393,9 @@ pub(super) fn fit_model_from(
                         parent_only != Some(structure)
                             && decides
                             && stops_at(
-                                choose_between(energy_twin, photon.as_ref().ok(), auto_form)
-                                    .map(|(form, _)| form),
                                 energy_twin,
                                 photon.as_ref().ok(),
+                                auto_form,
                                 judged_by_matrix.then(|| (grid_reference(), m, &data, sigma)),
                             )
                     };
