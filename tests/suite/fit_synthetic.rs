@@ -7,12 +7,16 @@ use fluorite::synth::SynthSpec;
 
 /// The material fitted to the matrix alone (no colour term), as these tests compare
 /// parameters with the generator's truth.
+/// The grid model's least-squares fit of the cells alone (no colour term; `--model
+/// tabulated`, as the default fit may hand a noisy matrix to a model of fewer
+/// parameters).
 fn fit_matrix_only(m: &fluorite::Measurement) -> Material {
     fitted(
         fit(
             m,
             &FitOptions {
                 colour_weight: 0.0,
+                model: fluorite::fit::ModelChoice::Tabulated,
                 ..FitOptions::default()
             },
         )

@@ -39,7 +39,8 @@ use ahead::stops_at;
 use candidate::*;
 
 use noise_bounds::{
-    misses_within_noise, noise_pull_weights, noise_widened_bounds, skip_one_component_models,
+    grid_misfit_shares, misses_within_noise, noise_pull_weights, noise_widened_bounds,
+    skip_one_component_models,
 };
 use starts::*;
 
@@ -203,7 +204,9 @@ pub(super) fn fit_model_from(
     let grid_de = worst(&base_report.delta_e2000);
     // Per light, the bound a candidate is held to and the weight of its colour pull: the
     // bound as given, or (--noise-aware-bound) widened to what the measured colour's own
-    // noise explains, with the pull weighed by that noise.
+    // noise explains, with the pull weighed by that noise and by the share of what the
+    // grid fit leaves (cells, colour) that the noise does not explain
+    // (`grid_misfit_shares`).
     let colour_noise = match (options.noise_aware_bound, budget) {
         (true, Some(_)) => Some(assess::colour_noise_delta_e2000(
             m, &base, &data, lights, sigma,
@@ -214,9 +217,13 @@ pub(super) fn fit_model_from(
         Some(noise) => noise_widened_bounds(bound, lights, noise, &base_report.delta_e2000),
         None => lights.iter().map(|l| (l.name.clone(), bound)).collect(),
     };
+    let shares: Vec<f64> = match &colour_noise {
+        Some(_) => grid_misfit_shares(&base, m, &data, lights, sigma),
+        None => Vec::new(),
+    };
     let light_weights: Vec<f64> = colour_noise
         .as_deref()
-        .map(|noise| noise_pull_weights(bound, noise))
+        .map(|noise| noise_pull_weights(bound, noise, &shares))
         .unwrap_or_default();
     let mut skipped: Option<String> = None;
     let specs: Vec<(usize, usize, usize)> = match options.model {
@@ -620,7 +627,7 @@ pub(super) fn fit_model_from(
     };
     let rule = match budget {
         Some(bound) if colour_noise.is_some() => format!(
-            "first model with ΔE2000 ≤ max({bound}, {} × the measured colour's noise RMS, at most the grid fit's + {bound}) under each light: {} (--noise-aware-bound; each light's colour term weighed by that noise)",
+            "first model with ΔE2000 ≤ max({bound}, {} × the measured colour's noise RMS, at most the grid fit's + {bound}) under each light: {} (--noise-aware-bound; each light's colour term weighed by that noise and, where that noise weakens it, by the share of what the grid fit leaves beyond the noise, in the cells or that colour: {})",
             assess::NOISE_COVERAGE,
             lights
                 .iter()
@@ -629,6 +636,12 @@ pub(super) fn fit_model_from(
                     l.name,
                     light_bounds.get(&l.name).copied().unwrap_or(bound)
                 ))
+                .collect::<Vec<_>>()
+                .join(", "),
+            lights
+                .iter()
+                .zip(&shares)
+                .map(|(l, s)| format!("{} {s:.2}", l.name))
                 .collect::<Vec<_>>()
                 .join(", "),
         ),

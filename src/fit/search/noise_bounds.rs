@@ -98,17 +98,70 @@ pub(super) fn skip_one_component_models(
     )
 }
 
+/// χ² (three degrees of freedom) a colour miss must pass before [`grid_misfit_shares`]
+/// counts any of it as structure: the noise's mean, 3, plus three standard deviations
+/// (√6 each), as the grid fit's own colour term counts its rows' residual.
+const MISFIT_CHI2_FLOOR: f64 = 3.0 + 3.0 * 2.449_489_742_783_178;
+
+/// Per light, how much of what the grid fit leaves the cells' noise does not explain: the
+/// larger of its off-diagonal residual's share beyond the noise, max(0, 1 − σ²/RMS²),
+/// and its miss of that light's measured colour beyond the noise, max(0, 1 −
+/// [`MISFIT_CHI2_FLOOR`] / χ²) with χ² the miss's ([`assess::misfit_colour_chi2`]). It
+/// scales that light's colour pull under --noise-aware-bound. The colour term is for
+/// structure a model cannot follow (the grid fit weighs its own by such a share). Where
+/// the grid model, one fluorophore with every sample free, leaves only noise in the
+/// cells and in the colour, a candidate's bands can follow the matrix, and the pull
+/// drags them onto the noise of the measured colour instead: the default seed's case127
+/// (one dye, σ 3·10⁻³) ended gaussian:1x1+rt 2.49 from the truth, 1.33 without. Both
+/// parts: the residual's alone took the uv pull from a weak UV-excited blue emitter
+/// beside a pigment (`uv_tail`, seed 2026, uvtail009), whose two LED rows' residual
+/// stays within their noise while it moves the uv colour by 4 ΔE2000, far beyond its own
+/// (the search ended 2.56 from the truth under uv instead of 0.33); the colour's alone
+/// left the pull on most class draws, no nearer the truth than before. It applies only
+/// where the colour's noise already weakens the pull ([`noise_pull_weights`]). Over 68
+/// `fluorite class` seeds: docs/results.md.
+pub(super) fn grid_misfit_shares(
+    base: &Material,
+    m: &Measurement,
+    data: &FitData,
+    lights: &[crate::colour::Light],
+    sigma: f64,
+) -> Vec<f64> {
+    let rms = assess::accuracy(base, m, data, lights).rms_off_diagonal;
+    let residual_share = if rms > 0.0 && rms.is_finite() {
+        (1.0 - sigma * sigma / (rms * rms)).max(0.0)
+    } else {
+        0.0
+    };
+    assess::misfit_colour_chi2(m, base, data, lights, sigma)
+        .into_iter()
+        .map(|chi2| {
+            let colour = if chi2 > MISFIT_CHI2_FLOOR {
+                1.0 - MISFIT_CHI2_FLOOR / chi2
+            } else {
+                0.0
+            };
+            colour.max(residual_share)
+        })
+        .collect()
+}
+
 /// Each light's share of the colour weight under --noise-aware-bound: 1 while the
 /// measured colour's noise RMS (`noise`, ΔE2000 per light) is at most
 /// [`crate::fit::NOISE_PULL_SHARE`] × `bound`, then falling as 1/noise² (inverse-variance
-/// weighting of the colour residual).
-pub(super) fn noise_pull_weights(bound: f64, noise: &[f64]) -> Vec<f64> {
+/// weighting of the colour residual) and scaled by that light's share of what the grid
+/// fit leaves beyond the noise (`shares`, [`grid_misfit_shares`]). A precise colour keeps
+/// its full pull: the shares moved postit_pink's escalated fit from gaussian:2x2+r6 (uv
+/// 0.14 against the measurement) to gaussian:2x1/2+r6 (uv 1.33), its d65, a and f11
+/// colours known to better than a fifth of the bound.
+pub(super) fn noise_pull_weights(bound: f64, noise: &[f64], shares: &[f64]) -> Vec<f64> {
     let scale = crate::fit::NOISE_PULL_SHARE * bound;
     noise
         .iter()
-        .map(|n| {
+        .enumerate()
+        .map(|(l, n)| {
             if n.is_finite() && *n > scale {
-                (scale / n).powi(2)
+                (scale / n).powi(2) * shares.get(l).copied().unwrap_or(1.0)
             } else {
                 1.0
             }
