@@ -118,8 +118,9 @@ pub struct FitArgs {
     pub colour_weight: f64,
     /// With --max-delta-e: hold each light to max(bound, 3 × the measured colour's own
     /// noise RMS ΔE2000; at most the grid fit's ΔE2000 + bound) and weigh its colour term
-    /// by that noise and by the share of the grid fit's residual beyond the noise, so
-    /// noisy data are not fitted to their noise (the report lists the
+    /// by that noise (a noisy one also by the share of what the grid fit leaves beyond the
+    /// noise, in its residual or that colour), so noisy data are not fitted to their
+    /// noise (the report lists the
     /// lights judged so); pass over a candidate that meets the bound but that the matrix
     /// tells from the grid model by more than noise: for the grid fit where it leaves only
     /// noise and meets the bound, else for a later candidate that passes.

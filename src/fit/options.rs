@@ -154,9 +154,9 @@ pub struct FitOptions {
     /// to max(`max_delta_e`, [`crate::fit::assess::NOISE_COVERAGE`] × the measured colour's
     /// own noise RMS) (but to no more than `max_delta_e` beyond the grid fit's own ΔE2000
     /// there), and its colour term pulls no harder than that noise allows
-    /// (weight × min(1, ([`NOISE_PULL_SHARE`] × bound / noise)²), times the share of the
-    /// grid fit's residual that noise does not explain, as the grid fit weighs its own);
-    /// where the grid model
+    /// (weight × min(1, ([`NOISE_PULL_SHARE`] × bound / noise)²), and where that is below 1
+    /// times the share of what the grid fit leaves, in its residual or that light's
+    /// colour, that noise does not explain); where the grid model
     /// misses a light beyond its widened bound the search starts at two components. Off:
     /// every light is held to `max_delta_e` as given. Without `max_delta_e` the fit refuses
     /// it (there is no bound to widen).

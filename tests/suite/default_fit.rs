@@ -51,6 +51,20 @@ fn escalated_to_two_fluorophores(seed: u64, case: &str, reason: &str) -> f64 {
     material_delta_e(&material, &truth, &Light::standard())
 }
 
+/// The one-fluorophore grid fit (`--model tabulated`), which the default fit starts from.
+fn grid_fit(m: &Measurement) -> Material {
+    material(
+        fit(
+            m,
+            &FitOptions {
+                model: ModelChoice::Tabulated,
+                ..FitOptions::default()
+            },
+        )
+        .unwrap(),
+    )
+}
+
 fn assert_within_bound(what: &str, material: &Material, m: &Measurement) {
     for (light, de) in common::delta_e_to_matrix(material, m, &LIGHTS) {
         assert!(
@@ -244,16 +258,7 @@ fn model_tabulated_keeps_one_fluorophore() {
 fn the_fast_path_is_the_tabulated_fit() {
     let m = read(&data("green-dye.csv"), &Default::default()).unwrap();
     let default = material(fit(&m, &FitOptions::default()).unwrap());
-    let tabulated = material(
-        fit(
-            &m,
-            &FitOptions {
-                model: ModelChoice::Tabulated,
-                ..FitOptions::default()
-            },
-        )
-        .unwrap(),
-    );
+    let tabulated = grid_fit(&m);
     assert_eq!(default.fluorophores, tabulated.fluorophores);
     assert_eq!(default.reflectance, tabulated.reflectance);
     let (d, t) = (default.fit.unwrap(), tabulated.fit.unwrap());
@@ -450,16 +455,7 @@ fn a_grid_fit_kept_only_within_its_noise_gives_way_to_a_model_of_lower_bic() {
     let (m, truth) = common::class_case(fluorite::evaluate::class::DEFAULT_SEED, "case127")
         .generate()
         .unwrap();
-    let grid = material(
-        fit(
-            &m,
-            &FitOptions {
-                model: ModelChoice::Tabulated,
-                ..FitOptions::default()
-            },
-        )
-        .unwrap(),
-    );
+    let grid = grid_fit(&m);
     let default = material(fit(&m, &FitOptions::default()).unwrap());
     let report = default.fit.as_ref().unwrap();
     let escalation = report.escalation.as_ref().unwrap();
