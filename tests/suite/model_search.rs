@@ -560,7 +560,7 @@ fn fitting_ahead_changes_no_result() {
         .build()
         .unwrap();
     for (path, options, last) in [
-        (&ciba, &noise_aware, "gaussian:2x3+r7/photon"),
+        (&ciba, &noise_aware, "gaussian:2x3+rt/photon"),
         (&herpicer, &search_options(1.0), "gaussian:2x2/1+rt/photon"),
     ] {
         let alone = fitted(path, options);

@@ -235,7 +235,13 @@ pub(super) fn fit_model_from(
             reflectance: Some(r),
             ..
         }) => r,
-        _ => reflectance_form(&base, m, lights, REFLECTANCE_SHARE * budget.unwrap_or(1.0)),
+        _ => reflectance_form(
+            &base,
+            m,
+            lights,
+            REFLECTANCE_SHARE * budget.unwrap_or(1.0),
+            options.noise_aware_bound.then_some(sigma),
+        ),
     };
 
     let reference = measured_xyz(m, &base, lights);
