@@ -121,7 +121,8 @@ pub struct FitArgs {
     /// by that noise (a noisy one also by the share of what the grid fit leaves beyond the
     /// noise, in its residual or that colour), so noisy data are not fitted to their
     /// noise (the report lists the
-    /// lights judged so); pass over a candidate that meets the bound but that the matrix
+    /// lights judged so); take the reflectance tabulated where no polynomial fits the
+    /// grid fit's diagonal within the cells' noise; pass over a candidate that meets the bound but that the matrix
     /// tells from the grid model by more than noise: for the grid fit where it leaves only
     /// noise and meets the bound, else for a later candidate that passes.
     #[arg(long, requires = "max_delta_e")]

@@ -156,8 +156,10 @@ pub struct FitOptions {
     /// there), and its colour term pulls no harder than that noise allows
     /// (weight × min(1, ([`NOISE_PULL_SHARE`] × bound / noise)²), and where that is below 1
     /// times the share of what the grid fit leaves, in its residual or that light's
-    /// colour, that noise does not explain); where the grid model
-    /// misses a light beyond its widened bound the search starts at two components. Off:
+    /// colour, that noise does not explain); the candidates' reflectance is tabulated
+    /// where no sigmoid polynomial fits the grid fit's diagonal within the cells' noise;
+    /// where the grid model misses a light beyond its widened bound the search starts at
+    /// two components. Off:
     /// every light is held to `max_delta_e` as given. Without `max_delta_e` the fit refuses
     /// it (there is no bound to widen).
     pub noise_aware_bound: bool,
