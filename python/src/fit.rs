@@ -352,7 +352,9 @@ fn prepared(
 /// - ``noise_aware_bound``: with ``max_delta_e``, hold each light to max(bound, 3 × the
 ///   measured colour's own noise RMS ΔE2000; at most the grid fit's ΔE2000 + bound) and
 ///   weigh its colour term by that noise (a noisy colour's also by the share of what the
-///   grid fit leaves beyond the noise, in its residual or that colour); a candidate that meets the bound but that the
+///   grid fit leaves beyond the noise, in its residual or that colour); take the
+///   candidates' reflectance tabulated where no polynomial fits the grid fit's diagonal
+///   within the cells' noise; a candidate that meets the bound but that the
 ///   matrix tells from the grid model is passed over: for the grid fit where it leaves
 ///   only noise and meets the bound, else for a later candidate that passes
 ///   (``fluorite fit --noise-aware-bound``); the report's

@@ -77,14 +77,33 @@ pub(super) fn against_grid(
     cells: usize,
     sigma: f64,
 ) -> MatrixTest {
-    let free = cells.saturating_sub(grid_parameters).max(1) as f64;
-    let variance = (sigma * sigma).max(grid_rss / free).max(1e-300);
+    let variance = noise_unit(grid_rss, grid_parameters, cells, sigma);
     let degrees = (grid_parameters as f64 - candidate_parameters as f64).max(1.0);
     MatrixTest {
         statistic: (candidate_rss - grid_rss) / variance,
         degrees,
         limit: degrees + MATRIX_TEST_SIGMAS * (2.0 * degrees).sqrt(),
     }
+}
+
+/// The matrix test's unit of squared residual: σ², or what the grid model with
+/// `grid_parameters` leaves per degree of freedom over `cells` cells where that is more.
+fn noise_unit(grid_rss: f64, grid_parameters: usize, cells: usize, sigma: f64) -> f64 {
+    let free = cells.saturating_sub(grid_parameters).max(1) as f64;
+    (sigma * sigma).max(grid_rss / free).max(1e-300)
+}
+
+/// [`noise_unit`] of the grid fit `base` of `m`'s cells `data` at noise level `sigma`:
+/// the unit the reflectance form is judged in too (`reflectance::reflectance_form`).
+pub(super) fn grid_noise_unit(base: &Material, m: &Measurement, data: &FitData, sigma: f64) -> f64 {
+    let rss = residual_sum_of_squares(&predict_like(base, m), data);
+    let parameters = base.fit.as_ref().map_or(0, |r| r.parameter_count);
+    noise_unit(
+        rss,
+        parameters,
+        data.off_diagonal.len() + data.diagonal.len(),
+        sigma,
+    )
 }
 
 /// What the matrix test makes of a candidate that met the bound.

@@ -240,7 +240,9 @@ pub(super) fn fit_model_from(
             m,
             lights,
             REFLECTANCE_SHARE * budget.unwrap_or(1.0),
-            options.noise_aware_bound.then_some(sigma),
+            options
+                .noise_aware_bound
+                .then(|| (&data, adequacy::grid_noise_unit(&base, m, &data, sigma))),
         ),
     };
 
