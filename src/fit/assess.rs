@@ -422,6 +422,19 @@ pub fn measured_patch(m: &Measurement, fitted_per_bin: &Measurement) -> Measurem
     m.to_per_bin().filled_from(fitted_per_bin)
 }
 
+/// XYZ of the measured patch under each light, as the accuracy report sees it
+/// ([`measured_patch`]: every measured cell, missing ones from the tabulated fit,
+/// whose matrix on `m`'s grids is `grid_predicted`).
+pub fn measured_xyz(m: &Measurement, grid_predicted: &Measurement, lights: &[Light]) -> Vec<Xyz> {
+    let measured = measured_patch(m, &grid_predicted.to_per_bin());
+    lights
+        .iter()
+        .map(|light| {
+            PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm).xyz(&measured)
+        })
+        .collect()
+}
+
 /// How much of the colour reference was not measured: the cells filled from the model,
 /// the largest share, over `lights`, of the reference patch's light they carry, and what
 /// they are worth in colour.

@@ -82,8 +82,14 @@ pub(super) fn against_grid(
     MatrixTest {
         statistic: (candidate_rss - grid_rss) / variance,
         degrees,
-        limit: degrees + MATRIX_TEST_SIGMAS * (2.0 * degrees).sqrt(),
+        limit: noise_limit(degrees),
     }
+}
+
+/// The most χ² (in the matrix test's unit) that noise gives `degrees` degrees of
+/// freedom: their mean plus [`MATRIX_TEST_SIGMAS`] standard deviations.
+pub(super) fn noise_limit(degrees: f64) -> f64 {
+    degrees + MATRIX_TEST_SIGMAS * (2.0 * degrees).sqrt()
 }
 
 /// The matrix test's unit of squared residual: σ², or what the grid model with
@@ -93,10 +99,16 @@ fn noise_unit(grid_rss: f64, grid_parameters: usize, cells: usize, sigma: f64) -
     (sigma * sigma).max(grid_rss / free).max(1e-300)
 }
 
-/// [`noise_unit`] of the grid fit `base` of `m`'s cells `data` at noise level `sigma`:
-/// the unit the reflectance form is judged in too (`reflectance::reflectance_form`).
-pub(super) fn grid_noise_unit(base: &Material, m: &Measurement, data: &FitData, sigma: f64) -> f64 {
-    let rss = residual_sum_of_squares(&predict_like(base, m), data);
+/// [`noise_unit`] of the grid fit `base`, whose matrix on the measurement's grids is
+/// `predicted`, over the cells `data` at noise level `sigma`: the unit the reflectance
+/// form is judged in too (`reflectance::reflectance_form`).
+pub(super) fn grid_noise_unit(
+    base: &Material,
+    predicted: &Measurement,
+    data: &FitData,
+    sigma: f64,
+) -> f64 {
+    let rss = residual_sum_of_squares(predicted, data);
     let parameters = base.fit.as_ref().map_or(0, |r| r.parameter_count);
     noise_unit(
         rss,
@@ -142,23 +154,23 @@ pub(super) struct GridReference {
 }
 
 impl GridReference {
-    /// The grid fit `base` of `m`'s cells `data` at noise level `sigma`; `meets_bounds`
-    /// as the search judged its ΔE2000, `crosstalk_lights` the lights it misses only by
-    /// the crosstalk it removed.
+    /// The grid fit `base` of `m`'s cells `data` at noise level `sigma`, its matrix on
+    /// `m`'s grids `predicted` (`predict_like`); `meets_bounds` as the search judged its
+    /// ΔE2000, `crosstalk_lights` the lights it misses only by the crosstalk it removed.
     pub fn new(
         base: &Material,
+        predicted: &Measurement,
         m: &Measurement,
         data: &FitData,
         sigma: f64,
         meets_bounds: bool,
         crosstalk_lights: Vec<String>,
     ) -> Self {
-        let predicted = predict_like(base, m);
         let report = base.fit.as_ref();
         GridReference {
-            rss: residual_sum_of_squares(&predicted, data),
+            rss: residual_sum_of_squares(predicted, data),
             parameters: report.map_or(0, |r| r.parameter_count),
-            second: second_fluorophore_energy(&predicted, m, data, sigma),
+            second: second_fluorophore_energy(predicted, m, data, sigma),
             meets_bounds,
             crosstalk_lights,
             worst: report.map_or(f64::NAN, |r| worst(&r.delta_e2000)),

@@ -230,6 +230,9 @@ pub(super) fn fit_model_from(
         ModelChoice::Fixed(r) => vec![(r.components, r.absorption_bands, r.emission_bands)],
         _ => LADDER.to_vec(),
     };
+    // The grid fit's matrix: the measured patch's filler, the reflectance's noise unit and
+    // the matrix test's reference.
+    let grid_predicted = crate::model::predict_like(&base, m);
     let reflectance = match options.model {
         ModelChoice::Fixed(ModelRequest {
             reflectance: Some(r),
@@ -242,11 +245,11 @@ pub(super) fn fit_model_from(
             REFLECTANCE_SHARE * budget.unwrap_or(1.0),
             options
                 .noise_aware_bound
-                .then(|| (&data, adequacy::grid_noise_unit(&base, m, &data, sigma))),
+                .then_some((&data, &grid_predicted, sigma)),
         ),
     };
 
-    let reference = measured_xyz(m, &base, lights);
+    let reference = assess::measured_xyz(m, &grid_predicted, lights);
     // A fixed model gets the tolerance asked for; the search's candidates at most
     // SEARCH_TOLERANCE (the choice is made on ΔE, which the last digits of the cost do
     // not move).
@@ -320,6 +323,7 @@ pub(super) fn fit_model_from(
         grid_reference.get_or_init(|| {
             adequacy::GridReference::new(
                 &base,
+                &grid_predicted,
                 m,
                 &data,
                 sigma,
@@ -745,24 +749,6 @@ pub(super) fn fit_model_from(
     // The conservation margins came with the candidate (or the grid fit), whose spectra
     // have not changed since.
     Ok(FitOutcome::Material(Box::new(material)))
-}
-
-/// XYZ of the measured patch under each light, as the accuracy report sees it
-/// ([`assess::measured_patch`]: every measured cell, missing ones from the tabulated fit).
-fn measured_xyz(
-    m: &Measurement,
-    base: &Material,
-    lights: &[crate::colour::Light],
-) -> Vec<crate::colour::Xyz> {
-    let fitted = crate::model::predict_like(base, m).to_per_bin();
-    let measured = assess::measured_patch(m, &fitted);
-    lights
-        .iter()
-        .map(|light| {
-            crate::colour::PatchColorimeter::cached(light, &m.excitation_nm, &m.emission_nm)
-                .xyz(&measured)
-        })
-        .collect()
 }
 
 /// The crosstalk next to the diagonal as the search takes it: removed from the cells

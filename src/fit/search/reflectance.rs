@@ -9,6 +9,7 @@ use crate::parametric::fit::fit_sigmoid_polynomial;
 use super::super::assess;
 use super::super::data::FitData;
 use super::ReflectanceForm;
+use super::adequacy::noise_limit;
 
 /// Highest degree of a sigmoid-polynomial reflectance the search tries before it falls
 /// back to a tabulated reflectance.
@@ -19,10 +20,11 @@ pub(super) const REFLECTANCE_SHARE: f64 = 0.5;
 
 /// The reflectance form for the search: the lowest sigmoid-polynomial degree whose
 /// diagonal, with the tabulated fit's fluorescence, stays within `budget` ΔE2000 of the
-/// tabulated fit under every light and, given the cells `data` and the matrix test's unit
-/// of squared residual (`diagonal_noise`, under --noise-aware-bound), within that noise
-/// of the tabulated fit's diagonal ([`within_diagonal_noise`]); tabulated when no degree
-/// up to [`MAX_REFLECTANCE_DEGREE`] does.
+/// tabulated fit under every light and, given `diagonal_noise` (under --noise-aware-bound:
+/// the cells, the grid fit's matrix on the measurement's grids and the noise level σ),
+/// within the noise of the tabulated fit's diagonal in the matrix test's unit
+/// ([`within_diagonal_noise`]); tabulated when no degree up to [`MAX_REFLECTANCE_DEGREE`]
+/// does.
 ///
 /// The noise-aware search tests every candidate against the grid model on the matrix,
 /// and a reflectance the diagonal's own noise rejects fails that test for every
@@ -36,7 +38,7 @@ pub(super) fn reflectance_form(
     m: &Measurement,
     lights: &[crate::colour::Light],
     budget: f64,
-    diagonal_noise: Option<(&FitData, f64)>,
+    diagonal_noise: Option<(&FitData, &Measurement, f64)>,
 ) -> ReflectanceForm {
     let nm = &base.reflectance.wavelength_nm;
     let r = &base.reflectance.value;
@@ -45,7 +47,7 @@ pub(super) fn reflectance_form(
     // The diagonal noise test counts the measured diagonal cells only: the grid fit
     // interpolates r where the file holds none, and those samples carry no noise.
     let measured: Vec<bool> = match diagonal_noise {
-        Some((data, _)) if data.diagonal_positions.len() == r.len() => data
+        Some((data, ..)) if data.diagonal_positions.len() == r.len() => data
             .diagonal_positions
             .iter()
             .map(|&(row, column)| {
@@ -56,6 +58,9 @@ pub(super) fn reflectance_form(
             .collect(),
         _ => vec![true; r.len()],
     };
+    let unit = diagonal_noise.map(|(data, predicted, sigma)| {
+        super::adequacy::grid_noise_unit(base, predicted, data, sigma)
+    });
     for degree in 1..=MAX_REFLECTANCE_DEGREE {
         let Ok(fit) = fit_sigmoid_polynomial(nm, r, Some(&weights), degree) else {
             continue;
@@ -68,7 +73,7 @@ pub(super) fn reflectance_form(
             .zip(&lab)
             .all(|(a, b)| crate::colour::delta_e2000(*a, *b) <= budget);
         let fits_diagonal = || {
-            diagonal_noise.is_none_or(|(_, unit)| {
+            unit.is_none_or(|unit| {
                 within_diagonal_noise(
                     &candidate.reflectance.value,
                     r,
@@ -111,8 +116,7 @@ fn within_diagonal_noise(
             samples += 1;
         }
     }
-    let degrees = (samples as f64 - parameters as f64).max(1.0);
-    chi2 <= degrees + 3.0 * (2.0 * degrees).sqrt()
+    chi2 <= noise_limit((samples as f64 - parameters as f64).max(1.0))
 }
 
 /// Weights making a reflectance fit a fit of the diagonal d = (1 − Σc·a)·r: where the
