@@ -356,7 +356,10 @@ fn prepared(
 ///   candidates' reflectance tabulated where no polynomial fits the grid fit's diagonal
 ///   within the cells' noise; a candidate that meets the bound but that the
 ///   matrix tells from the grid model is passed over: for the grid fit where it leaves
-///   only noise and meets the bound, else for a later candidate that passes
+///   only noise and meets the bound (or, where it meets a light only within that
+///   light's noise, for the larger one-component model of lowest BIC below its own,
+///   fitted to the matrix alone, that meets the bound and passes), else for a later
+///   candidate that passes
 ///   (``fluorite fit --noise-aware-bound``); the report's
 ///   ``model_search.misses_within_noise`` lists the lights judged so, and
 ///   ``model_search.matrix_test`` what the test decided and why.

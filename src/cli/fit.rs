@@ -124,7 +124,10 @@ pub struct FitArgs {
     /// lights judged so); take the reflectance tabulated where no polynomial fits the
     /// grid fit's diagonal within the cells' noise; pass over a candidate that meets the bound but that the matrix
     /// tells from the grid model by more than noise: for the grid fit where it leaves only
-    /// noise and meets the bound, else for a later candidate that passes.
+    /// noise and meets the bound (or, where it meets a light only within that light's
+    /// noise, for the larger one-component model of lowest BIC below its own, fitted to
+    /// the matrix alone, that meets the bound and passes), else for a later candidate that
+    /// passes.
     #[arg(long, requires = "max_delta_e")]
     pub noise_aware_bound: bool,
     /// Exit with code 1 when a fit did not converge or carries warnings.

@@ -118,6 +118,9 @@ pub(super) fn grid_noise_unit(
     )
 }
 
+/// How the matrix test's words begin where it keeps the grid fit.
+pub(super) const KEPT_GRID: &str = "kept the grid fit: ";
+
 /// What the matrix test makes of a candidate that met the bound.
 #[derive(Debug, Clone, PartialEq)]
 pub(super) enum Verdict {
@@ -232,7 +235,7 @@ pub(super) fn judge(
         )
     };
     Verdict::KeepGrid(format!(
-        "kept the grid fit: {name} met the bound, but {}: pulled onto the measured colour, its bands miss the matrix; what the grid model leaves holds no second fluorophore ({second:.1} × σ²(√m + √n)²) and {meets} (worst ΔE2000 {:.2} against the measured colour)",
+        "{KEPT_GRID}{name} met the bound, but {}: pulled onto the measured colour, its bands miss the matrix; what the grid model leaves holds no second fluorophore ({second:.1} × σ²(√m + √n)²) and {meets} (worst ΔE2000 {:.2} against the measured colour)",
         test.describe(),
         grid.worst
     ))

@@ -30,6 +30,7 @@ use super::{FitOptions, FitOutcome, ModelChoice, ModelRequest, YieldChoice, asse
 mod adequacy;
 mod ahead;
 mod candidate;
+mod look_further;
 mod model_name;
 mod noise_bounds;
 mod reflectance;
@@ -37,6 +38,7 @@ mod starts;
 
 use ahead::stops_at;
 use candidate::*;
+use look_further::{OneComponentLook, skips_larger_one_component};
 
 use noise_bounds::{
     grid_misfit_shares, misses_within_noise, noise_pull_weights, noise_widened_bounds,
@@ -63,10 +65,6 @@ const FIRST_STEP: f64 = 0.1;
 /// (`--tolerance` when looser): 1e-6 chose the same or larger models on the six real
 /// surfaces and the synthetic examples, and took longer.
 const SEARCH_TOLERANCE: f64 = 1e-5;
-
-/// The search skips one-component models when the grid model (K = 1, every sample free)
-/// misses the bound by more than this factor under some light.
-const GRID_MISS: f64 = 2.0;
 
 /// The energy form's photon law binds when it sets the smallest feasible c and c's
 /// feasible interval is at most this wide (c cannot grow to give more fluorescence).
@@ -283,6 +281,8 @@ pub(super) fn fit_model_from(
         Some((grid, light_bounds.get(&l.name).copied().unwrap_or(bound)))
     };
     let rms_only = |(grid, limit): (f64, f64)| grid > bound && grid <= limit;
+    // Whether the grid fit meets some light only within its noise (`look_further`).
+    let grid_within_noise_only = lights.iter().filter_map(grid_light).any(rms_only);
     // Computed only where some light needs it (one prediction of the grid fit).
     let grid_chi2 = if lights.iter().filter_map(grid_light).any(rms_only) {
         assess::misfit_colour_chi2(m, &base, &data, lights, sigma)
@@ -366,7 +366,18 @@ pub(super) fn fit_model_from(
     let decides = budget.is_some() || matches!(options.model, ModelChoice::Fixed(_));
     // The next structure's energy form, fitted beside this one's photon form.
     let mut ahead: Option<ahead::Ahead> = None;
+    // Where the matrix test kept the grid fit: the one-component models on the matrix alone.
+    let mut looking: Option<OneComponentLook> = None;
+    let matrix_alone = vec![0.0; lights.len()];
     while let Some(structure) = jobs.pop_front() {
+        let ctx = CandidateContext {
+            light_weights: if looking.is_some() {
+                &matrix_alone
+            } else {
+                ctx.light_weights
+            },
+            ..ctx
+        };
         let (components, absorption_bands, emission_bands) = structure;
         // A fit begun ahead serves only the structure right after the one it was begun
         // beside (the starts it was fitted from are those that structure would see).
@@ -468,30 +479,19 @@ pub(super) fn fit_model_from(
                 }),
             }
         }
-        // Fitting to colour can beat the grid fit (CIBA12 under A: 1.32 for the grid,
-        // 0.30 for 1×1), so the smallest model is always tried. When it and the grid model
-        // both miss by more than GRID_MISS× under the same light, the larger
-        // one-component models are skipped.
         if first_structure
             && parent_only.is_none()
             && components == 1
             && let Some((light, grid_light_de)) = &grid_worst
-            && *grid_light_de > GRID_MISS * bound
-            && let Some((de, name)) = here
-                .iter()
-                .filter_map(|&i| {
-                    fitted[i]
-                        .delta_e
-                        .get(light)
-                        .map(|de| (*de, fitted[i].spec.name()))
-                })
-                .min_by(|a, b| a.0.total_cmp(&b.0))
-            && de > GRID_MISS * bound
+            && let Some(why) = skips_larger_one_component(
+                light,
+                *grid_light_de,
+                light_bounds.get(light.as_str()).copied().unwrap_or(bound),
+                here.iter().map(|&i| &fitted[i]),
+            )
         {
             jobs.retain(|s| s.0 > 1);
-            skipped = Some(format!(
-                "larger one-component models: under {light} the grid model (K = 1, every sample free) has ΔE2000 {grid_light_de:.2} and {name} has {de:.2}, both above {GRID_MISS} × {bound}",
-            ));
+            skipped = Some(why);
         }
         first_structure = false;
         if parent_only == Some((components, absorption_bands, emission_bands)) {
@@ -509,6 +509,11 @@ pub(super) fn fit_model_from(
             if judged_by_matrix {
                 match adequacy::judge(&fitted[pick.0], grid_reference(), m, &data, sigma) {
                     adequacy::Verdict::Keep => {}
+                    adequacy::Verdict::KeepGrid(reason) if grid_within_noise_only => {
+                        looking.get_or_insert_with(|| OneComponentLook::new(reason));
+                        jobs.retain(|s| s.0 == 1);
+                        continue;
+                    }
                     adequacy::Verdict::KeepGrid(reason) => {
                         matrix_test = Some(reason);
                         kept_grid = true;
@@ -524,9 +529,19 @@ pub(super) fn fit_model_from(
                     }
                 }
             }
+            if let Some(look) = looking.as_mut() {
+                look.passed(pick);
+                continue;
+            }
             chosen = Some(pick);
             break;
         }
+    }
+    if let Some(look) = looking {
+        let (kept, words) = look.conclude(&fitted, base_report.bic);
+        matrix_test = Some(words);
+        kept_grid = kept.is_none();
+        chosen = kept;
     }
     if let Some(((first, why), reason)) = passed_over {
         matrix_test = Some(match &chosen {
