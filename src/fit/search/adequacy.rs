@@ -157,6 +157,12 @@ pub(super) struct GridReference {
 }
 
 impl GridReference {
+    /// Its BIC on the search's cells `data` at noise level `sigma`, as the candidates'
+    /// (the grid fit's own report may hold it on other cells: the crosstalk it kept).
+    pub fn bic(&self, sigma: f64, data: &FitData) -> f64 {
+        super::super::assess::bic(self.rss, sigma, self.parameters, data)
+    }
+
     /// The grid fit `base` of `m`'s cells `data` at noise level `sigma`, its matrix on
     /// `m`'s grids `predicted` (`predict_like`); `meets_bounds` as the search judged its
     /// ΔE2000, `crosstalk_lights` the lights it misses only by the crosstalk it removed.

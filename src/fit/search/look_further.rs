@@ -3,8 +3,9 @@
 //!
 //! The matrix test keeps the grid fit where the first candidate that met the bound misses
 //! the matrix by more than noise, while the grid model leaves only noise and meets the
-//! bound too. That candidate is the smallest one-component model, and its miss may be its
-//! bands', not its colour term's: a dye with a second absorption band is no 1x1. The
+//! bound too. That candidate is most often the smallest one-component model (the look runs
+//! only while one-component structures remain), and its miss may be its bands', not its
+//! colour term's: a dye with a second absorption band is no 1x1. The
 //! default seed's case049 (one dye, a UV band beside the main one, σ 2.8·10⁻³) kept its
 //! grid fit, 2.70 from the truth under uv: the grid model's free samples in the LED's
 //! rows are each within 2σ of zero and pruned as noise, where the dye absorbs 3–7 % of
@@ -33,15 +34,25 @@ pub(super) struct OneComponentLook {
     /// The candidates that met the bounds and passed the test: their index in the
     /// search's fits and why their yield form.
     passing: Vec<(usize, String)>,
+    /// Every light's colour weight while it looks: none.
+    matrix_alone: Vec<f64>,
 }
 
 impl OneComponentLook {
-    /// Begins the look, where the matrix test kept the grid fit for `reason`.
-    pub(super) fn new(reason: String) -> Self {
+    /// Begins the look, where the matrix test kept the grid fit for `reason`, in a search
+    /// judging `lights` lights.
+    pub(super) fn new(reason: String, lights: usize) -> Self {
         OneComponentLook {
             reason,
             passing: Vec::new(),
+            matrix_alone: vec![0.0; lights],
         }
+    }
+
+    /// The colour weights the candidates are fitted with while it looks (all 0: the
+    /// matrix alone).
+    pub(super) fn weights(&self) -> &[f64] {
+        &self.matrix_alone
     }
 
     /// Records `pick` (index in the search's fits, why its yield form), which met the
@@ -52,11 +63,11 @@ impl OneComponentLook {
 
     /// The candidate kept (its index, why its yield form) and the matrix test's words:
     /// the passing candidate of lowest BIC where that is below the grid model's
-    /// `grid_bic`, else none (the grid fit is kept).
+    /// `grid` (on the same cells), else none (the grid fit is kept).
     pub(super) fn conclude(
         self,
         fitted: &[Fitted],
-        grid_bic: Option<f64>,
+        grid: f64,
     ) -> (Option<(usize, String)>, String) {
         let bic = |i: usize| {
             fitted[i]
@@ -72,8 +83,8 @@ impl OneComponentLook {
             .iter()
             .min_by(|a, b| bic(a.0).total_cmp(&bic(b.0)))
             .cloned();
-        match (lowest, grid_bic) {
-            (Some((i, why)), Some(grid)) if bic(i) < grid => {
+        match lowest {
+            Some((i, why)) if bic(i) < grid => {
                 let first = self.reason.strip_prefix(KEPT_GRID).unwrap_or(&self.reason);
                 let words = format!(
                     "kept {}, of lowest BIC among the {} one-component models that meet the bounds and pass ({:.0}, against the grid model's {grid:.0}), of {tried}; the grid fit was kept at first: {first}",
@@ -83,7 +94,7 @@ impl OneComponentLook {
                 );
                 (Some((i, why)), words)
             }
-            (Some((i, _)), Some(grid)) => (
+            Some((i, _)) => (
                 None,
                 format!(
                     "{}; then {tried}: of those that meet the bounds and pass, {} has the lowest BIC, {:.0}, not below the grid model's {grid:.0}",
@@ -92,14 +103,7 @@ impl OneComponentLook {
                     bic(i)
                 ),
             ),
-            (Some(_), None) => (
-                None,
-                format!(
-                    "{}; then {tried}: the grid model has no BIC to compare with",
-                    self.reason
-                ),
-            ),
-            (None, _) => (
+            None => (
                 None,
                 format!(
                     "{}; then {tried}: none met the bounds and passed",

@@ -101,7 +101,8 @@ const LADDER: [(usize, usize, usize); 10] = [
 struct Fitted {
     spec: ModelSpec,
     theta: Vec<f64>,
-    /// The objective at `theta` (comparable across the candidates of one search).
+    /// The objective at `theta` (comparable across the candidates of one search, bar
+    /// those `look_further` fits to the matrix alone).
     cost: f64,
     material: Material,
     /// ΔE2000 per light against the measurement.
@@ -368,14 +369,10 @@ pub(super) fn fit_model_from(
     let mut ahead: Option<ahead::Ahead> = None;
     // Where the matrix test kept the grid fit: the one-component models on the matrix alone.
     let mut looking: Option<OneComponentLook> = None;
-    let matrix_alone = vec![0.0; lights.len()];
     while let Some(structure) = jobs.pop_front() {
+        let weights = looking.as_ref().map_or(ctx.light_weights, |l| l.weights());
         let ctx = CandidateContext {
-            light_weights: if looking.is_some() {
-                &matrix_alone
-            } else {
-                ctx.light_weights
-            },
+            light_weights: weights,
             ..ctx
         };
         let (components, absorption_bands, emission_bands) = structure;
@@ -411,8 +408,8 @@ pub(super) fn fit_model_from(
             // The photon form, the last of a structure, can run beside the next
             // structure's energy form, which needs no photon-form fit; the next is a
             // two-component structure, which no decision here drops unless the search
-            // stops. Whether it stops is known once the photon form is fitted: the fit
-            // ahead is then cancelled.
+            // stops or looks on among one-component models (the matrix test kept the grid
+            // fit, a stop for `stops_at`): the fit ahead is then cancelled.
             let next = jobs.front().filter(|n| {
                 ctx.parallel && auto_form && yield_form == YieldForm::Photon && n.0 > 1
             });
@@ -509,8 +506,10 @@ pub(super) fn fit_model_from(
             if judged_by_matrix {
                 match adequacy::judge(&fitted[pick.0], grid_reference(), m, &data, sigma) {
                     adequacy::Verdict::Keep => {}
-                    adequacy::Verdict::KeepGrid(reason) if grid_within_noise_only => {
-                        looking.get_or_insert_with(|| OneComponentLook::new(reason));
+                    adequacy::Verdict::KeepGrid(reason)
+                        if grid_within_noise_only && jobs.iter().any(|s| s.0 == 1) =>
+                    {
+                        looking.get_or_insert_with(|| OneComponentLook::new(reason, lights.len()));
                         jobs.retain(|s| s.0 == 1);
                         continue;
                     }
@@ -538,7 +537,7 @@ pub(super) fn fit_model_from(
         }
     }
     if let Some(look) = looking {
-        let (kept, words) = look.conclude(&fitted, base_report.bic);
+        let (kept, words) = look.conclude(&fitted, grid_reference().bic(sigma, &data));
         matrix_test = Some(words);
         kept_grid = kept.is_none();
         chosen = kept;
