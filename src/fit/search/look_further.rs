@@ -142,3 +142,94 @@ pub(super) fn skips_larger_one_component<'a>(
         )
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeMap;
+
+    use super::*;
+    use crate::fit::parametric::{ModelSpec, ReflectanceForm};
+    use crate::material::{FitReport, Material, YieldForm};
+    use crate::spectrum::Spectrum;
+
+    /// A fit of structure 1 × `absorption` / `emission` bands whose report holds `bic`.
+    fn fitted(absorption: usize, emission: usize, bic: f64) -> Fitted {
+        Fitted {
+            spec: ModelSpec {
+                components: 1,
+                absorption_bands: absorption,
+                emission_bands: emission,
+                reflectance: ReflectanceForm::Tabulated,
+                domain: super::super::DEFAULT_DOMAIN,
+                yield_form: YieldForm::Energy,
+            },
+            theta: Vec::new(),
+            cost: 0.0,
+            material: Material {
+                schema: crate::material::SCHEMA.into(),
+                name: "t".into(),
+                reflectance: Spectrum::new(vec![400.0, 700.0], vec![0.5, 0.5], "r").unwrap(),
+                fluorophores: Vec::new(),
+                fit: Some(FitReport {
+                    bic: Some(bic),
+                    ..FitReport::default()
+                }),
+                conservation: None,
+                forms: None,
+            },
+            delta_e: BTreeMap::new(),
+            worst: 0.0,
+            within: true,
+        }
+    }
+
+    fn look(passing: &[usize]) -> OneComponentLook {
+        let mut look = OneComponentLook::new(format!("{KEPT_GRID}1x1 met the bound, but …"), 4);
+        for &i in passing {
+            look.passed((i, "energy form".into()));
+        }
+        look
+    }
+
+    /// Of the passing fits the lowest BIC is kept where it is below the grid model's; a
+    /// lower BIC that did not pass is not; else the grid fit stays, and the words say why.
+    #[test]
+    fn the_lowest_bic_that_passes_is_kept_only_below_the_grid_models() {
+        let fits = [
+            fitted(1, 1, 900.0),
+            fitted(2, 1, 700.0),
+            fitted(2, 2, 650.0),
+            fitted(3, 2, 600.0),
+        ];
+        assert!(look(&[0]).weights().iter().all(|w| *w == 0.0));
+        assert_eq!(look(&[0]).weights().len(), 4);
+        // 3 (BIC 600) did not pass: 2 (650) is kept.
+        let (kept, words) = look(&[1, 2]).conclude(&fits, 800.0);
+        assert_eq!(kept.map(|k| k.0), Some(2));
+        assert!(
+            words.starts_with("kept gaussian:1x2+rt, of lowest BIC among the 2"),
+            "{words}"
+        );
+        assert!(
+            words.ends_with("the grid fit was kept at first: 1x1 met the bound, but …"),
+            "{words}"
+        );
+        // Not below the grid model's BIC: the grid fit stays.
+        let (kept, words) = look(&[1, 2]).conclude(&fits, 640.0);
+        assert!(kept.is_none());
+        assert!(
+            words.starts_with(KEPT_GRID)
+                && words.contains(
+                    "gaussian:1x2+rt has the lowest BIC, 650, not below the grid model's 640"
+                ),
+            "{words}"
+        );
+        // None passed.
+        let (kept, words) = look(&[]).conclude(&fits, 10_000.0);
+        assert!(kept.is_none());
+        assert!(
+            words.starts_with(KEPT_GRID) && words.ends_with("none met the bounds and passed"),
+            "{words}"
+        );
+    }
+}
