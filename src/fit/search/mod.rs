@@ -282,10 +282,10 @@ pub(super) fn fit_model_from(
         Some((grid, light_bounds.get(&l.name).copied().unwrap_or(bound)))
     };
     let rms_only = |(grid, limit): (f64, f64)| grid > bound && grid <= limit;
-    // Whether the grid fit meets some light only within its noise (`look_further`).
+    // Whether the grid fit meets some light only within its noise (its χ² below; `look_further`).
     let grid_within_noise_only = lights.iter().filter_map(grid_light).any(rms_only);
     // Computed only where some light needs it (one prediction of the grid fit).
-    let grid_chi2 = if lights.iter().filter_map(grid_light).any(rms_only) {
+    let grid_chi2 = if grid_within_noise_only {
         assess::misfit_colour_chi2(m, &base, &data, lights, sigma)
     } else {
         Vec::new()
