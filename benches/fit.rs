@@ -181,7 +181,8 @@ fn bench_search(c: &mut Criterion) {
     };
     // The same with `--noise-aware-bound`: on all four the grid fit's residual holds a
     // rank-1 component above 5 × σ²(√m + √n)², so the search runs the two-component ladder
-    // to its end looking for a candidate that passes the matrix test (none does).
+    // to its end looking for a candidate that passes the matrix test (none does). Both on
+    // both band axes (the default), the two searches beside each other.
     let noise_aware = FitOptions {
         noise_aware_bound: true,
         ..options.clone()

@@ -456,6 +456,11 @@ pub struct ModelSearch {
     /// went on to a candidate that passes), and why.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub matrix_test: Option<String>,
+    /// Where the search ran on both band axes (`--band-axis both`): which axis it kept
+    /// and why (it met the rule where the other did not, or the lower BIC), and what the
+    /// other kept; `candidates` then lists the other axis's after its own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub band_axis: Option<String>,
     /// The candidate with the lowest BIC among those tried.
     pub lowest_bic: String,
     /// Wall time of the whole search (seconds).

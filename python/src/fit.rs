@@ -3,7 +3,9 @@
 use std::path::PathBuf;
 
 use fluorite::Material;
-use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, Solver, Start, YieldChoice};
+use fluorite::fit::{
+    BandAxisChoice, FitOptions, FitOutcome, ModelChoice, Solver, Start, YieldChoice,
+};
 use fluorite::material::FluorophoreShapes;
 use numpy::PyArray2;
 use pyo3::prelude::*;
@@ -240,6 +242,7 @@ pub(crate) struct FitArgs<'py, 'a> {
     pub tolerance: f64,
     pub colour_weight: f64,
     pub noise_aware_bound: bool,
+    pub band_axis: &'a str,
 }
 
 impl FitArgs<'_, '_> {
@@ -279,6 +282,7 @@ impl FitArgs<'_, '_> {
                 }
                 (flag, _) => flag,
             },
+            band_axis: choice::<BandAxisChoice>(self.band_axis, "band_axis")?,
         })
     }
 }
@@ -363,11 +367,16 @@ fn prepared(
 ///   (``fluorite fit --noise-aware-bound``); the report's
 ///   ``model_search.misses_within_noise`` lists the lights judged so, and
 ///   ``model_search.matrix_test`` what the test decided and why.
+/// - ``band_axis``: ``"both"`` (default: the model search runs with its Gaussian bands on
+///   wavenumber and on wavelength and keeps the one that meets its rule, of two the one
+///   of lower BIC; ``model_search.band_axis`` says which and why), ``"wavenumber"`` or
+///   ``"wavelength"``; a ``model`` that names one structure takes its name's axis
+///   (``@wavelength``, else wavenumber).
 ///
 /// The GIL is released while the file is read and the fit runs. Returns a ``Fit``;
 /// raises ``FluoriteError`` with the command line's message.
 #[pyfunction]
-#[pyo3(signature = (measurement_or_path, *, lights = None, model = None, max_delta_e = None, yield_form = "auto", quantum_yield = None, concentration = None, guard = None, solver = "lbfgs", start = "closed-form", max_iterations = 500, tolerance = 1e-5, colour_weight = 0.01, noise_aware_bound = false, format = None, rows = None, zero_is_missing = None, per_nm = None, units = None, blank = None, absorbance = None, keep_scatter = None, scatter_width = None, bandwidth = None, raman_shift = None))]
+#[pyo3(signature = (measurement_or_path, *, lights = None, model = None, max_delta_e = None, yield_form = "auto", quantum_yield = None, concentration = None, guard = None, solver = "lbfgs", start = "closed-form", max_iterations = 500, tolerance = 1e-5, colour_weight = 0.01, noise_aware_bound = false, band_axis = "both", format = None, rows = None, zero_is_missing = None, per_nm = None, units = None, blank = None, absorbance = None, keep_scatter = None, scatter_width = None, bandwidth = None, raman_shift = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit<'py>(
     py: Python<'py>,
@@ -385,6 +394,7 @@ pub fn fit<'py>(
     tolerance: f64,
     colour_weight: f64,
     noise_aware_bound: bool,
+    band_axis: &str,
     format: Option<String>,
     rows: Option<String>,
     zero_is_missing: Option<bool>,
@@ -424,6 +434,7 @@ pub fn fit<'py>(
         tolerance,
         colour_weight,
         noise_aware_bound,
+        band_axis,
     };
     let options = args.options()?;
     let input = read.options()?;
@@ -448,7 +459,7 @@ pub fn fit<'py>(
 /// raises ``FluoriteError`` naming the item; with ``errors="return"`` a failed item's
 /// place in the list holds its ``FluoriteError`` instead of a ``Fit``.
 #[pyfunction]
-#[pyo3(signature = (items, *, threads = None, errors = "raise", lights = None, model = None, max_delta_e = None, yield_form = "auto", quantum_yield = None, concentration = None, guard = None, solver = "lbfgs", start = "closed-form", max_iterations = 500, tolerance = 1e-5, colour_weight = 0.01, noise_aware_bound = false, format = None, rows = None, zero_is_missing = None, per_nm = None, units = None, blank = None, absorbance = None, keep_scatter = None, scatter_width = None, bandwidth = None, raman_shift = None))]
+#[pyo3(signature = (items, *, threads = None, errors = "raise", lights = None, model = None, max_delta_e = None, yield_form = "auto", quantum_yield = None, concentration = None, guard = None, solver = "lbfgs", start = "closed-form", max_iterations = 500, tolerance = 1e-5, colour_weight = 0.01, noise_aware_bound = false, band_axis = "both", format = None, rows = None, zero_is_missing = None, per_nm = None, units = None, blank = None, absorbance = None, keep_scatter = None, scatter_width = None, bandwidth = None, raman_shift = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit_many<'py>(
     py: Python<'py>,
@@ -468,6 +479,7 @@ pub fn fit_many<'py>(
     tolerance: f64,
     colour_weight: f64,
     noise_aware_bound: bool,
+    band_axis: &str,
     format: Option<String>,
     rows: Option<String>,
     zero_is_missing: Option<bool>,
@@ -517,6 +529,7 @@ pub fn fit_many<'py>(
         tolerance,
         colour_weight,
         noise_aware_bound,
+        band_axis,
     };
     let options = args.options()?;
     let input = read.options()?;

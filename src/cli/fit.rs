@@ -130,6 +130,12 @@ pub struct FitArgs {
     /// passes.
     #[arg(long, requires = "max_delta_e")]
     pub noise_aware_bound: bool,
+    /// The axis the model search's Gaussian bands are Gaussian in: both (the search runs
+    /// on each and keeps the one that meets its rule, of two the one of lower BIC; the
+    /// report says which), wavenumber or wavelength. A --model that names one structure
+    /// takes its name's axis (@wavelength, else wavenumber).
+    #[arg(long = "band-axis", value_enum, default_value = "both")]
+    pub band_axis: fluorite::fit::BandAxisChoice,
     /// Exit with code 1 when a fit did not converge or carries warnings.
     #[arg(long)]
     pub strict: bool,
@@ -229,6 +235,7 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         max_delta_e: args.max_delta_e,
         colour_weight: args.colour_weight,
         noise_aware_bound: args.noise_aware_bound,
+        band_axis: args.band_axis,
     };
     let input = InputOptions {
         read: ReadOptions {

@@ -98,6 +98,9 @@ pub fn summary(input: &Path, out: &Path, m: &Measurement, outcome: &FitOutcome) 
                 if let Some(verdict) = &search.matrix_test {
                     let _ = writeln!(s, "    matrix test: {verdict}");
                 }
+                if let Some(axis) = &search.band_axis {
+                    let _ = writeln!(s, "    band axis: {axis}");
+                }
                 for c in &search.candidates {
                     let _ = writeln!(
                         s,

@@ -115,6 +115,32 @@ pub enum YieldChoice {
     Auto,
 }
 
+/// The axis the model search's Gaussian bands are Gaussian in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum BandAxisChoice {
+    /// Both: the search runs on wavenumber and on wavelength and keeps the result that
+    /// meets its rule, of the two the one of lower BIC (the data decide; the fit report's
+    /// model search says which and why).
+    #[default]
+    Both,
+    /// Gaussian in wavenumber (energy), the shape dye spectra take
+    /// ([`crate::parametric::fit::DEFAULT_BAND_DOMAIN`]).
+    Wavenumber,
+    /// Gaussian in wavelength.
+    Wavelength,
+}
+
+impl BandAxisChoice {
+    /// The axes a search runs on, wavenumber first.
+    pub fn axes(self) -> &'static [BandDomain] {
+        match self {
+            BandAxisChoice::Both => &[BandDomain::Wavenumber, BandDomain::Wavelength],
+            BandAxisChoice::Wavenumber => &[BandDomain::Wavenumber],
+            BandAxisChoice::Wavelength => &[BandDomain::Wavelength],
+        }
+    }
+}
+
 /// How to fit.
 #[derive(Debug, Clone)]
 pub struct FitOptions {
@@ -163,6 +189,9 @@ pub struct FitOptions {
     /// every light is held to `max_delta_e` as given. Without `max_delta_e` the fit refuses
     /// it (there is no bound to widen).
     pub noise_aware_bound: bool,
+    /// The axes the model search's Gaussian bands may be Gaussian in (a `--model` that
+    /// names one structure takes its name's axis instead: `@wavelength`, else wavenumber).
+    pub band_axis: BandAxisChoice,
 }
 
 impl Default for FitOptions {
@@ -181,6 +210,7 @@ impl Default for FitOptions {
             max_delta_e: None,
             colour_weight: DEFAULT_COLOUR_WEIGHT,
             noise_aware_bound: false,
+            band_axis: BandAxisChoice::Both,
         }
     }
 }

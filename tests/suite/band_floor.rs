@@ -48,17 +48,23 @@ fn delta_e_against_truth(fitted: &Material, truth: &Material) -> Vec<(String, f6
 }
 
 /// Wavenumber step (cm⁻¹) of each interval of `grid_nm`.
-fn wavenumber_steps(grid_nm: &[f64]) -> Vec<(f64, f64, f64)> {
+fn steps_on(domain: BandDomain, grid_nm: &[f64]) -> Vec<(f64, f64, f64)> {
     grid_nm
         .windows(2)
-        .map(|w| (w[0], w[1], 1e7 / w[0] - 1e7 / w[1]))
+        .map(|w| {
+            let step = match domain {
+                BandDomain::Wavenumber => 1e7 / w[0] - 1e7 / w[1],
+                BandDomain::Wavelength => w[1] - w[0],
+            };
+            (w[0], w[1], step)
+        })
         .collect()
 }
 
 /// The narrowest σ the search promises, in local grid steps.
 const FLOOR_STEPS: f64 = 0.75;
 
-/// Asserts every band of every fitted form (wavenumber bands, σ in cm⁻¹) is at least
+/// Asserts every band of every fitted form (σ in cm⁻¹ on wavenumber, nm on wavelength) is at least
 /// [`FLOOR_STEPS`] times the smallest step among the grid interval holding its centre and that interval's
 /// neighbours (the floor varies between them); returns the smallest σ / local step.
 fn assert_bands_respect_floor(
@@ -76,8 +82,8 @@ fn assert_bands_respect_floor(
             let SpectralForm::GaussianBands(bands) = form else {
                 panic!("component {k} {what}: not Gaussian bands");
             };
-            assert_eq!(bands.domain, BandDomain::Wavenumber);
-            let steps = wavenumber_steps(grid);
+            let steps = steps_on(bands.domain, grid);
+            let unit = bands.domain.width_unit_name();
             for b in &bands.bands {
                 let at = steps
                     .iter()
@@ -91,7 +97,7 @@ fn assert_bands_respect_floor(
                 let local = near.iter().map(|s| s.2).fold(f64::INFINITY, f64::min);
                 assert!(
                     b.width >= FLOOR_STEPS * local * (1.0 - 1e-9),
-                    "component {k} {what}: band at {:.1} nm σ {:.1} cm⁻¹ below ¾ of the local step {local:.1} cm⁻¹",
+                    "component {k} {what}: band at {:.1} nm σ {:.1} {unit} below ¾ of the local step {local:.1} {unit}",
                     b.centre_nm,
                     b.width
                 );

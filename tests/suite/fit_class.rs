@@ -8,6 +8,7 @@
 //! that crosstalk.
 
 use fluorite::YieldForm;
+use fluorite::evaluate::stability::material_delta_e;
 use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, fit};
 use fluorite::synth::{Band, SynthSpec};
 
@@ -51,7 +52,9 @@ fn material(outcome: FitOutcome) -> fluorite::Material {
 }
 
 /// The search meets ΔE2000 ≤ 1 under all four lights with one fluorophore (each variant
-/// has one) and every law holding; the default fit keeps one fluorophore and meets it
+/// has one) and every law holding; the default fit keeps one fluorophore (bar the red
+/// pigment's photon-form truth, which no one-component model reaches: two, nearer the
+/// truth than the grid fit) and meets it
 /// under d65, a and f11, against the matrix as generated or, for the variants with 4 %
 /// crosstalk next to the diagonal, against the same draw generated without it (the
 /// instrument's offset, chosen by the variant, not by what the fit says; the red pigment's grid fit is 1.10 from the first
@@ -60,12 +63,34 @@ fn material(outcome: FitOutcome) -> fluorite::Material {
 #[test]
 fn one_fluorophore_variants_meet_the_bound() {
     for (label, spec) in variants() {
-        let (m, _) = spec.generate().unwrap();
+        let (m, truth) = spec.generate().unwrap();
         let grid = material(fit(&m, &FitOptions::default()).unwrap());
         grid.validate().unwrap();
         let report = grid.fit.as_ref().unwrap();
-        assert_eq!(grid.fluorophores.len(), 1, "{label}: {}", report.model);
         let reason = &report.escalation.as_ref().unwrap().reason;
+        if label == "red-pigment, photon-form truth" && grid.fluorophores.len() == 2 {
+            // No one-component model of either axis reaches this matrix (a pigment at
+            // 0.95 of its photon-form limit, c 0.9: gaussian:1x2/1+rt@wavelength/photon,
+            // its truth's structure, ends at BIC 9,558 with Φ on its bound, the grid model
+            // at 2,945); two photon-form components on wavelength reach 2,385, and the
+            // default fit's lower-BIC rule takes them. Nearer the truth than the grid fit.
+            assert!(
+                reason.contains("of lower BIC than the grid model"),
+                "{reason}"
+            );
+            let tabulated = crate::common::grid_fit(&m);
+            let lights = fluorite::colour::Light::standard();
+            let (kept, gridded) = (
+                material_delta_e(&grid, &truth, &lights),
+                material_delta_e(&tabulated, &truth, &lights),
+            );
+            assert!(
+                kept < gridded,
+                "{label}: {kept:.3} against the grid fit's {gridded:.3}"
+            );
+        } else {
+            assert_eq!(grid.fluorophores.len(), 1, "{label}: {}", report.model);
+        }
         let reference = if spec.crosstalk >= 0.01 {
             let mut without = spec.clone();
             without.crosstalk = 0.0;

@@ -5,6 +5,7 @@
 mod common;
 
 mod architecture;
+mod band_axis;
 mod band_floor;
 mod bands_options;
 mod check;

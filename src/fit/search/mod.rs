@@ -29,6 +29,7 @@ use super::{FitOptions, FitOutcome, ModelChoice, ModelRequest, YieldChoice, asse
 
 mod adequacy;
 mod ahead;
+mod band_axis;
 mod candidate;
 mod look_further;
 mod model_name;
@@ -146,7 +147,6 @@ pub(super) fn fit_model_from(
             "pins of --quantum-yield or --concentration apply to the tabulated model only; drop the pin or use --model tabulated",
         ));
     }
-    let base_report = base.fit.clone().unwrap_or_default();
     if base.fluorophores.is_empty() {
         // A plain reflector: nothing fluorescent to model.
         let mut material = base;
@@ -155,18 +155,27 @@ pub(super) fn fit_model_from(
         }
         return Ok(FitOutcome::Material(Box::new(material)));
     }
+    band_axis::search_each_axis(m, options, base, started)
+}
+
+/// The search from the grid fit `base` with its Gaussian bands on `domain` (a model that
+/// names one structure: on its name's axis).
+fn search_on_axis(
+    m: &Measurement,
+    options: &FitOptions,
+    base: Material,
+    domain: BandDomain,
+    started: Instant,
+) -> Result<FitOutcome> {
+    let base_report = base.fit.clone().unwrap_or_default();
     let data = FitData::with_crosstalk(
         m,
         base_report.guard_nm,
-        search_crosstalk(base_report.crosstalk.as_ref()).as_ref(),
+        super::crosstalk::as_the_search_takes_it(base_report.crosstalk.as_ref()).as_ref(),
     );
     let sigma = data.noise_sigma().max(1e-12);
     let lights = &options.lights;
     let budget = options.max_delta_e;
-    let domain = match options.model {
-        ModelChoice::Fixed(r) => r.domain,
-        _ => DEFAULT_DOMAIN,
-    };
     // The yield forms to fit: the model name's, else --yield's; `auto` fits the energy
     // form and, where its photon law binds, the photon form too.
     let (forms, auto_form): (Vec<YieldForm>, bool) = match (options.model, options.yield_choice) {
@@ -756,6 +765,7 @@ pub(super) fn fit_model_from(
         met,
         misses_within_noise: within_noise,
         matrix_test,
+        band_axis: None,
         lowest_bic,
         seconds: started.elapsed().as_secs_f64(),
     });
@@ -763,34 +773,6 @@ pub(super) fn fit_model_from(
     // The conservation margins came with the candidate (or the grid fit), whose spectra
     // have not changed since.
     Ok(FitOutcome::Material(Box::new(material)))
-}
-
-/// The crosstalk next to the diagonal as the search takes it: removed from the cells
-/// wherever the grid fit found it. It is the instrument's offset, measured on rows
-/// without fluorescence (to ±0.01–0.06 % of the diagonal on `fluorite class`); where the
-/// grid fit kept the cells as measured, it did so because without the crosstalk its one
-/// fluorophore moved to another emitter of two sharing the matrix, which the search's
-/// models have the components for. The search starts from that grid fit but fits the
-/// cleaned cells: on `fluorite class` the two-dye cases whose grid fit kept it were
-/// fitted to the offset (seed 33 case126: 6.25 → 0.24 ΔE2000 from the truth), and the
-/// default fit's p90 against the truth fell on 9 of 15 seeds and rose on 3 (docs/results.md).
-fn search_crosstalk(
-    grid: Option<&crate::material::CrosstalkCorrection>,
-) -> Option<crate::material::CrosstalkCorrection> {
-    grid.map(|c| {
-        if c.removed {
-            c.clone()
-        } else {
-            crate::material::CrosstalkCorrection {
-                removed: true,
-                note: format!(
-                    "the model search removed it; the grid fit it started from kept it ({})",
-                    c.note
-                ),
-                ..c.clone()
-            }
-        }
-    })
 }
 
 /// The largest ΔE2000 over the lights.

@@ -301,3 +301,16 @@ pub fn delta_e_to_matrix(
         })
         .collect()
 }
+
+/// The grid fit of `m` (`fluorite fit --model tabulated`), the material every search
+/// starts from.
+pub fn grid_fit(m: &fluorite::measurement::Measurement) -> fluorite::Material {
+    let options = fluorite::fit::FitOptions {
+        model: fluorite::fit::ModelChoice::Tabulated,
+        ..Default::default()
+    };
+    match fluorite::fit::fit(m, &options).expect("the grid fit runs") {
+        fluorite::fit::FitOutcome::Material(material) => *material,
+        fluorite::fit::FitOutcome::Shapes(_) => panic!("a calibrated matrix"),
+    }
+}
