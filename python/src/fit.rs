@@ -282,7 +282,18 @@ impl FitArgs<'_, '_> {
                 }
                 (flag, _) => flag,
             },
-            band_axis: choice::<BandAxisChoice>(self.band_axis, "band_axis")?,
+            band_axis: match (
+                model,
+                choice::<BandAxisChoice>(self.band_axis, "band_axis")?,
+            ) {
+                (Some(ModelChoice::Fixed(_)), axis) if axis != BandAxisChoice::Both => {
+                    return Err(crate::invalid(
+                        "band_axis",
+                        "chooses the model search's axis; a model that names one structure takes its name's (append @wavelength for bands Gaussian in wavelength): drop band_axis or model",
+                    ));
+                }
+                (_, axis) => axis,
+            },
         })
     }
 }

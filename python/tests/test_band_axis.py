@@ -35,3 +35,8 @@ def test_the_band_axis_matches_the_cli(cli, tmp_path, axis):
 def test_a_bad_band_axis_is_refused():
     with pytest.raises(fluorite.FluoriteError, match="band_axis"):
         fluorite.fit(str(GREEN), max_delta_e=1.0, band_axis="energy")
+
+
+def test_a_band_axis_beside_a_model_that_names_one_is_refused():
+    with pytest.raises(fluorite.FluoriteError, match="band_axis"):
+        fluorite.fit(str(GREEN), model="gaussian:1x1+rt", band_axis="wavelength")

@@ -246,6 +246,11 @@ pub fn total_excess<'a>(
         .sum()
 }
 
+/// The largest ΔE2000 over the lights (0 for none).
+pub fn worst(delta_e: &BTreeMap<String, f64>) -> f64 {
+    delta_e.values().cloned().fold(0.0, f64::max)
+}
+
 /// The light under which `delta_e2000` exceeds its bound in `bounds` the most (by ratio),
 /// with its ΔE2000; None when every light is within its bound.
 pub fn worst_excess(

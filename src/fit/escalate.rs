@@ -147,7 +147,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
                 noise_note(&verdict.excused)
             );
             let how = format!(
-                "first model the noise-aware search kept, of lower BIC than the grid model ({:.0} against {:.0}): with the colour known to its noise, fewer parameters the matrix supports average that noise where the grid model's free samples fit it",
+                "model the noise-aware search kept (on the axis its band axis line names), of lower BIC than the grid model ({:.0} against {:.0}): with the colour known to its noise, fewer parameters the matrix supports average that noise where the grid model's free samples fit it",
                 searched
                     .fit
                     .as_ref()
@@ -366,7 +366,7 @@ pub(super) fn fit_as_needed(m: &Measurement, options: &FitOptions) -> Result<Fit
     }
     let how = if met {
         format!(
-            "first model the noise-aware search kept, each of {} held to ΔE2000 ≤ max({ESCALATION_BOUND}, 3 × the measured colour's noise RMS) and tested against the grid model on the matrix (the model search line gives the bounds)",
+            "model the noise-aware search kept (on the axis its band axis line names), each of {} held to ΔE2000 ≤ max({ESCALATION_BOUND}, 3 × the measured colour's noise RMS) and tested against the grid model on the matrix (the model search line gives the bounds)",
             judged.join(", ")
         )
     } else {

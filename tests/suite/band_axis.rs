@@ -108,8 +108,9 @@ fn dyes_gaussian_in_wavelength_are_fitted_on_wavelength_and_nearer_their_truth()
 }
 
 /// The command line: `--band-axis` takes both (the default), wavenumber or wavelength;
-/// the printed search names the axis kept only where it ran on both; a model that names
-/// one structure keeps its name's axis.
+/// the printed search names the axis kept only where it ran on both, and lists the
+/// candidates of the axes it ran; a model that names one structure keeps its name's axis,
+/// and `--band-axis` beside it is refused.
 #[test]
 fn the_command_line_takes_the_band_axis() {
     let out = common::temp_dir("cli");
@@ -128,15 +129,42 @@ fn the_command_line_takes_the_band_axis() {
     };
     let both = run(&[]);
     assert!(both.contains("band axis: "), "{both}");
-    for (axis, other) in [("wavenumber", "@wavelength"), ("wavelength", "@wavenumber")] {
+    // The candidate rows of the printed search: each names its model first.
+    let models = |printed: &str| -> Vec<String> {
+        printed
+            .lines()
+            .filter_map(|l| l.trim_start().strip_prefix("gaussian:"))
+            .map(|l| l.split_whitespace().next().unwrap_or("").to_string())
+            .collect()
+    };
+    assert!(models(&both).iter().any(|m| m.contains("@wavelength")));
+    assert!(models(&both).iter().any(|m| !m.contains('@')));
+    for axis in ["wavenumber", "wavelength"] {
         let printed = run(&["--band-axis", axis]);
         assert!(!printed.contains("band axis: "), "{printed}");
-        assert!(!printed.contains(other), "{printed}");
+        let tried = models(&printed);
+        assert!(!tried.is_empty(), "{printed}");
+        assert!(
+            tried
+                .iter()
+                .all(|m| m.contains("@wavelength") == (axis == "wavelength")),
+            "{axis}: {tried:?}"
+        );
     }
-    let wavelength_only = run(&["--band-axis", "wavelength"]);
-    assert!(wavelength_only.contains("@wavelength"), "{wavelength_only}");
     let fixed = run(&["--model", "gaussian:1x1+rt"]);
     assert!(!fixed.contains("@wavelength"), "{fixed}");
+    // A model that names one structure names its axis: --band-axis beside it is refused.
+    let both_given = Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        .arg("fit")
+        .arg(&input)
+        .args(["--model", "gaussian:1x1+rt", "--band-axis", "wavelength"])
+        .output()
+        .unwrap();
+    assert!(!both_given.status.success());
+    assert!(
+        String::from_utf8_lossy(&both_given.stderr).contains("@wavelength"),
+        "{both_given:?}"
+    );
     let wrong = Command::new(env!("CARGO_BIN_EXE_fluorite"))
         .arg("fit")
         .arg(&input)

@@ -9,10 +9,23 @@
 //! (the same cells and noise: the matrix's likelihood, the parameter count charged).
 
 use super::*;
-use crate::fit::assess;
+
+/// A search on one band axis: the material it keeps, and what decides between two axes,
+/// as that search judged them on its own cells and σ.
+pub(super) struct OnAxis {
+    pub(super) material: Material,
+    /// The kept model's BIC (the grid model's where it kept the grid fit).
+    pub(super) bic: f64,
+    /// Where it met no bound: Σ over the lights of ΔE2000 beyond max(bound, 3 × the
+    /// colour's noise RMS), as its own fallback judged the fit it kept; else 0.
+    pub(super) excess: f64,
+}
 
 /// The search on every axis `options` allows (a model that names one structure: its
-/// name's), from the grid fit `base`; of two, the one [`prefer_second`] says.
+/// name's), from the grid fit `base`; of two, the one [`prefer_second`] says. Outside a
+/// rayon pool the two run beside each other, each with its own fits in parallel (rayon
+/// shares the cores between them); inside a caller's pool (a batch, the class sweep,
+/// images), whose outer loop fills the cores, one after the other.
 pub(super) fn search_each_axis(
     m: &Measurement,
     options: &FitOptions,
@@ -23,32 +36,37 @@ pub(super) fn search_each_axis(
         ModelChoice::Fixed(request) => vec![request.domain],
         _ => options.band_axis.axes().to_vec(),
     };
+    let parallel = rayon::current_thread_index().is_none();
     let [first, second] = axes[..] else {
         let axis = axes.first().copied().unwrap_or(DEFAULT_DOMAIN);
-        return search_on_axis(m, options, base, axis, started);
+        return search_on_axis(m, options, base, axis, parallel, started)
+            .map(|on| FitOutcome::Material(Box::new(on.material)));
     };
-    // The grid fit's colour noise per light: what the searches' fallbacks judge by.
-    let noise = base
-        .fit
-        .as_ref()
-        .map(|f| f.delta_e2000_noise.clone())
-        .unwrap_or_default();
     let other = base.clone();
-    let (a, b) = rayon::join(
-        || search_on_axis(m, options, base, first, started),
-        || search_on_axis(m, options, other, second, started),
-    );
-    let (a, b) = match (a, b) {
-        (Ok(FitOutcome::Material(a)), Ok(FitOutcome::Material(b))) => (*a, *b),
-        (Ok(a), Err(e)) => return Ok(with_failed_axis(a, second, &e)),
-        (Err(e), Ok(b)) => return Ok(with_failed_axis(b, first, &e)),
-        (a, _) => return a,
+    let search = |base: Material, axis: BandDomain| {
+        search_on_axis(m, options, base, axis, parallel, started)
     };
-    let judged = |mat: &Material| Judged::of(mat, options, &noise);
-    let (ja, jb) = (judged(&a), judged(&b));
+    let (a, b) = if parallel {
+        rayon::join(|| search(base, first), || search(other, second))
+    } else {
+        (search(base, first), search(other, second))
+    };
+    let (a, b) = match (a, b) {
+        (Ok(a), Ok(b)) => (a, b),
+        (Ok(a), Err(e)) => return Ok(with_failed_axis(a.material, first, second, &e, started)),
+        (Err(e), Ok(b)) => return Ok(with_failed_axis(b.material, second, first, &e, started)),
+        (Err(e), Err(_)) => return Err(e),
+    };
+    let (ja, jb) = (Judged::of(&a), Judged::of(&b));
     let (kept, kept_axis, passed, passed_axis, why) = match prefer_second(&ja, &jb) {
-        Some(why) => (b, second, a, first, why),
-        None => (a, first, b, second, prefer_first_why(&ja, &jb)),
+        Some(why) => (b.material, second, a.material, first, why),
+        None => (
+            a.material,
+            first,
+            b.material,
+            second,
+            prefer_first_why(&ja, &jb),
+        ),
     };
     Ok(FitOutcome::Material(Box::new(merged(
         kept,
@@ -66,37 +84,19 @@ struct Judged {
     model: String,
     met: bool,
     bic: f64,
-    /// Σ over the lights of ΔE2000 beyond max(bound, 3 × the colour's noise RMS) (0
-    /// without a bound).
     excess: f64,
 }
 
 impl Judged {
-    fn of(material: &Material, options: &FitOptions, noise: &BTreeMap<String, f64>) -> Judged {
-        let fit = material.fit.as_ref();
-        let search = fit.and_then(|f| f.model_search.as_ref());
-        let excess = match (options.max_delta_e, fit) {
-            (Some(bound), Some(fit)) => {
-                let noise: Vec<f64> = options
-                    .lights
-                    .iter()
-                    .map(|l| noise.get(&l.name).copied().unwrap_or(0.0))
-                    .collect();
-                let bounds = assess::noise_aware_bounds(bound, &options.lights, &noise);
-                assess::total_excess(
-                    &fit.delta_e2000,
-                    options.lights.iter().map(|l| l.name.as_str()),
-                    &bounds,
-                    bound,
-                )
-            }
-            _ => 0.0,
-        };
+    fn of(on: &OnAxis) -> Judged {
+        let fit = on.material.fit.as_ref();
         Judged {
             model: fit.map(|f| f.model.clone()).unwrap_or_default(),
-            met: search.is_none_or(|s| s.met),
-            bic: fit.and_then(|f| f.bic).unwrap_or(f64::INFINITY),
-            excess,
+            met: fit
+                .and_then(|f| f.model_search.as_ref())
+                .is_none_or(|s| s.met),
+            bic: on.bic,
+            excess: on.excess,
         }
     }
 }
@@ -106,7 +106,7 @@ impl Judged {
 /// excess beyond the noise-widened bounds first, as the search's own fallback judges).
 /// The same model on both (the grid fit both kept) stays with the first.
 fn prefer_second(first: &Judged, second: &Judged) -> Option<String> {
-    if first.model == second.model {
+    if first.model == second.model && first.met == second.met {
         return None;
     }
     match (first.met, second.met) {
@@ -129,7 +129,7 @@ fn prefer_second(first: &Judged, second: &Judged) -> Option<String> {
 
 /// Why the first axis's search was kept (the mirror of [`prefer_second`]).
 fn prefer_first_why(first: &Judged, second: &Judged) -> String {
-    if first.model == second.model {
+    if first.model == second.model && first.met == second.met {
         return format!("both searches kept {}", first.model);
     }
     match (first.met, second.met) {
@@ -165,9 +165,10 @@ fn merged(
         if let Some(search) = fit.model_search.as_mut() {
             let other_model = passed.fit.as_ref().map_or("–", |f| f.model.as_str());
             search.band_axis = Some(format!(
-                "{}: {why}; on {} the search kept {other_model}",
+                "{}: {why}; on {} the search kept {other_model} (the search's other words are the {} search's)",
                 kept_axis.name(),
-                passed_axis.name()
+                passed_axis.name(),
+                kept_axis.name()
             ));
             if let Some(other) = passed_search {
                 search.candidates.extend(other.candidates.iter().cloned());
@@ -187,17 +188,26 @@ fn merged(
     kept
 }
 
-/// `outcome` (the search on one axis) with the other axis's failure recorded.
-fn with_failed_axis(mut outcome: FitOutcome, failed: BandDomain, error: &Error) -> FitOutcome {
-    if let FitOutcome::Material(material) = &mut outcome
-        && let Some(search) = material.fit.as_mut().and_then(|f| f.model_search.as_mut())
-    {
-        search.band_axis = Some(format!(
-            "the search on {} failed ({error}); kept this axis's",
-            failed.name()
-        ));
+/// `material` (the search on `kept`) with the failure of the search on `failed` recorded.
+fn with_failed_axis(
+    mut material: Material,
+    kept: BandDomain,
+    failed: BandDomain,
+    error: &Error,
+    started: Instant,
+) -> FitOutcome {
+    if let Some(fit) = material.fit.as_mut() {
+        if let Some(search) = fit.model_search.as_mut() {
+            search.band_axis = Some(format!(
+                "{}: the search on {} failed ({error})",
+                kept.name(),
+                failed.name()
+            ));
+            search.seconds = started.elapsed().as_secs_f64();
+        }
+        fit.seconds = started.elapsed().as_secs_f64();
     }
-    outcome
+    FitOutcome::Material(Box::new(material))
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! Choosing the model a scene needs: parse `--model`, fit parametric candidates from the
 //! smallest up, and stop at the first whose ΔE2000 under every chosen light is within the
-//! bound (or take the lowest BIC when no bound is given).
+//! bound (or take the lowest BIC when no bound is given); on each band axis `--band-axis`
+//! allows, the data choosing between them (`band_axis`).
 //!
 //! Every candidate starts from the tabulated fit (the grid model): its absorption and
 //! emission give the Gaussian bands, its reflectance the sigmoid polynomial, and for
@@ -13,6 +14,7 @@ use std::sync::OnceLock;
 use std::time::Instant;
 
 use crate::error::{Error, Result};
+use crate::fit::assess::worst;
 use crate::material::YieldForm;
 use crate::material::{Candidate, FitReport, Material, ModelSearch};
 use crate::measurement::Measurement;
@@ -159,14 +161,16 @@ pub(super) fn fit_model_from(
 }
 
 /// The search from the grid fit `base` with its Gaussian bands on `domain` (a model that
-/// names one structure: on its name's axis).
+/// names one structure: on its name's axis), its fits in parallel where `parallel`
+/// ([`CandidateContext`]'s).
 fn search_on_axis(
     m: &Measurement,
     options: &FitOptions,
     base: Material,
     domain: BandDomain,
+    parallel: bool,
     started: Instant,
-) -> Result<FitOutcome> {
+) -> Result<band_axis::OnAxis> {
     let base_report = base.fit.clone().unwrap_or_default();
     let data = FitData::with_crosstalk(
         m,
@@ -370,7 +374,7 @@ fn search_on_axis(
         light_weights: &light_weights,
         parentless_starts_too: parent_only.is_some(),
         start_cache: &start_cache,
-        parallel: rayon::current_thread_index().is_none(),
+        parallel,
         cancel: None,
     };
     let decides = budget.is_some() || matches!(options.model, ModelChoice::Fixed(_));
@@ -579,7 +583,9 @@ fn search_on_axis(
         .min_by(|a, b| a.bic.total_cmp(&b.bic))
         .map(|c| c.model.clone())
         .unwrap_or_default();
-    // (index into `fitted`, or None for the grid fit; met; why this yield form)
+    // (index into `fitted`, or None for the grid fit; met; why this yield form); and,
+    // where none met the bound, by how much the kept fit exceeds it beyond the noise.
+    let mut kept_excess = 0.0;
     let (index, met, yield_reason) = match (chosen, budget) {
         (Some((i, why)), _) => (Some(i), true, why),
         (None, _) if kept_grid => (
@@ -642,6 +648,7 @@ fn search_on_axis(
                 Some((i, key))
                     if key.0 < grid_key.0 || (key.0 == grid_key.0 && key.1 < grid_key.1) =>
                 {
+                    kept_excess = key.0;
                     (
                         Some(i),
                         false,
@@ -651,12 +658,15 @@ fn search_on_axis(
                         ),
                     )
                 }
-                _ => (
-                    None,
-                    grid_de <= bound,
-                    "the grid fit's form: no parametric candidate exceeded the bound less"
-                        .to_string(),
-                ),
+                _ => {
+                    kept_excess = grid_key.0;
+                    (
+                        None,
+                        grid_de <= bound,
+                        "the grid fit's form: no parametric candidate exceeded the bound less"
+                            .to_string(),
+                    )
+                }
             }
         }
     };
@@ -691,6 +701,13 @@ fn search_on_axis(
         None if candidates.len() == 1 => "fixed by --model".to_string(),
         None => "lowest BIC on the matrix residual".to_string(),
     };
+    // The kept model's BIC on the search's cells and σ (the grid model's, where the grid
+    // fit is kept: its own report may hold it on cells with the crosstalk it kept).
+    let report_bic = |f: &Fitted| f.material.fit.as_ref().and_then(|r| r.bic);
+    let kept_bic = index.map_or_else(
+        || grid_reference().bic(sigma, &data),
+        |i| report_bic(&fitted[i]).unwrap_or(f64::INFINITY),
+    );
     let mut material = match index {
         Some(i) => {
             let chosen = fitted.swap_remove(i);
@@ -772,10 +789,9 @@ fn search_on_axis(
     fit.seconds = started.elapsed().as_secs_f64();
     // The conservation margins came with the candidate (or the grid fit), whose spectra
     // have not changed since.
-    Ok(FitOutcome::Material(Box::new(material)))
-}
-
-/// The largest ΔE2000 over the lights.
-fn worst(delta_e: &std::collections::BTreeMap<String, f64>) -> f64 {
-    delta_e.values().cloned().fold(0.0, f64::max)
+    Ok(band_axis::OnAxis {
+        material,
+        bic: kept_bic,
+        excess: kept_excess,
+    })
 }
