@@ -60,13 +60,7 @@ pub(super) fn search_each_axis(
     let (ja, jb) = (Judged::of(&a), Judged::of(&b));
     let (kept, kept_axis, passed, passed_axis, why) = match prefer_second(&ja, &jb) {
         Some(why) => (b.material, second, a.material, first, why),
-        None => (
-            a.material,
-            first,
-            b.material,
-            second,
-            prefer_first_why(&ja, &jb),
-        ),
+        None => (a.material, first, b.material, second, why_kept(&ja, &jb)),
     };
     Ok(FitOutcome::Material(Box::new(merged(
         kept,
@@ -102,51 +96,40 @@ impl Judged {
 }
 
 /// Whether the second axis's search wins, and why: it met the rule where the first did
-/// not; or both met it (or neither) and it has the lower BIC (neither: the lower total
-/// excess beyond the noise-widened bounds first, as the search's own fallback judges).
-/// The same model on both (the grid fit both kept) stays with the first.
+/// not; or both met it and it has the lower BIC; or neither did and it exceeds the
+/// noise-widened bounds less (then the lower BIC), as the search's own fallback judges.
+/// The same model on both, met alike (the grid fit both kept), stays with the first.
 fn prefer_second(first: &Judged, second: &Judged) -> Option<String> {
-    if first.model == second.model && first.met == second.met {
-        return None;
-    }
-    match (first.met, second.met) {
-        (false, true) => Some("only its search met the rule".into()),
-        (true, false) => None,
-        (true, true) => (second.bic < first.bic).then(|| lower_bic(second, first)),
-        (false, false) => {
-            let key = |j: &Judged| (j.excess, j.bic);
-            (key(second).0 < key(first).0
-                || (key(second).0 == key(first).0 && key(second).1 < key(first).1))
-                .then(|| {
-                    format!(
-                        "neither search met the rule; it exceeds it less beyond the measured colour's noise ({:.2} against {:.2})",
-                        second.excess, first.excess
-                    )
-                })
-        }
-    }
+    let wins = match (first.met, second.met) {
+        _ if first.model == second.model && first.met == second.met => false,
+        (false, true) => true,
+        (true, false) => false,
+        (true, true) => second.bic < first.bic,
+        (false, false) => second
+            .excess
+            .total_cmp(&first.excess)
+            .then(second.bic.total_cmp(&first.bic))
+            .is_lt(),
+    };
+    wins.then(|| why_kept(second, first))
 }
 
-/// Why the first axis's search was kept (the mirror of [`prefer_second`]).
-fn prefer_first_why(first: &Judged, second: &Judged) -> String {
-    if first.model == second.model && first.met == second.met {
-        return format!("both searches kept {}", first.model);
-    }
-    match (first.met, second.met) {
+/// Why `kept`'s search won over `passed`'s (see [`prefer_second`]).
+fn why_kept(kept: &Judged, passed: &Judged) -> String {
+    match (kept.met, passed.met) {
+        _ if kept.model == passed.model && kept.met == passed.met => {
+            format!("both searches kept {}", kept.model)
+        }
         (true, false) => "only its search met the rule".into(),
-        (true, true) => lower_bic(first, second),
+        (true, true) => format!(
+            "both searches met the rule; its model has the lower BIC ({:.1} against {:.1})",
+            kept.bic, passed.bic
+        ),
         _ => format!(
             "neither search met the rule; it exceeds it no more beyond the measured colour's noise ({:.2} against {:.2})",
-            first.excess, second.excess
+            kept.excess, passed.excess
         ),
     }
-}
-
-fn lower_bic(kept: &Judged, passed: &Judged) -> String {
-    format!(
-        "both searches met the rule; its model has the lower BIC ({:.1} against {:.1})",
-        kept.bic, passed.bic
-    )
 }
 
 /// `kept` with the other axis's search recorded in its report: the axis line, and that
@@ -249,9 +232,6 @@ mod tests {
         // The grid fit both kept stays with the first axis.
         let grid = judged("tabulated", true, 500.0, 0.0);
         assert!(prefer_second(&grid, &grid.clone()).is_none());
-        assert_eq!(
-            prefer_first_why(&grid, &grid),
-            "both searches kept tabulated"
-        );
+        assert_eq!(why_kept(&grid, &grid), "both searches kept tabulated");
     }
 }
