@@ -8,7 +8,7 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// Every way a fluorite operation can fail. Messages are complete sentences meant for the
 /// user: they name the file (and line/column where there is one), the parameter, and what
 /// would fix the problem.
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, Clone, thiserror::Error)]
 pub enum Error {
     /// A file could not be read or written.
     #[error("{}: {message}", path.display())]

@@ -217,13 +217,6 @@ fn joint_run(args: &FitArgs, input: InputOptions) -> anyhow::Result<JointRun<'_>
 pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
     fluorite::limits::check_runs(args.timing_runs, "--timing-runs")?;
     let lights = args.parsed_lights()?;
-    if matches!(args.model, Some(ModelChoice::Fixed(_)))
-        && args.band_axis != fluorite::fit::BandAxisChoice::Both
-    {
-        anyhow::bail!(
-            "--band-axis chooses the model search's axis; a --model that names one structure takes its name's (append @wavelength for bands Gaussian in wavelength) — drop --band-axis or --model"
-        );
-    }
     let options = FitOptions {
         solver: args.solver,
         guard_nm: args.guard,

@@ -338,6 +338,14 @@ pub(super) fn validate_options(options: &FitOptions) -> Result<()> {
             format!("is {bound}; give a positive ΔE2000 (1 is invisible side by side)"),
         ));
     }
+    // A model that names one structure names its band axis too (`@wavelength`): an axis
+    // asked for beside it would be silently ignored.
+    if matches!(options.model, ModelChoice::Fixed(_)) && options.band_axis != BandAxisChoice::Both {
+        return Err(Error::invalid(
+            "--band-axis",
+            "chooses the model search's axis; a --model that names one structure takes its name's (append @wavelength for bands Gaussian in wavelength): drop --band-axis or --model",
+        ));
+    }
     // The widening is of a bound: without one there is nothing to widen, and ignoring the
     // flag would let a caller believe the noise was allowed for.
     if options.noise_aware_bound && options.max_delta_e.is_none() {

@@ -170,3 +170,24 @@ fn the_command_line_takes_the_band_axis() {
     let wrong = refused(&["--max-delta-e", "1", "--band-axis", "energy"]);
     assert!(wrong.contains("wavenumber"), "{wrong}");
 }
+
+/// The library refuses a band axis beside a model that names one structure (the model's
+/// name says its axis), naming the option and how to mend the call, as the CLI prints it.
+#[test]
+fn a_band_axis_beside_a_fixed_model_is_refused_by_the_library() {
+    let input = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/green-dye.csv");
+    let m = fluorite::formats::read(&input, &Default::default()).unwrap();
+    let options = FitOptions {
+        model: "gaussian:1x1+rt".parse().unwrap(),
+        band_axis: BandAxisChoice::Wavelength,
+        ..FitOptions::default()
+    };
+    let error = fit(&m, &options).unwrap_err().to_string();
+    assert!(error.starts_with("--band-axis: "), "{error}");
+    assert!(error.contains("@wavelength"), "{error}");
+    let on_its_own = FitOptions {
+        band_axis: BandAxisChoice::Both,
+        ..options
+    };
+    assert!(fit(&m, &on_its_own).is_ok());
+}

@@ -8,6 +8,7 @@
 //! fit, and the result that meets its rule is kept, of two that do the one of lower BIC
 //! (the same cells and noise: the matrix's likelihood, the parameter count charged).
 
+use super::starts::StartCache;
 use super::*;
 
 /// A search on one band axis: the material it keeps, and what decides between two axes,
@@ -37,14 +38,17 @@ pub(super) fn search_each_axis(
         _ => options.band_axis.axes().to_vec(),
     };
     let parallel = rayon::current_thread_index().is_none();
+    // What the starts share, for both axes: its keys name the band axis where a value
+    // depends on it, and the fresh split of the grid fit, which does not, is made once.
+    let starts = StartCache::default();
     let [first, second] = axes[..] else {
         let axis = axes.first().copied().unwrap_or(DEFAULT_DOMAIN);
-        return search_on_axis(m, options, base, axis, parallel, started)
+        return search_on_axis(m, options, base, axis, parallel, started, &starts)
             .map(|on| FitOutcome::Material(Box::new(on.material)));
     };
     let other = base.clone();
     let search = |base: Material, axis: BandDomain| {
-        search_on_axis(m, options, base, axis, parallel, started)
+        search_on_axis(m, options, base, axis, parallel, started, &starts)
     };
     let (a, b) = if parallel {
         rayon::join(|| search(base, first), || search(other, second))

@@ -23,6 +23,23 @@ pub(super) fn photon_law_binds(material: &Material, misses: bool) -> bool {
     })
 }
 
+/// The yield forms a search fits: the model name's, else `--yield`'s; and whether that is
+/// `auto`, which fits the energy form and, where its photon law binds, the photon form too.
+pub(super) fn yield_forms(options: &FitOptions) -> (Vec<YieldForm>, bool) {
+    match (options.model, options.yield_choice) {
+        (
+            ModelChoice::Fixed(ModelRequest {
+                yield_form: Some(form),
+                ..
+            }),
+            _,
+        ) => (vec![form], false),
+        (_, YieldChoice::Energy) => (vec![YieldForm::Energy], false),
+        (_, YieldChoice::Photon) => (vec![YieldForm::Photon], false),
+        (_, YieldChoice::Auto) => (vec![YieldForm::Energy, YieldForm::Photon], true),
+    }
+}
+
 /// The choice among one structure's yield forms (`here`, indices into `fitted`): the
 /// energy form when it meets the bound (every light within its own) and the photon form
 /// does not fit better (a lower objective), else the photon form when it meets it.

@@ -44,7 +44,7 @@ use candidate::*;
 use look_further::{OneComponentLook, skips_larger_one_component};
 
 use noise_bounds::{
-    grid_misfit_shares, misses_within_noise, noise_pull_weights, noise_widened_bounds,
+    grid_misfit_shares, misses_within_noise, noise_pull_weights, noise_widened_bounds, rule_words,
     skip_one_component_models,
 };
 use starts::*;
@@ -162,7 +162,7 @@ pub(super) fn fit_model_from(
 
 /// The search from the grid fit `base` with its Gaussian bands on `domain` (a model that
 /// names one structure: on its name's axis), its fits in parallel where `parallel`
-/// ([`CandidateContext`]'s).
+/// ([`CandidateContext`]'s), its starts sharing `starts` (with the other axis's search).
 fn search_on_axis(
     m: &Measurement,
     options: &FitOptions,
@@ -170,6 +170,7 @@ fn search_on_axis(
     domain: BandDomain,
     parallel: bool,
     started: Instant,
+    starts: &StartCache,
 ) -> Result<band_axis::OnAxis> {
     let base_report = base.fit.clone().unwrap_or_default();
     let data = FitData::with_crosstalk(
@@ -180,20 +181,7 @@ fn search_on_axis(
     let sigma = data.noise_sigma().max(1e-12);
     let lights = &options.lights;
     let budget = options.max_delta_e;
-    // The yield forms to fit: the model name's, else --yield's; `auto` fits the energy
-    // form and, where its photon law binds, the photon form too.
-    let (forms, auto_form): (Vec<YieldForm>, bool) = match (options.model, options.yield_choice) {
-        (
-            ModelChoice::Fixed(ModelRequest {
-                yield_form: Some(form),
-                ..
-            }),
-            _,
-        ) => (vec![form], false),
-        (_, YieldChoice::Energy) => (vec![YieldForm::Energy], false),
-        (_, YieldChoice::Photon) => (vec![YieldForm::Photon], false),
-        (_, YieldChoice::Auto) => (vec![YieldForm::Energy, YieldForm::Photon], true),
-    };
+    let (forms, auto_form) = yield_forms(options);
 
     // When the grid model misses the bound under a light, that light may show something
     // one fluorophore cannot make (a second emitter): K = 2 then starts from the grid fit
@@ -360,7 +348,6 @@ fn search_on_axis(
         parent_only = parent;
         skipped = Some(why);
     }
-    let start_cache = StartCache::default();
     let ctx = CandidateContext {
         m,
         base: &base,
@@ -373,7 +360,7 @@ fn search_on_axis(
         light_bounds: &light_bounds,
         light_weights: &light_weights,
         parentless_starts_too: parent_only.is_some(),
-        start_cache: &start_cache,
+        start_cache: starts,
         parallel,
         cancel: None,
     };
@@ -423,12 +410,31 @@ fn search_on_axis(
             // two-component structure, which no decision here drops unless the search
             // stops or looks on among one-component models (the matrix test kept the grid
             // fit, a stop for `stops_at`): the fit ahead is then cancelled.
+            // Not where the search surely stops here: the energy form met the bound, and no
+            // matrix test can send the search on.
+            let stops_surely = decides
+                && parent_only != Some(structure)
+                && !judged_by_matrix
+                && energy_twin.is_some_and(|e| e.within);
             let next = jobs.front().filter(|n| {
-                ctx.parallel && auto_form && yield_form == YieldForm::Photon && n.0 > 1
+                ctx.parallel
+                    && auto_form
+                    && yield_form == YieldForm::Photon
+                    && n.0 > 1
+                    && !stops_surely
             });
+            let next = next.map(
+                |&(components, absorption_bands, emission_bands)| ModelSpec {
+                    components,
+                    absorption_bands,
+                    emission_bands,
+                    yield_form: YieldForm::Energy,
+                    ..spec
+                },
+            );
             let (result, seconds) = match (ahead_here.take_if(|a| a.spec == spec), next) {
                 (Some(a), _) => (a.result, a.seconds),
-                (None, Some(&(components, absorption_bands, emission_bands))) => {
+                (None, Some(next)) => {
                     let stops_here = |photon: &Result<Fitted>| {
                         parent_only != Some(structure)
                             && decides
@@ -439,15 +445,8 @@ fn search_on_axis(
                                 judged_by_matrix.then(|| (grid_reference(), m, &data, sigma)),
                             )
                     };
-                    let next_spec = ModelSpec {
-                        components,
-                        absorption_bands,
-                        emission_bands,
-                        yield_form: YieldForm::Energy,
-                        ..spec
-                    };
                     let (this, later) =
-                        ahead::fit_beside(&ctx, spec, energy_twin, next_spec, &fitted, &stops_here);
+                        ahead::fit_beside(&ctx, spec, energy_twin, next, &fitted, &stops_here);
                     ahead = later;
                     this
                 }
@@ -670,37 +669,14 @@ fn search_on_axis(
             }
         }
     };
-    let rule = match budget {
-        Some(bound) if colour_noise.is_some() => format!(
-            "first model with ΔE2000 ≤ max({bound}, {} × the measured colour's noise RMS, at most the grid fit's + {bound}) under each light: {} (--noise-aware-bound; each light's colour term weighed by that noise and, where that noise weakens it, by the share of what the grid fit leaves beyond the noise, in the cells or that colour: {})",
-            assess::NOISE_COVERAGE,
-            lights
-                .iter()
-                .map(|l| format!(
-                    "{} ≤ {:.2}",
-                    l.name,
-                    light_bounds.get(&l.name).copied().unwrap_or(bound)
-                ))
-                .collect::<Vec<_>>()
-                .join(", "),
-            lights
-                .iter()
-                .zip(&shares)
-                .map(|(l, s)| format!("{} {s:.2}", l.name))
-                .collect::<Vec<_>>()
-                .join(", "),
-        ),
-        Some(bound) => format!(
-            "first model with ΔE2000 ≤ {bound} under {}",
-            lights
-                .iter()
-                .map(|l| l.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-        ),
-        None if candidates.len() == 1 => "fixed by --model".to_string(),
-        None => "lowest BIC on the matrix residual".to_string(),
-    };
+    let rule = rule_words(
+        budget,
+        colour_noise.is_some(),
+        lights,
+        &light_bounds,
+        &shares,
+        candidates.len(),
+    );
     // The kept model's BIC on the search's cells and σ (the grid model's, where the grid
     // fit is kept: its own report may hold it on cells with the crosstalk it kept).
     let report_bic = |f: &Fitted| f.material.fit.as_ref().and_then(|r| r.bic);

@@ -198,3 +198,47 @@ pub(super) fn misses_within_noise(
     }
     misses
 }
+
+/// The search's rule in words: the first model within `budget` under each light (`noise_aware`:
+/// within `light_bounds`, the colour terms weighed by `shares`), or, without a bound, the
+/// lowest BIC (or the one model `--model` fixed, where `candidates` is 1).
+pub(super) fn rule_words(
+    budget: Option<f64>,
+    noise_aware: bool,
+    lights: &[crate::colour::Light],
+    light_bounds: &BTreeMap<String, f64>,
+    shares: &[f64],
+    candidates: usize,
+) -> String {
+    match budget {
+        Some(bound) if noise_aware => format!(
+            "first model with ΔE2000 ≤ max({bound}, {} × the measured colour's noise RMS, at most the grid fit's + {bound}) under each light: {} (--noise-aware-bound; each light's colour term weighed by that noise and, where that noise weakens it, by the share of what the grid fit leaves beyond the noise, in the cells or that colour: {})",
+            assess::NOISE_COVERAGE,
+            lights
+                .iter()
+                .map(|l| format!(
+                    "{} ≤ {:.2}",
+                    l.name,
+                    light_bounds.get(&l.name).copied().unwrap_or(bound)
+                ))
+                .collect::<Vec<_>>()
+                .join(", "),
+            lights
+                .iter()
+                .zip(shares)
+                .map(|(l, s)| format!("{} {s:.2}", l.name))
+                .collect::<Vec<_>>()
+                .join(", "),
+        ),
+        Some(bound) => format!(
+            "first model with ΔE2000 ≤ {bound} under {}",
+            lights
+                .iter()
+                .map(|l| l.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+        ),
+        None if candidates == 1 => "fixed by --model".to_string(),
+        None => "lowest BIC on the matrix residual".to_string(),
+    }
+}

@@ -3,8 +3,8 @@
 //! seeds of a second component.
 
 use super::*;
-use std::convert::Infallible;
 use std::sync::Mutex;
+use std::sync::{Arc, OnceLock};
 
 /// θ of the smaller model `small` (parameters `theta`) in `problem`'s layout, which
 /// contains it: components, bands and reflectance coefficients copied (a higher degree
@@ -370,36 +370,38 @@ type BandKey = (Vec<u64>, Vec<u64>, BandDomain, usize);
 /// structures share a band count (its start bands took 9 %).
 #[derive(Default)]
 pub(super) struct StartCache {
-    factors: Mutex<Vec<(FactorKey, Factors)>>,
-    bands: Mutex<Vec<(BandKey, Vec<f64>)>>,
+    factors: Memo<FactorKey, Factors>,
+    bands: Memo<BandKey, Result<Vec<f64>>>,
 }
 
-/// The value memoised under `key` in `memo`, computed by `compute` the first time
-/// (outside the lock: a candidate's starts, which run in parallel, mostly ask for
-/// different keys). A failed computation is not kept.
-fn memoised<K: PartialEq, V: Clone, E>(
-    memo: &Mutex<Vec<(K, V)>>,
-    key: K,
-    compute: impl FnOnce() -> std::result::Result<V, E>,
-) -> std::result::Result<V, E> {
-    let lookup = |kept: &Vec<(K, V)>| kept.iter().find(|(k, _)| *k == key).map(|(_, v)| v.clone());
-    if let Some(v) = memo.lock().ok().as_deref().and_then(lookup) {
-        return Ok(v);
-    }
-    let value = compute()?;
-    if let Ok(mut kept) = memo.lock()
-        && lookup(&kept).is_none()
-    {
-        kept.push((key, value.clone()));
-    }
-    Ok(value)
+/// One memoised value: computed once, by whichever start asks first.
+type Memo<K, V> = Mutex<Vec<(K, Arc<OnceLock<V>>)>>;
+
+/// The value memoised under `key` in `memo`, computed by `compute` the first time. Its
+/// cell is taken under the lock and filled outside it: a start asking for a key another
+/// is computing waits for that value (the two axes' searches, beside each other, ask for
+/// the same fresh split of the grid fit at about the same time) instead of computing it
+/// again, and starts asking for different keys do not wait for each other.
+fn memoised<K: PartialEq, V: Clone>(memo: &Memo<K, V>, key: K, compute: impl FnOnce() -> V) -> V {
+    let cell = match memo.lock() {
+        Ok(mut kept) => match kept.iter().find(|(k, _)| *k == key) {
+            Some((_, cell)) => Arc::clone(cell),
+            None => {
+                let cell = Arc::new(OnceLock::new());
+                kept.push((key, Arc::clone(&cell)));
+                cell
+            }
+        },
+        // A poisoned lock (a start panicked): compute without memoising.
+        Err(_) => return compute(),
+    };
+    cell.get_or_init(compute).clone()
 }
 
 impl StartCache {
     /// The factors for `key`, computed by `compute` the first time.
     fn factors(&self, key: FactorKey, compute: impl FnOnce() -> Factors) -> Factors {
-        memoised(&self.factors, key, || Ok::<_, Infallible>(compute()))
-            .unwrap_or_else(|never| match never {})
+        memoised(&self.factors, key, compute)
     }
 
     /// The raw parameters of `n_bands` bands on `domain` fitted to `values` on `nm`
