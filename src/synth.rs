@@ -14,7 +14,8 @@ use crate::parametric::{
 };
 use crate::spectrum::{Spectrum, bin_widths, uniform_grid};
 
-/// A Gaussian band in wavelength.
+/// A Gaussian band: in wavelength, or (a spec's [`SynthSpec::band_axis`]) in wavenumber
+/// with the same centre and the standard deviation `width_nm` has at its centre.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Band {
     /// Centre (nm).
@@ -38,9 +39,33 @@ fn bands(table: &[(f64, f64, f64)]) -> Vec<Band> {
 }
 
 impl Band {
-    fn eval(&self, nm: f64) -> f64 {
-        self.weight * (-0.5 * ((nm - self.centre_nm) / self.width_nm).powi(2)).exp()
+    fn eval(&self, nm: f64, axis: BandDomain) -> f64 {
+        let z = match axis {
+            BandDomain::Wavelength => (nm - self.centre_nm) / self.width_nm,
+            // 1/λ − 1/λc over the width in 1/λ at the centre, w/λc².
+            BandDomain::Wavenumber => {
+                (1.0 / nm - 1.0 / self.centre_nm) * self.centre_nm * self.centre_nm / self.width_nm
+            }
+        };
+        self.weight * (-0.5 * z * z).exp()
     }
+
+    /// Its standard deviation on `axis` in that axis's unit (nm, or cm⁻¹ for wavenumber):
+    /// a [`GaussianBand`]'s width.
+    fn width_on(&self, axis: BandDomain) -> f64 {
+        match axis {
+            BandDomain::Wavelength => self.width_nm,
+            BandDomain::Wavenumber => 1e7 * self.width_nm / (self.centre_nm * self.centre_nm),
+        }
+    }
+}
+
+fn wavelength() -> BandDomain {
+    BandDomain::Wavelength
+}
+
+fn is_wavelength(axis: &BandDomain) -> bool {
+    *axis == BandDomain::Wavelength
 }
 
 /// One further fluorescent component of a [`SynthSpec`], defined like the spec's own.
@@ -96,6 +121,9 @@ pub struct SynthSpec {
     /// specs). The truth lists the first component first, then these in order.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub components: Vec<SynthComponent>,
+    /// The axis every band is Gaussian in (default: wavelength).
+    #[serde(default = "wavelength", skip_serializing_if = "is_wavelength")]
+    pub band_axis: BandDomain,
     /// Gaussian noise σ added to every cell (radiance-factor units).
     pub noise_sigma: f64,
     /// Crosstalk as the real BFC-450 files show it (model.md §5): a small wavelength
@@ -132,6 +160,7 @@ impl SynthSpec {
             yield_fraction_of_limit: 0.9,
             yield_form: YieldForm::Energy,
             components: vec![],
+            band_axis: BandDomain::Wavelength,
             noise_sigma: MEASURED_NOISE_SIGMA,
             crosstalk: 0.001,
             missing_fraction: 0.0,
@@ -290,7 +319,7 @@ impl SynthSpec {
     }
 
     /// The ground truth with a `forms` block (model `synth`): per fluorophore the
-    /// Gaussian bands (in wavelength, zero outside the spec's grids) that generate its
+    /// Gaussian bands (on the spec's band axis, zero outside its grids) that generate its
     /// spectra, scaled exactly as its samples are. The reflectance stays tabulated.
     pub fn truth_with_forms(&self) -> Result<Material> {
         let mut material = self.truth()?;
@@ -299,13 +328,13 @@ impl SynthSpec {
             let (_, peak, area) = self.fluorophore(&component, &place)?;
             let form = |bands: &[Band], scale: f64, grid: &[f64]| {
                 SpectralForm::GaussianBands(GaussianBands {
-                    domain: BandDomain::Wavelength,
+                    domain: self.band_axis,
                     support_nm: [grid[0], grid[grid.len() - 1]],
                     bands: bands
                         .iter()
                         .map(|b| GaussianBand {
                             centre_nm: b.centre_nm,
-                            width: b.width_nm,
+                            width: b.width_on(self.band_axis),
                             height: b.weight / scale,
                         })
                         .collect(),
@@ -335,7 +364,7 @@ impl SynthSpec {
     ) -> Result<(Fluorophore, f64, f64)> {
         let sample = |bands: &[Band], grid: &[f64]| -> Vec<f64> {
             grid.iter()
-                .map(|&l| bands.iter().map(|b| b.eval(l)).sum())
+                .map(|&l| bands.iter().map(|b| b.eval(l, self.band_axis)).sum())
                 .collect()
         };
         // Bands sampled on a grid, divided by their `scale` (peak or area), which must be
@@ -592,6 +621,7 @@ impl SynthSpec {
             yield_fraction_of_limit,
             yield_form,
             components,
+            band_axis: BandDomain::Wavelength,
             noise_sigma,
             crosstalk,
             missing_fraction: 0.0,

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use fluorite::evaluate::class::{self, ClassConfig, DEFAULT_CASES, DEFAULT_SEED};
 use fluorite::files::write_files;
+use fluorite::parametric::BandDomain;
 
 /// Arguments of `fluorite class`.
 #[derive(clap::Args, Debug)]
@@ -34,9 +35,28 @@ pub struct ClassArgs {
     /// with its report).
     #[arg(long)]
     pub dump: Option<PathBuf>,
+    /// The axis the drawn bands are Gaussian in: wavelength (the class as it comes) or
+    /// wavenumber (the same draws, each band of the same centre and, at its centre, the
+    /// same width): does a choice the class makes hold where its truth is of the other
+    /// shape?
+    #[arg(long, value_enum, default_value = "wavelength")]
+    pub truth_bands: TruthBands,
+    /// The searches' band axis (`search`, `search-noise` and the default fit's
+    /// escalation), as `fluorite fit --band-axis`.
+    #[arg(long = "band-axis", value_enum, default_value = "both")]
+    pub band_axis: fluorite::fit::BandAxisChoice,
     /// Print nothing (otherwise the report's summary tables are printed).
     #[arg(short, long)]
     pub quiet: bool,
+}
+
+/// The axis the drawn bands are Gaussian in (`--truth-bands`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TruthBands {
+    /// Gaussian in wavelength.
+    Wavelength,
+    /// Gaussian in wavenumber.
+    Wavenumber,
 }
 
 fn parse_seed(text: &str) -> Result<u64, String> {
@@ -53,12 +73,23 @@ pub fn run(args: ClassArgs) -> anyhow::Result<ExitCode> {
     let config = ClassConfig {
         cases: args.cases,
         seed: args.seed,
+        truth_bands: match args.truth_bands {
+            TruthBands::Wavelength => BandDomain::Wavelength,
+            TruthBands::Wavenumber => BandDomain::Wavenumber,
+        },
+        band_axis: args.band_axis,
     };
     let sweep = class::run_named(&config, &args.case)?;
     let mut command = format!(
         "fluorite class --cases {} --seed {:#X}",
         args.cases, args.seed
     );
+    if config.truth_bands != BandDomain::Wavelength {
+        command += &format!(" --truth-bands {}", config.truth_bands.name());
+    }
+    if let [axis] = config.band_axis.axes() {
+        command += &format!(" --band-axis {}", axis.name());
+    }
     if !args.case.is_empty() {
         command += &format!(" --case {}", args.case.join(","));
     }

@@ -15,6 +15,8 @@ use fluorite::fit::{FitOutcome, fit};
 const SMALL: ClassConfig = ClassConfig {
     cases: 8,
     seed: class::DEFAULT_SEED,
+    truth_bands: fluorite::parametric::BandDomain::Wavelength,
+    band_axis: fluorite::fit::BandAxisChoice::Both,
 };
 
 /// The sweep with every wall time zeroed: what must not depend on the run. The fitted
@@ -93,7 +95,11 @@ fn small_sweep_is_deterministic_complete_and_adds_up() {
 /// grid method's options (`--model tabulated`).
 #[test]
 fn delta_e_against_the_truth_matches_a_recomputation() {
-    let config = ClassConfig { cases: 3, seed: 11 };
+    let config = ClassConfig {
+        cases: 3,
+        seed: 11,
+        ..ClassConfig::default()
+    };
     let sweep = class::run(&config).unwrap();
     let specs = class::draw(&config).unwrap().specs;
     for (case, spec) in sweep.cases.iter().zip(&specs) {
@@ -278,4 +284,71 @@ fn named_cases_are_the_sweeps_and_their_dump_refits() {
         message.contains("--case") && message.contains("case006"),
         "{message}"
     );
+}
+
+/// `--truth-bands wavenumber` draws the same cases with every band Gaussian in
+/// wavenumber (the same centre, and at its centre the same width), and `--band-axis`
+/// runs the searches on one axis: checked against the closed form of such a band, and
+/// against the model names the fits report.
+#[test]
+fn the_class_draws_bands_gaussian_in_wavenumber_and_searches_on_one_axis() {
+    let wavelength = ClassConfig {
+        cases: 4,
+        seed: 5,
+        ..ClassConfig::default()
+    };
+    let wavenumber = ClassConfig {
+        truth_bands: fluorite::parametric::BandDomain::Wavenumber,
+        band_axis: fluorite::fit::BandAxisChoice::Wavelength,
+        ..wavelength
+    };
+    let spec = class::draw(&wavenumber).unwrap().specs.remove(0);
+    let same_draw = class::draw(&wavelength).unwrap().specs.remove(0);
+    assert_eq!(spec.emission, same_draw.emission);
+    // The first component's emission e(λ) ∝ Σ w·exp(−½((1/λ − 1/c)·c²/σ)²), ∫e = 1 on
+    // the emission grid (bin widths of the measurement's grid).
+    let (m, truth) = spec.generate().unwrap();
+    let closed_form = |l: f64| -> f64 {
+        spec.emission
+            .iter()
+            .map(|b| {
+                let z = (1.0 / l - 1.0 / b.centre_nm) * b.centre_nm * b.centre_nm / b.width_nm;
+                b.weight * (-0.5 * z * z).exp()
+            })
+            .sum()
+    };
+    let e = &truth.fluorophores[0].emission;
+    let grid = &m.emission_nm;
+    let widths = fluorite::spectrum::bin_widths(grid);
+    let area: f64 = grid
+        .iter()
+        .zip(&widths)
+        .map(|(&l, w)| closed_form(l) * w)
+        .sum();
+    for (&l, v) in e.wavelength_nm.iter().zip(&e.value) {
+        let expected = closed_form(l) / area;
+        assert!(
+            (v - expected).abs() <= 1e-9 * expected.abs().max(1e-3),
+            "{l} nm: {v} against {expected}"
+        );
+    }
+    // Its forms say the axis, and the searches ran on wavelength alone.
+    let forms = spec.truth_with_forms().unwrap().forms.unwrap();
+    let json = serde_json::to_string(&forms).unwrap();
+    assert!(json.contains("\"wavenumber\""), "{json}");
+    let sweep = class::run(&ClassConfig {
+        cases: 2,
+        ..wavenumber
+    })
+    .unwrap();
+    for case in &sweep.cases {
+        for result in &case.results {
+            if result.model.starts_with("gaussian:") {
+                assert!(result.model.contains("@wavelength"), "{}", result.model);
+            }
+        }
+    }
+    let report = class::to_markdown(&sweep, "fluorite class");
+    assert!(report.contains("Gaussian bands in wavenumber"), "{report}");
+    assert!(report.contains("`--band-axis wavelength`"), "{report}");
 }

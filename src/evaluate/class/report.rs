@@ -4,6 +4,7 @@
 use std::fmt::Write as _;
 
 use crate::error::Result;
+use crate::fit::BandAxisChoice;
 use crate::formats::{RowsAre, write_wide_csv};
 
 use super::super::{SEARCH_BOUND, quantile};
@@ -78,10 +79,18 @@ pub fn to_markdown(sweep: &ClassSweep, command: &str) -> String {
         .iter()
         .filter(|c| c.true_fluorophores == 2)
         .count();
+    let truth_bands = sweep.config.truth_bands.name();
+    let axis_words = match sweep.config.band_axis {
+        BandAxisChoice::Both => "as every search here, its Gaussian bands on wavenumber and on wavelength, the result that meets the bound kept, of two the one of lower BIC: `--band-axis both`".to_string(),
+        one => {
+            let axis = one.axes()[0].name();
+            format!("as every search here, its Gaussian bands on {axis} alone: `--band-axis {axis}`")
+        }
+    };
     let mut out = String::from("# Accuracy on a randomized class of materials\n\n");
     let _ = writeln!(
         out,
-        "Made by `{command}`. {} synthetic cases (seed {:#X}; {two} with two fluorophores; draws the synthesiser refused and were redrawn: {}): Gaussian bands in wavelength, sampled on each case's grids (the truth is linear between those samples), absorption peak 300–620 nm with an optional second band, Stokes shift 15–120 nm, sigmoid reflectance, c 0.1–1, yield 0.3–1 of its limit (energy form 80 %, photon form 20 %), noise σ log-uniform 1e-4–3e-3, crosstalk 0–0.05, missing cells 0–0.05, 10 nm grid (70 %), 5 nm (20 %) or 20 nm (10 %). Methods: `{GRID_FIT}` (the tabulated fit, `--model tabulated`), `{SEARCH}` (the model search, ΔE2000 ≤ {SEARCH_BOUND}; as every search here, its Gaussian bands on wavenumber and on wavelength, the result that meets the bound kept, of two the one of lower BIC: `--band-axis both`), `{SEARCH_NOISE}` (the same with `--noise-aware-bound`: each light held to max({SEARCH_BOUND}, 3 × its measured colour's noise RMS where the miss's χ² agrees, at most the grid fit's ΔE2000 + {SEARCH_BOUND}), its colour term weighed by that noise and, on a noisy colour, by the share of what the grid fit leaves beyond the noise, its reflectance tabulated where no polynomial fits the diagonal within the noise, a candidate the matrix tells from the grid model passed over for the grid fit (or, where the grid fit meets a light only within its noise, for the larger one-component model of lowest BIC below the grid model's, fitted to the matrix alone) or a later candidate) and `{DEFAULT_FIT}` (`fluorite fit` as it comes: the grid fit, kept where it is within ΔE2000 1 under every light or within its measured colour's noise (in ΔE2000 and χ²) or, where it removed crosstalk, within 1 of the cells it fitted, and that colour does not rest on missing cells it filled itself while leaving structure, else escalated to the noise-aware search (and, where it is kept only within the colour's noise, replaced by that search's first model where it has the lower BIC), `search-noise` under the default's bounds). ΔE2000 is the largest over D65, A, F11 and UV, against the measurement (the fit's report) and against the true material.\n",
+        "Made by `{command}`. {} synthetic cases (seed {:#X}; {two} with two fluorophores; draws the synthesiser refused and were redrawn: {}): Gaussian bands in {truth_bands}, sampled on each case's grids (the truth is linear between those samples), absorption peak 300–620 nm with an optional second band, Stokes shift 15–120 nm, sigmoid reflectance, c 0.1–1, yield 0.3–1 of its limit (energy form 80 %, photon form 20 %), noise σ log-uniform 1e-4–3e-3, crosstalk 0–0.05, missing cells 0–0.05, 10 nm grid (70 %), 5 nm (20 %) or 20 nm (10 %). Methods: `{GRID_FIT}` (the tabulated fit, `--model tabulated`), `{SEARCH}` (the model search, ΔE2000 ≤ {SEARCH_BOUND}; {axis_words}), `{SEARCH_NOISE}` (the same with `--noise-aware-bound`: each light held to max({SEARCH_BOUND}, 3 × its measured colour's noise RMS where the miss's χ² agrees, at most the grid fit's ΔE2000 + {SEARCH_BOUND}), its colour term weighed by that noise and, on a noisy colour, by the share of what the grid fit leaves beyond the noise, its reflectance tabulated where no polynomial fits the diagonal within the noise, a candidate the matrix tells from the grid model passed over for the grid fit (or, where the grid fit meets a light only within its noise, for the larger one-component model of lowest BIC below the grid model's, fitted to the matrix alone) or a later candidate) and `{DEFAULT_FIT}` (`fluorite fit` as it comes: the grid fit, kept where it is within ΔE2000 1 under every light or within its measured colour's noise (in ΔE2000 and χ²) or, where it removed crosstalk, within 1 of the cells it fitted, and that colour does not rest on missing cells it filled itself while leaving structure, else escalated to the noise-aware search (and, where it is kept only within the colour's noise, replaced by that search's first model where it has the lower BIC), `search-noise` under the default's bounds). ΔE2000 is the largest over D65, A, F11 and UV, against the measurement (the fit's report) and against the true material.\n",
         sweep.cases.len(),
         sweep.config.seed,
         sweep.refused
