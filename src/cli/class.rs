@@ -36,9 +36,10 @@ pub struct ClassArgs {
     #[arg(long)]
     pub dump: Option<PathBuf>,
     /// The axis the drawn bands are Gaussian in: wavelength (the class as it comes) or
-    /// wavenumber (the same draws, each band of the same centre and, at its centre, the
-    /// same width): does a choice the class makes hold where its truth is of the other
-    /// shape?
+    /// wavenumber (drawn from the same random numbers, each band of the same centre and,
+    /// at its centre, the same width; where the synthesiser refuses a draw in one shape
+    /// and not the other, the two classes' later cases differ): does a choice the class
+    /// makes hold where its truth is of the other shape?
     #[arg(long, value_enum, default_value = "wavelength")]
     pub truth_bands: TruthBands,
     /// The searches' band axis (`search`, `search-noise` and the default fit's

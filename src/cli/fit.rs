@@ -237,6 +237,8 @@ pub fn run(args: FitArgs) -> anyhow::Result<ExitCode> {
         noise_aware_bound: args.noise_aware_bound,
         band_axis: args.band_axis,
     };
+    // Before any file is read or folder made (every fit would refuse it, once per file).
+    options.check_band_axis()?;
     let input = InputOptions {
         read: ReadOptions {
             format: args.format,

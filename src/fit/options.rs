@@ -309,6 +309,21 @@ pub(super) fn validate_refinement(
     Ok(())
 }
 
+impl FitOptions {
+    /// Refuses a band axis asked for beside a model that names one structure: the model's
+    /// name names its axis too (`@wavelength`), and the axis would be silently ignored.
+    /// Every fit checks it; a front end may check it before reading any file.
+    pub fn check_band_axis(&self) -> Result<()> {
+        if matches!(self.model, ModelChoice::Fixed(_)) && self.band_axis != BandAxisChoice::Both {
+            return Err(Error::invalid(
+                "--band-axis",
+                "chooses the model search's axis; a --model that names one structure takes its name's (append @wavelength for bands Gaussian in wavelength): drop --band-axis or --model",
+            ));
+        }
+        Ok(())
+    }
+}
+
 pub(super) fn validate_options(options: &FitOptions) -> Result<()> {
     validate_refinement(options.guard_nm, options.max_iterations, options.tolerance)?;
     for (value, name) in [
@@ -338,14 +353,7 @@ pub(super) fn validate_options(options: &FitOptions) -> Result<()> {
             format!("is {bound}; give a positive ΔE2000 (1 is invisible side by side)"),
         ));
     }
-    // A model that names one structure names its band axis too (`@wavelength`): an axis
-    // asked for beside it would be silently ignored.
-    if matches!(options.model, ModelChoice::Fixed(_)) && options.band_axis != BandAxisChoice::Both {
-        return Err(Error::invalid(
-            "--band-axis",
-            "chooses the model search's axis; a --model that names one structure takes its name's (append @wavelength for bands Gaussian in wavelength): drop --band-axis or --model",
-        ));
-    }
+    options.check_band_axis()?;
     // The widening is of a bound: without one there is nothing to widen, and ignoring the
     // flag would let a caller believe the noise was allowed for.
     if options.noise_aware_bound && options.max_delta_e.is_none() {

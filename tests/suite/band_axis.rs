@@ -167,6 +167,19 @@ fn the_command_line_takes_the_band_axis() {
     };
     let both_given = refused(&["--model", "gaussian:1x1+rt", "--band-axis", "wavelength"]);
     assert!(both_given.contains("@wavelength"), "{both_given}");
+    // Refused before any file is read or folder made: once, however many inputs.
+    let folder = out.join("never-made");
+    let twice = refused(&[
+        input.to_str().unwrap(),
+        "--model",
+        "gaussian:1x1+rt",
+        "--band-axis",
+        "wavelength",
+        "-o",
+        &format!("{}/", folder.display()),
+    ]);
+    assert_eq!(twice.matches("--band-axis: ").count(), 1, "{twice}");
+    assert!(!folder.exists());
     let wrong = refused(&["--max-delta-e", "1", "--band-axis", "energy"]);
     assert!(wrong.contains("wavenumber"), "{wrong}");
 }

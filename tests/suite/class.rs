@@ -286,8 +286,8 @@ fn named_cases_are_the_sweeps_and_their_dump_refits() {
     );
 }
 
-/// `--truth-bands wavenumber` draws the same cases with every band Gaussian in
-/// wavenumber (the same centre, and at its centre the same width), and `--band-axis`
+/// `--truth-bands wavenumber` draws from the same random numbers with every band Gaussian
+/// in wavenumber (the same centre, and at its centre the same width), and `--band-axis`
 /// runs the searches on one axis: checked against the closed form of such a band, and
 /// against the model names the fits report.
 #[test]

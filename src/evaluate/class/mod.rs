@@ -56,9 +56,11 @@ pub struct ClassConfig {
     pub cases: usize,
     /// Seed of the draws.
     pub seed: u64,
-    /// The axis the drawn bands are Gaussian in (wavelength unless asked otherwise): the
-    /// same draws with bands Gaussian in wavenumber ask whether a choice the class makes
-    /// holds where its truth is of the other shape.
+    /// The axis the drawn bands are Gaussian in (wavelength unless asked otherwise): drawn
+    /// from the same random numbers with bands Gaussian in wavenumber, the class asks
+    /// whether a choice it makes holds where its truth is of the other shape (the draws
+    /// the synthesiser refuses depend on the shape, so from the first refused in one
+    /// shape only, the two classes' cases differ).
     pub truth_bands: BandDomain,
     /// The band axis of the searches (`search`, `search-noise` and the default fit's
     /// escalation): `--band-axis`.

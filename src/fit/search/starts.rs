@@ -361,7 +361,7 @@ type FactorKey = (Start, Option<(ModelSpec, Vec<u64>)>, usize);
 /// and the number of bands.
 type BandKey = (Vec<u64>, Vec<u64>, BandDomain, usize);
 
-/// What the starts of one search share, each computed once: the factors K > 1 starts
+/// What the starts of a search share (over both its band axes), each computed once: the factors K > 1 starts
 /// split their components from, and the bands fitted to a start's spectra. They depend
 /// on the search's cells, noise and grid fit and on their keys alone, and the candidates
 /// of one search ask for the same ones: CIBA12's noise-aware search factorised the same
