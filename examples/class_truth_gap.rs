@@ -1,7 +1,8 @@
 //! How far `fluorite class`'s truth (each case's material sampled on its own grids, linear
 //! between samples, as the tabulated model represents it) lies from the Gaussian bands it
 //! samples, evaluated every 1 nm; and, given the folder `fluorite class --dump DIR` wrote,
-//! each method's fit against both. Per case: name, grid step (nm), true fluorophores, the
+//! each method's fit against both (the cases as the dump's `NAME.synth.json` holds them,
+//! so a `--truth-bands wavenumber` dump is judged against its own truths). Per case: name, grid step (nm), true fluorophores, the
 //! gap (largest ΔE2000 over d65, a, f11 and uv), then per method its ΔE2000 to the sampled
 //! truth and to the bands.
 //!
@@ -73,7 +74,15 @@ fn main() -> anyhow::Result<()> {
         seed,
         ..ClassConfig::default()
     })?;
-    for spec in &draws.specs {
+    for drawn in &draws.specs {
+        // A dump holds the specs its fits were made from (`--truth-bands` included).
+        let dumped = dump
+            .map(|dir| format!("{dir}/{}.synth.json", drawn.name))
+            .filter(|path| Path::new(path).exists());
+        let spec: &SynthSpec = &match dumped {
+            Some(path) => serde_json::from_str(&std::fs::read_to_string(path)?)?,
+            None => drawn.clone(),
+        };
         let sampled = spec.truth()?;
         let banded = banded_truth(spec)?;
         let step = spec.excitation_nm[1] - spec.excitation_nm[0];
