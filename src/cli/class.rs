@@ -41,7 +41,7 @@ pub struct ClassArgs {
     /// and not the other, the two classes' later cases differ): does a choice the class
     /// makes hold where its truth is of the other shape?
     #[arg(long, value_enum, default_value = "wavelength")]
-    pub truth_bands: TruthBands,
+    pub truth_bands: BandDomain,
     /// The searches' band axis (`search`, `search-noise` and the default fit's
     /// escalation), as `fluorite fit --band-axis`.
     #[arg(long = "band-axis", value_enum, default_value = "both")]
@@ -49,15 +49,6 @@ pub struct ClassArgs {
     /// Print nothing (otherwise the report's summary tables are printed).
     #[arg(short, long)]
     pub quiet: bool,
-}
-
-/// The axis the drawn bands are Gaussian in (`--truth-bands`).
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TruthBands {
-    /// Gaussian in wavelength.
-    Wavelength,
-    /// Gaussian in wavenumber.
-    Wavenumber,
 }
 
 fn parse_seed(text: &str) -> Result<u64, String> {
@@ -74,10 +65,7 @@ pub fn run(args: ClassArgs) -> anyhow::Result<ExitCode> {
     let config = ClassConfig {
         cases: args.cases,
         seed: args.seed,
-        truth_bands: match args.truth_bands {
-            TruthBands::Wavelength => BandDomain::Wavelength,
-            TruthBands::Wavenumber => BandDomain::Wavenumber,
-        },
+        truth_bands: args.truth_bands,
         band_axis: args.band_axis,
     };
     let sweep = class::run_named(&config, &args.case)?;

@@ -15,7 +15,7 @@ pub mod fit;
 mod lm;
 
 /// The axis on which bands are Gaussian.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum BandDomain {
     /// Gaussian in wavenumber ν = 10⁷/λ (cm⁻¹): the shape of electronic bands.
