@@ -21,10 +21,39 @@ pub fn predict(
         Units::PerNm => vec![1.0; emission_nm.len()],
     };
     let moments = material.emission_moments();
+    // Each fluorophore's factors once per row and once per column, not once per cell:
+    // the cell's value is the same sum of the same products as
+    // [`Material::fluorescence_with`]'s, bit for bit (it was 3 % of a model search).
+    let reradiated: Vec<Vec<f64>> = material
+        .fluorophores
+        .iter()
+        .zip(&moments)
+        .map(|(f, &(_, mean))| {
+            excitation_nm
+                .iter()
+                .map(|&li| f.reradiated_with_mean(li, mean))
+                .collect()
+        })
+        .collect();
+    let emitted: Vec<Vec<f64>> = material
+        .fluorophores
+        .iter()
+        .map(|f| {
+            emission_nm
+                .iter()
+                .map(|&lo| f.emission.eval_zero_outside(lo))
+                .collect()
+        })
+        .collect();
     let mut values = Vec::with_capacity(excitation_nm.len() * emission_nm.len());
-    for &li in excitation_nm {
-        for (&lo, w) in emission_nm.iter().zip(&widths) {
-            values.push(material.fluorescence_with(li, lo, &moments) * w);
+    for i in 0..excitation_nm.len() {
+        for (j, w) in widths.iter().enumerate() {
+            let fluorescence: f64 = reradiated
+                .iter()
+                .zip(&emitted)
+                .map(|(r, e)| r[i] * e[j])
+                .sum();
+            values.push(fluorescence * w);
         }
     }
     let mut m = Measurement {

@@ -668,11 +668,21 @@ impl Material {
     /// samples and can rise above the chord. Returns the largest reduction of r (0 when
     /// none).
     pub fn lower_reflectance_to_energy_bound(&mut self) -> f64 {
+        self.lower_reflectance_to_energy_bound_with_margins().0
+    }
+
+    /// [`Material::lower_reflectance_to_energy_bound`], and the conservation block of the
+    /// material it leaves ([`Material::conservation_margins`]) from the extrema its last
+    /// pass found (where that pass lowered nothing, they are the material's; else they
+    /// are searched again): a fit writes both, and each searched every interval.
+    pub fn lower_reflectance_to_energy_bound_with_margins(&mut self) -> (f64, Conservation) {
         let mut largest: f64 = 0.0;
+        let mut settled = None;
         for _ in 0..20 {
             let grid = self.sample_wavelengths();
             let mut changed = false;
-            for (l, rho) in energy_extrema(self, &grid) {
+            let extrema = energy_extrema(self, &grid);
+            for &(l, rho) in &extrema {
                 let excess = rho - 1.0;
                 if excess <= 0.5 * BOUND_TOLERANCE {
                     continue;
@@ -692,9 +702,14 @@ impl Material {
                 changed = true;
             }
             if !changed {
+                settled = Some(extrema);
                 break;
             }
         }
-        largest
+        let margins = match settled {
+            Some(extrema) => conservation(self, &extrema),
+            None => self.conservation_margins(),
+        };
+        (largest, margins)
     }
 }

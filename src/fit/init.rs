@@ -3,6 +3,7 @@
 //! solve), then the diagonal minus the fluorescent term.
 
 use super::data::{Cell, FitData};
+use super::dense_nmf::DenseCells;
 
 /// A rank-1 factorisation M ≈ u·vᵀ of the off-diagonal cells.
 #[derive(Debug, Clone)]
@@ -108,6 +109,23 @@ pub struct Factors {
 /// fixed, clamped at zero. Several fluorophores excited in different bands separate
 /// because each row's emission is the mix the data show there.
 pub fn masked_nmf(data: &FitData, start: Factors, sweeps: usize) -> Factors {
+    match DenseCells::new(data, &start.rows, &start.columns) {
+        Some(cells) => {
+            let Factors {
+                mut rows,
+                mut columns,
+            } = start;
+            cells.sweep(&mut rows, &mut columns, sweeps);
+            Factors { rows, columns }
+        }
+        None => sparse_masked_nmf(data, start, sweeps),
+    }
+}
+
+/// [`masked_nmf`] over the cell list as it is ordered: the reference the dense sweep
+/// ([`super::dense_nmf`]) equals bit for bit on row-major cells, and the path for any
+/// other order.
+fn sparse_masked_nmf(data: &FitData, start: Factors, sweeps: usize) -> Factors {
     let Factors {
         mut rows,
         mut columns,
@@ -158,17 +176,49 @@ pub(super) fn fit_factor(
     n: usize,
     at: impl Fn(&Cell) -> (usize, usize),
 ) -> Vec<f64> {
-    let (mut num, mut den) = (vec![0.0; n], vec![0.0; n]);
-    for (k, c) in cells.iter().enumerate() {
-        let (i, j) = at(c);
+    let (num, den) = accumulate(cells, n, &at, |k, c, j| {
         let w = weights.map_or(1.0, |w| w[k]);
-        num[i] += w * c.value * other[j];
-        den[i] += w * other[j] * other[j];
-    }
+        (w * c.value * other[j], w * other[j] * other[j])
+    });
     num.iter()
         .zip(&den)
         .map(|(&n, &d)| nonnegative_quotient(n, d))
         .collect()
+}
+
+/// Σ of `term(k, cell k, j)`'s two parts over `cells` into `n` sums each, cell k adding to
+/// entry i where (i, j) = `at(cell)`, in cell order. A run of cells with the same i (a
+/// row's cells, for the half-step that fits the rows) is summed in registers: the same
+/// additions in the same order, without each waiting on the last one's store (the
+/// factorisations' half-steps were 8 % of a noise-aware search).
+#[inline(always)]
+fn accumulate(
+    cells: &[Cell],
+    n: usize,
+    at: &impl Fn(&Cell) -> (usize, usize),
+    term: impl Fn(usize, &Cell, usize) -> (f64, f64),
+) -> (Vec<f64>, Vec<f64>) {
+    let (mut num, mut den) = (vec![0.0; n], vec![0.0; n]);
+    let mut run: Option<(usize, f64, f64)> = None;
+    for (k, c) in cells.iter().enumerate() {
+        let (i, j) = at(c);
+        let (a, b) = term(k, c, j);
+        run = match run {
+            Some((at_i, x, y)) if at_i == i => Some((i, x + a, y + b)),
+            other => {
+                if let Some((done, x, y)) = other {
+                    num[done] = x;
+                    den[done] = y;
+                }
+                Some((i, num[i] + a, den[i] + b))
+            }
+        };
+    }
+    if let Some((done, x, y)) = run {
+        num[done] = x;
+        den[done] = y;
+    }
+    (num, den)
 }
 
 /// One half-step of [`masked_nmf`]: component factor `this` (along `at(cell).0`) refitted
@@ -181,13 +231,10 @@ fn refit_component(
     other: &[f64],
     at: impl Fn(&Cell) -> (usize, usize),
 ) {
-    let (mut num, mut den) = (vec![0.0; this.len()], vec![0.0; this.len()]);
-    for (c, r) in data.off_diagonal.iter().zip(residual.iter()) {
-        let (i, j) = at(c);
-        let v = other[j];
-        num[i] += (r + this[i] * v) * v;
-        den[i] += v * v;
-    }
+    let (num, den) = accumulate(&data.off_diagonal, this.len(), &at, |k, c, j| {
+        let (i, v) = (at(c).0, other[j]);
+        ((residual[k] + this[i] * v) * v, v * v)
+    });
     let old = this.to_vec();
     for (x, (&n, &d)) in this.iter_mut().zip(num.iter().zip(&den)) {
         *x = nonnegative_quotient(n, d);
@@ -195,5 +242,94 @@ fn refit_component(
     for (c, r) in data.off_diagonal.iter().zip(residual.iter_mut()) {
         let (i, j) = at(c);
         *r -= (this[i] - old[i]) * other[j];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numeric::SplitMix64;
+
+    /// Two components on a 13 × 11 grid with a fifth of the cells missing (whole stretches
+    /// of some rows, as a guard band leaves them), rows not a multiple of four.
+    fn two_dyes_with_holes() -> (FitData, Factors) {
+        let (n_ex, n_em) = (13, 11);
+        let mut random = SplitMix64::new(7);
+        let mut data = FitData {
+            excitation_nm: (0..n_ex).map(|i| 300.0 + 10.0 * i as f64).collect(),
+            emission_nm: (0..n_em).map(|j| 400.0 + 10.0 * j as f64).collect(),
+            off_diagonal: Vec::new(),
+            diagonal: Vec::new(),
+            diagonal_positions: Vec::new(),
+            guard: Vec::new(),
+            stokes: Vec::new(),
+            anti_stokes: Vec::new(),
+            emission_bin_widths: vec![10.0; n_em],
+            emission_weight: vec![1.0; n_em],
+            guard_nm: 0.0,
+            crosstalk: None,
+        };
+        for row in 0..n_ex {
+            for column in 0..n_em {
+                if random.uniform() < 0.2 || (row == 5 && column < 6) {
+                    continue;
+                }
+                let a = [
+                    (-((row as f64 - 3.0) / 2.5).powi(2)).exp(),
+                    (-((row as f64 - 9.0) / 2.0).powi(2)).exp(),
+                ];
+                let e = [
+                    (-((column as f64 - 4.0) / 2.0).powi(2)).exp(),
+                    (-((column as f64 - 8.0) / 1.5).powi(2)).exp(),
+                ];
+                let value = 0.7 * a[0] * e[0] + 0.4 * a[1] * e[1] + 0.01 * (random.uniform() - 0.5);
+                data.off_diagonal.push(Cell { row, column, value });
+            }
+        }
+        let start = Factors {
+            rows: vec![
+                vec![0.5; n_ex],
+                (0..n_ex).map(|i| 0.1 + 0.05 * i as f64).collect(),
+            ],
+            columns: vec![
+                vec![0.3; n_em],
+                (0..n_em).map(|j| 0.2 + 0.02 * j as f64).collect(),
+            ],
+        };
+        (data, start)
+    }
+
+    #[test]
+    fn the_dense_sweep_equals_the_cell_walk_bit_for_bit_on_row_major_cells() {
+        let (data, start) = two_dyes_with_holes();
+        assert!(DenseCells::new(&data, &start.rows, &start.columns).is_some());
+        let fast = masked_nmf(&data, start.clone(), 40);
+        let reference = sparse_masked_nmf(&data, start, 40);
+        let bits = |f: &Factors| -> Vec<u64> {
+            f.rows
+                .iter()
+                .chain(&f.columns)
+                .flatten()
+                .map(|x| x.to_bits())
+                .collect()
+        };
+        assert_eq!(bits(&fast), bits(&reference));
+        // The factorisation did move: a test of two copies of the start would pass too.
+        assert!(
+            fast.rows[1]
+                .iter()
+                .zip(0..)
+                .any(|(x, i)| (x - (0.1 + 0.05 * i as f64)).abs() > 1e-3)
+        );
+    }
+
+    #[test]
+    fn cells_out_of_row_major_order_or_not_finite_take_the_cell_walk() {
+        let (mut data, start) = two_dyes_with_holes();
+        data.off_diagonal.swap(0, 1);
+        assert!(DenseCells::new(&data, &start.rows, &start.columns).is_none());
+        data.off_diagonal.swap(0, 1);
+        data.off_diagonal[3].value = f64::NAN;
+        assert!(DenseCells::new(&data, &start.rows, &start.columns).is_none());
     }
 }

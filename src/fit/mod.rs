@@ -31,6 +31,7 @@ mod colour_term;
 pub mod crosstalk;
 mod crosstalk_check;
 pub mod data;
+mod dense_nmf;
 pub mod escalate;
 mod grid_material;
 pub mod init;

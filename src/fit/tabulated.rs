@@ -621,7 +621,7 @@ fn fit_cells(
     fit.bic = Some(assess::bic(rss, noise_sigma, fit.parameter_count, &data));
     fit.warnings = warnings;
     fit.seconds = started.elapsed().as_secs_f64();
-    let lowered = material.lower_reflectance_to_energy_bound();
+    let (lowered, margins) = material.lower_reflectance_to_energy_bound_with_margins();
     if lowered > 1e-3 {
         material
             .fit
@@ -632,7 +632,7 @@ fn fit_cells(
                 "reflectance lowered by up to {lowered:.4} between grid samples to keep the energy albedo ≤ 1"
             ));
     }
-    material.conservation = Some(material.conservation_margins());
+    material.conservation = Some(margins);
     material.validate().map_err(|e| {
         Error::Fit(format!(
             "{}: the fitted material violates a constraint ({e}); this is a bug, please report it",

@@ -8,12 +8,8 @@
 
 use std::ops::RangeInclusive;
 
-use nalgebra::{DMatrix, DVector};
-
-use super::{
-    BandDomain, BandTerms, GaussianBands, PARAMS_PER_BAND, SigmoidPolynomial, legendre, logit,
-    position, sigmoid,
-};
+pub use super::sigmoid_fit::{SigmoidFit, fit_sigmoid_polynomial};
+use super::{BandDomain, BandTerms, GaussianBands, PARAMS_PER_BAND, check_samples};
 use crate::error::{Error, Result};
 
 use super::lm::{LeastSquares, SEED_STOPPING, STOPPING, levenberg_marquardt};
@@ -118,164 +114,6 @@ pub fn positive_range(values: &[f64]) -> Option<RangeInclusive<usize>> {
     Some(first..=last)
 }
 
-/// A sigmoid-polynomial reflectance fitted to samples.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SigmoidFit {
-    /// The form; its support is [first, last] sample wavelength.
-    pub form: SigmoidPolynomial,
-    /// Root mean square of fit − data over the samples, weighted by the weights when
-    /// given (√(Σ wᵢ rᵢ² / Σ wᵢ)).
-    pub rms: f64,
-}
-
-/// Fits a sigmoid of a degree-`degree` Legendre series to reflectance `values` sampled at
-/// `nm` (strictly increasing), minimising Σ wᵢ (fit − value)² with `weights` (default 1).
-///
-/// Values are expected in about [0, 1] and may hold noise slightly outside. The start is
-/// a weighted linear fit of the logit of the values (clamped into (0, 1)), which the
-/// Levenberg–Marquardt refinement then corrects on the true residual. Fails when the
-/// samples or weights are unusable or fewer samples have positive weight than the series
-/// has coefficients (degree + 1).
-pub fn fit_sigmoid_polynomial(
-    nm: &[f64],
-    values: &[f64],
-    weights: Option<&[f64]>,
-    degree: usize,
-) -> Result<SigmoidFit> {
-    let count = degree.checked_add(1).ok_or_else(|| {
-        Error::invalid(
-            "degree",
-            "is too large; use a degree below the sample count",
-        )
-    })?;
-    check_samples(nm, values, 1)?;
-    let weights: Vec<f64> = match weights {
-        None => vec![1.0; nm.len()],
-        Some(w) => {
-            if w.len() != nm.len() {
-                return Err(Error::invalid(
-                    "weights",
-                    format!(
-                        "has {} entries but there are {} samples; give one weight per sample",
-                        w.len(),
-                        nm.len()
-                    ),
-                ));
-            }
-            if let Some(i) = w.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
-                return Err(Error::invalid(
-                    format!("weights[{i}]"),
-                    format!("is {}; weights must be finite and non-negative", w[i]),
-                ));
-            }
-            w.to_vec()
-        }
-    };
-    let weighted = weights.iter().filter(|&&w| w > 0.0).count();
-    if weighted < count {
-        return Err(Error::invalid(
-            "degree",
-            format!(
-                "is {degree}, which needs at least {count} samples of positive weight, but there are {weighted}; lower the degree or give more samples"
-            ),
-        ));
-    }
-    let total_weight: f64 = weights.iter().sum();
-    if !total_weight.is_finite() {
-        return Err(Error::invalid(
-            "weights",
-            "sum beyond floating point; rescale them (only their ratios matter)",
-        ));
-    }
-    // Normalised weights keep the solver's scale independent of the caller's.
-    let root_weight: Vec<f64> = weights.iter().map(|w| (w / total_weight).sqrt()).collect();
-    if root_weight.iter().any(|w| !w.is_finite()) {
-        return Err(Error::invalid(
-            "weights",
-            "span too many orders of magnitude; rescale them",
-        ));
-    }
-    let support_nm = [nm[0], nm[nm.len() - 1]];
-    let mut basis = Vec::with_capacity(nm.len() * count);
-    for &l in nm {
-        legendre(position(support_nm, l), count, |_, p| basis.push(p));
-    }
-    let mut coefficients = logit_start(&basis, values, &weights, count);
-    let problem = SigmoidProblem {
-        basis: &basis,
-        values,
-        root_weight: &root_weight,
-        count,
-    };
-    let cost = levenberg_marquardt(&problem, &mut coefficients, STOPPING);
-    if !(cost.is_finite() && coefficients.iter().all(|c| c.is_finite())) {
-        return Err(Error::Fit(
-            "the reflectance fit diverged (non-finite coefficients); check that the values are a reflectance in about [0, 1]"
-                .into(),
-        ));
-    }
-    Ok(SigmoidFit {
-        form: SigmoidPolynomial {
-            support_nm,
-            coefficients,
-        },
-        // The residuals carry the normalised weights, so the cost is the weighted mean.
-        rms: cost.sqrt(),
-    })
-}
-
-/// Checks that `nm` and `values` are usable samples: as many of each, at least
-/// `min_samples`, finite, wavelengths positive and strictly increasing.
-fn check_samples(nm: &[f64], values: &[f64], min_samples: usize) -> Result<()> {
-    if nm.len() != values.len() {
-        return Err(Error::invalid(
-            "values",
-            format!(
-                "has {} samples but nm has {}; give one value per wavelength",
-                values.len(),
-                nm.len()
-            ),
-        ));
-    }
-    if nm.len() < min_samples.max(1) {
-        return Err(Error::invalid(
-            "nm",
-            format!(
-                "has {} samples; this fit needs at least {}",
-                nm.len(),
-                min_samples.max(1)
-            ),
-        ));
-    }
-    for (i, &l) in nm.iter().enumerate() {
-        if !(l.is_finite() && l > 0.0) {
-            return Err(Error::invalid(
-                format!("nm[{i}]"),
-                format!("is {l}; wavelengths must be positive finite numbers (nm)"),
-            ));
-        }
-        if i > 0 && l <= nm[i - 1] {
-            return Err(Error::invalid(
-                format!("nm[{i}]"),
-                format!(
-                    "is {l} nm, not above the previous sample's {} nm; sort the samples by wavelength and drop duplicates",
-                    nm[i - 1]
-                ),
-            ));
-        }
-    }
-    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-        return Err(Error::invalid(
-            format!("values[{i}]"),
-            format!(
-                "is {}; values must be finite (drop missing samples)",
-                values[i]
-            ),
-        ));
-    }
-    Ok(())
-}
-
 /// Adds bands one at a time up to `max_bands`, refining after each addition, and returns
 /// every fit until `done` accepts one. `bands_parameter` names `max_bands` in errors.
 fn grow_bands(
@@ -286,6 +124,30 @@ fn grow_bands(
     bands_parameter: &str,
     mut done: impl FnMut(&BandFit) -> bool,
 ) -> Result<Vec<BandFit>> {
+    let problem = band_problem(nm, values, domain, max_bands, bands_parameter)?;
+    let mut params = Vec::with_capacity(max_bands * PARAMS_PER_BAND);
+    let mut fits = Vec::new();
+    for _ in 0..max_bands {
+        params = add_band(&problem, &params)?;
+        let fit = polish(&problem, &params)?;
+        let accepted = done(&fit);
+        fits.push(fit);
+        if accepted {
+            break;
+        }
+    }
+    Ok(fits)
+}
+
+/// The band problem of `values` on `nm`, once the samples are checked for `max_bands`
+/// bands (`bands_parameter` names that count in errors).
+fn band_problem(
+    nm: &[f64],
+    values: &[f64],
+    domain: BandDomain,
+    max_bands: usize,
+    bands_parameter: &str,
+) -> Result<BandProblem> {
     let min_samples = max_bands.saturating_mul(PARAMS_PER_BAND);
     if nm.len() == values.len() && nm.len() < min_samples {
         return Err(Error::invalid(
@@ -306,39 +168,81 @@ fn grow_bands(
             ),
         ));
     }
-    let problem = BandProblem::new(nm, values, domain, peak)?;
-    let mut params = Vec::with_capacity(max_bands * PARAMS_PER_BAND);
-    let mut fits = Vec::new();
-    for _ in 0..max_bands {
-        // Each candidate is refined with the bands already placed; the best fit wins
-        // (the first on ties, so the result is deterministic).
-        let mut best: Option<(f64, Vec<f64>)> = None;
-        for band in problem.candidate_bands(&params, CANDIDATES) {
-            let mut trial = params.clone();
-            trial.extend_from_slice(&band);
-            problem.set_heights(&mut trial);
-            problem.project(&mut trial);
-            let cost = levenberg_marquardt(&problem, &mut trial, SEED_STOPPING);
-            if best.as_ref().is_none_or(|(c, _)| cost < *c) {
-                best = Some((cost, trial));
-            }
-        }
-        let Some((_, seed)) = best else {
-            return Err(Error::Fit("no starting band could be placed".into()));
-        };
-        // The next count grows from the loosely converged seed, and every fit returned
-        // is polished from it, so fit_bands(…, n) equals the n-th fit of any search.
-        let mut polished = seed.clone();
-        levenberg_marquardt(&problem, &mut polished, STOPPING);
-        params = seed;
-        let fit = problem.result(&polished)?;
-        let accepted = done(&fit);
-        fits.push(fit);
-        if accepted {
-            break;
+    BandProblem::new(nm, values, domain, peak)
+}
+
+/// The seed of one more band: each candidate placed beside the loosely converged bands
+/// `params` and refined with them; the best wins (the first on ties, so the result is
+/// deterministic).
+fn add_band(problem: &BandProblem, params: &[f64]) -> Result<Vec<f64>> {
+    let mut best: Option<(f64, Vec<f64>)> = None;
+    for band in problem.candidate_bands(params, CANDIDATES) {
+        let mut trial = params.to_vec();
+        trial.extend_from_slice(&band);
+        problem.set_heights(&mut trial);
+        problem.project(&mut trial);
+        let cost = levenberg_marquardt(problem, &mut trial, SEED_STOPPING);
+        if best.as_ref().is_none_or(|(c, _)| cost < *c) {
+            best = Some((cost, trial));
         }
     }
-    Ok(fits)
+    best.map(|(_, seed)| seed)
+        .ok_or_else(|| Error::Fit("no starting band could be placed".into()))
+}
+
+/// The fit polished from `seed`. The next count grows from the loosely converged seed,
+/// not from this, so `fit_bands(…, n)` equals the n-th fit of any search.
+fn polish(problem: &BandProblem, seed: &[f64]) -> Result<BandFit> {
+    let mut polished = seed.to_vec();
+    levenberg_marquardt(problem, &mut polished, STOPPING);
+    problem.result(&polished)
+}
+
+/// Band fits of one sampled curve at several band counts, sharing their growth: the
+/// seeds of 1, 2, … bands are kept, so the fit of n bands after that of m < n adds n − m
+/// bands instead of growing all n again (a model search asks for the same spectra with
+/// 1, 2 and 3 bands). Each fit equals [`fit_bands`]' with the same arguments, error
+/// included.
+pub struct BandGrowth {
+    nm: Vec<f64>,
+    values: Vec<f64>,
+    domain: BandDomain,
+    /// The problem, once built (it depends on the samples alone).
+    problem: Option<BandProblem>,
+    /// The seed of 1, 2, … bands, as far as grown.
+    seeds: Vec<Vec<f64>>,
+}
+
+impl BandGrowth {
+    /// The growth of `values` sampled at `nm` on `domain`, no band placed yet.
+    pub fn new(nm: &[f64], values: &[f64], domain: BandDomain) -> Self {
+        BandGrowth {
+            nm: nm.to_vec(),
+            values: values.to_vec(),
+            domain,
+            problem: None,
+            seeds: Vec::new(),
+        }
+    }
+
+    /// `n_bands` bands fitted as [`fit_bands`] fits them.
+    pub fn fit(&mut self, n_bands: usize) -> Result<BandFit> {
+        if n_bands == 0 {
+            return Err(Error::invalid(
+                "n_bands",
+                "is 0; a band fit needs at least one band",
+            ));
+        }
+        // Checked for this count every time: the sample count an error names depends on it.
+        let checked = band_problem(&self.nm, &self.values, self.domain, n_bands, "n_bands")?;
+        let problem = self.problem.get_or_insert(checked);
+        while self.seeds.len() < n_bands {
+            let last = self.seeds.last().map(Vec::as_slice).unwrap_or(&[]);
+            let seed = add_band(problem, last)?;
+            self.seeds.push(seed);
+        }
+        polish(problem, &self.seeds[n_bands - 1])
+    }
 }
 
 /// Residual peaks tried as the start of each added band. One: on the three dye files of
@@ -602,83 +506,6 @@ impl LeastSquares for BandProblem {
     }
 }
 
-/// A reflectance fit: residual √wᵢ (σ(Σⱼ cⱼ Pⱼ(xᵢ)) − vᵢ) with normalised weights.
-struct SigmoidProblem<'a> {
-    /// Pⱼ(xᵢ), row-major with `count` columns.
-    basis: &'a [f64],
-    values: &'a [f64],
-    root_weight: &'a [f64],
-    count: usize,
-}
-
-impl LeastSquares for SigmoidProblem<'_> {
-    fn residual_count(&self) -> usize {
-        self.values.len()
-    }
-
-    fn evaluate(&self, params: &[f64], residuals: &mut [f64], mut jacobian: Option<&mut [f64]>) {
-        let count = self.count;
-        for (i, r) in residuals.iter_mut().enumerate() {
-            let row = &self.basis[i * count..(i + 1) * count];
-            let p: f64 = row.iter().zip(params).map(|(b, c)| b * c).sum();
-            let s = sigmoid(p);
-            let w = self.root_weight[i];
-            *r = w * (s - self.values[i]);
-            if let Some(jacobian) = jacobian.as_deref_mut() {
-                let slope = w * s * (1.0 - s);
-                for (j, b) in row.iter().enumerate() {
-                    jacobian[j * self.values.len() + i] = slope * b;
-                }
-            }
-        }
-    }
-}
-
-/// Coefficients of the weighted linear least-squares fit of logit(values) on the basis.
-/// Each sample is weighted by σ'² at its value, the linearisation of the true residual,
-/// so that values near 0 or 1 (where the logit is unreliable) count little.
-fn logit_start(basis: &[f64], values: &[f64], weights: &[f64], count: usize) -> Vec<f64> {
-    let mut a = DMatrix::<f64>::zeros(count, count);
-    let mut b = DVector::<f64>::zeros(count);
-    let (mut sum_w, mut sum_wv) = (0.0, 0.0);
-    for (i, (&v, &w)) in values.iter().zip(weights).enumerate() {
-        let clamped = v.clamp(1e-4, 1.0 - 1e-4);
-        let slope = clamped * (1.0 - clamped);
-        let omega = w * slope * slope;
-        let target = logit(clamped);
-        let row = &basis[i * count..(i + 1) * count];
-        for j in 0..count {
-            b[j] += omega * row[j] * target;
-            for k in 0..count {
-                a[(j, k)] += omega * row[j] * row[k];
-            }
-        }
-        sum_w += w;
-        sum_wv += w * v;
-    }
-    let scale = (0..count).map(|j| a[(j, j)]).fold(0.0, f64::max);
-    for j in 0..count {
-        a[(j, j)] += 1e-12 * scale;
-    }
-    match a.cholesky() {
-        Some(c) if scale > 0.0 => {
-            let x = c.solve(&b);
-            if x.iter().all(|v| v.is_finite()) {
-                return x.iter().copied().collect();
-            }
-            flat_start(sum_wv / sum_w, count)
-        }
-        _ => flat_start(sum_wv / sum_w, count),
-    }
-}
-
-/// A constant reflectance at `mean` as Legendre coefficients.
-fn flat_start(mean: f64, count: usize) -> Vec<f64> {
-    let mut c = vec![0.0; count];
-    c[0] = logit(if mean.is_finite() { mean } else { 0.5 });
-    c
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -736,6 +563,53 @@ mod tests {
             assert_same_bands(&fit.bands, &truth, 1e-8);
             assert!(fit.rel_rms < 1e-10, "{}", fit.rel_rms);
         }
+    }
+
+    #[test]
+    fn a_growth_gives_each_count_what_fit_bands_gives_bit_for_bit() {
+        // A noisy three-band curve (the growth's seeds matter only where fits are not
+        // exact), asked for out of order and twice, then a count it has too few samples
+        // for, and a curve with no positive value.
+        let nm = grid(380.0, 720.0, 31);
+        let values: Vec<f64> = nm
+            .iter()
+            .enumerate()
+            .map(|(i, &l)| {
+                let band = |c: f64, w: f64, h: f64| h * (-0.5 * ((l - c) / w).powi(2)).exp();
+                band(450.0, 20.0, 1.0)
+                    + band(520.0, 35.0, 0.6)
+                    + band(610.0, 25.0, 0.3)
+                    + 0.01 * ((i * 7919 % 13) as f64 / 13.0 - 0.5)
+            })
+            .collect();
+        let bits = |fit: &BandFit| -> Vec<u64> {
+            fit.bands
+                .params()
+                .iter()
+                .chain([&fit.rms])
+                .map(|x| x.to_bits())
+                .collect()
+        };
+        for domain in [BandDomain::Wavenumber, BandDomain::Wavelength] {
+            let mut growth = BandGrowth::new(&nm, &values, domain);
+            for n in [3, 1, 2, 3, 4] {
+                let grown = growth.fit(n).unwrap();
+                let alone = fit_bands(&nm, &values, domain, n).unwrap();
+                assert_eq!(bits(&grown), bits(&alone), "{domain:?}, {n} bands");
+            }
+            let too_many = growth.fit(11).unwrap_err().to_string();
+            assert_eq!(
+                too_many,
+                fit_bands(&nm, &values, domain, 11).unwrap_err().to_string()
+            );
+            assert!(too_many.contains("n_bands"), "{too_many}");
+            assert!(growth.fit(0).is_err());
+        }
+        let flat = vec![0.0; nm.len()];
+        let none = BandGrowth::new(&nm, &flat, BandDomain::Wavenumber)
+            .fit(1)
+            .unwrap_err();
+        assert!(none.to_string().contains("peak at 0"), "{none}");
     }
 
     #[test]

@@ -13,6 +13,7 @@ use crate::spectrum::Spectrum;
 
 pub mod fit;
 mod lm;
+pub mod sigmoid_fit;
 
 /// The axis on which bands are Gaussian.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -451,6 +452,58 @@ pub struct FluorophoreForms {
     pub absorption: SpectralForm,
     /// e(λ) in 1/nm.
     pub emission: SpectralForm,
+}
+
+/// Checks that `nm` and `values` are usable samples: as many of each, at least
+/// `min_samples`, finite, wavelengths positive and strictly increasing.
+pub(crate) fn check_samples(nm: &[f64], values: &[f64], min_samples: usize) -> Result<()> {
+    if nm.len() != values.len() {
+        return Err(Error::invalid(
+            "values",
+            format!(
+                "has {} samples but nm has {}; give one value per wavelength",
+                values.len(),
+                nm.len()
+            ),
+        ));
+    }
+    if nm.len() < min_samples.max(1) {
+        return Err(Error::invalid(
+            "nm",
+            format!(
+                "has {} samples; this fit needs at least {}",
+                nm.len(),
+                min_samples.max(1)
+            ),
+        ));
+    }
+    for (i, &l) in nm.iter().enumerate() {
+        if !(l.is_finite() && l > 0.0) {
+            return Err(Error::invalid(
+                format!("nm[{i}]"),
+                format!("is {l}; wavelengths must be positive finite numbers (nm)"),
+            ));
+        }
+        if i > 0 && l <= nm[i - 1] {
+            return Err(Error::invalid(
+                format!("nm[{i}]"),
+                format!(
+                    "is {l} nm, not above the previous sample's {} nm; sort the samples by wavelength and drop duplicates",
+                    nm[i - 1]
+                ),
+            ));
+        }
+    }
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        return Err(Error::invalid(
+            format!("values[{i}]"),
+            format!(
+                "is {}; values must be finite (drop missing samples)",
+                values[i]
+            ),
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

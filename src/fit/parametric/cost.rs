@@ -119,7 +119,7 @@ impl<'a> Problem<'a> {
                 });
             }
         }
-        Problem {
+        let mut problem = Problem {
             data,
             layout,
             excitation_floor: WidthFloor::new(&excitation_u),
@@ -138,7 +138,10 @@ impl<'a> Problem<'a> {
             light_weight: vec![1.0; lights.len()],
             reflectance_support,
             reflectance_basis,
-        }
+            band_box: Vec::new(),
+        };
+        problem.band_box = problem.build_band_box();
+        problem
     }
 
     /// Scales each light's colour term by `weights` (one per light, in the order given to
@@ -318,7 +321,7 @@ impl<'a> Problem<'a> {
     fn cost_gradient_body(&self, theta: &[f64]) -> (f64, Vec<f64>) {
         let data = self.data;
         let layout = &self.layout;
-        let m = self.grid_model(theta);
+        let mut m = self.grid_model(theta);
         let k_count = m.kappa.len();
         let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
         let n_lights = self.patches.len();
@@ -335,7 +338,7 @@ impl<'a> Problem<'a> {
             .collect();
         // Without a zeroed buffer first: 0 + x is x, so the first component's terms are
         // written as the sum's first additions would leave them.
-        let mut model = Vec::with_capacity(n_ex * n_em);
+        let mut model = scratch::take();
         match weighted_emission.first() {
             Some(first) => {
                 for i in 0..n_ex {
@@ -353,14 +356,6 @@ impl<'a> Problem<'a> {
                 }
             }
         }
-        // Residuals (0 outside the cells), and the patch rows they add up to.
-        let residual: Vec<f64> = self
-            .cell_value
-            .iter()
-            .zip(&self.cell_mask)
-            .zip(&model)
-            .map(|((v, mask), f)| mask * (v - f))
-            .collect();
         let diag: Vec<(f64, Option<Projection>)> = (0..self.diagonal.len())
             .map(|p| {
                 let (d, projection) = self.diagonal_value(&m, p);
@@ -372,8 +367,19 @@ impl<'a> Problem<'a> {
                 (residual, projection)
             })
             .collect();
+        // Residuals (0 outside the cells), and the patch rows they add up to. The model's
+        // buffer becomes the residuals', then the adjoints' (one allocation of the matrix
+        // instead of three).
+        let mut residual = model;
+        for ((f, v), mask) in residual
+            .iter_mut()
+            .zip(&self.cell_value)
+            .zip(&self.cell_mask)
+        {
+            *f = mask * (v - *f);
+        }
         // Column sums Σ_i L_i·r_ij per light, then ΔLab per light.
-        let mut column_sum = vec![0.0; n_lights * n_em];
+        let mut column_sum = scratch::zeros(n_lights * n_em);
         for (i, row) in residual.chunks_exact(n_em).enumerate() {
             for (light, sums) in self.patches.iter().zip(column_sum.chunks_exact_mut(n_em)) {
                 let w = light.light_weights[i];
@@ -418,8 +424,8 @@ impl<'a> Problem<'a> {
                 .map(|(k, p)| self.light_weight[k / 3] * p * p)
                 .sum::<f64>();
         // The colour term's pull on residuals of column j: q (reradiated) and h (diagonal).
-        let mut q = vec![0.0; n_lights * n_em];
-        let mut h = vec![0.0; n_lights * n_em];
+        let mut q = scratch::zeros(n_lights * n_em);
+        let mut h = scratch::zeros(n_lights * n_em);
         for (l, light) in self.patches.iter().enumerate() {
             for j in 0..n_em {
                 let (mut qe, mut hr) = (0.0, 0.0);
@@ -442,30 +448,48 @@ impl<'a> Problem<'a> {
         // ∂cost/∂λ̄e_k through the photon form's row and cap factors.
         let mut mean_bar = vec![0.0; k_count];
         let mut r_bar = vec![0.0; self.diagonal.len()];
-        // Written row by row as 0 − δ (what subtracting from a zeroed buffer leaves).
-        let mut f_bar = Vec::with_capacity(n_ex * n_em);
-        let mut pull = vec![0.0; n_em];
-        for (i, (r_row, mask_row)) in residual
-            .chunks_exact(n_em)
+        // Written row by row as 0 − δ (what subtracting from a zeroed buffer leaves), over
+        // the residuals, which nothing reads after.
+        let mut f_bar = residual;
+        let mut light_weights = vec![0.0; n_lights];
+        for (i, (row, mask_row)) in f_bar
+            .chunks_exact_mut(n_em)
             .zip(self.cell_mask.chunks_exact(n_em))
             .enumerate()
         {
-            // δ_ij = w_i·r_ij + Σ_l L_li·q_lj on the cells.
-            pull.iter_mut().for_each(|p| *p = 0.0);
-            for (light, q_row) in self.patches.iter().zip(q.chunks_exact(n_em)) {
-                let w = light.light_weights[i];
-                for (p, qv) in pull.iter_mut().zip(q_row) {
-                    *p += w * qv;
-                }
+            // δ_ij = w_i·r_ij + Σ_l L_li·q_lj on the cells. The lights' pull is summed in
+            // registers four columns at a time, from 0 in light order as a zeroed row
+            // buffer summed it (which made four passes over memory per row).
+            for (w, light) in light_weights.iter_mut().zip(&self.patches) {
+                *w = light.light_weights[i];
             }
             let w = self.row_weight[i];
-            f_bar.extend(
-                r_row
-                    .iter()
-                    .zip(mask_row)
-                    .zip(&pull)
-                    .map(|((r, mask), p)| 0.0 - mask * (w * r + p)),
-            );
+            for (quad, (f, mask)) in row
+                .chunks_exact_mut(4)
+                .zip(mask_row.chunks_exact(4))
+                .enumerate()
+            {
+                let j = 4 * quad;
+                let mut pull = [0.0; 4];
+                for (l, wl) in light_weights.iter().enumerate() {
+                    let q4 = &q[l * n_em + j..l * n_em + j + 4];
+                    for t in 0..4 {
+                        pull[t] += wl * q4[t];
+                    }
+                }
+                for t in 0..4 {
+                    f[t] = 0.0 - mask[t] * (w * f[t] + pull[t]);
+                }
+            }
+            let done = n_em - n_em % 4;
+            for (j, (f, mask)) in row[done..].iter_mut().zip(&mask_row[done..]).enumerate() {
+                let j = done + j;
+                let mut pull = 0.0;
+                for (l, wl) in light_weights.iter().enumerate() {
+                    pull += wl * q[l * n_em + j];
+                }
+                *f = 0.0 - mask * (w * *f + pull);
+            }
         }
         for (p, (s, (r, projection))) in self.diagonal.iter().zip(&diag).enumerate() {
             if s.value.is_none() || *projection == Some(Projection::Free) {
@@ -622,12 +646,19 @@ impl<'a> Problem<'a> {
                 }
             }
         }
+        for buffer in [f_bar, column_sum, q, h]
+            .into_iter()
+            .chain(m.absorption_jacobian.drain(..))
+            .chain(m.emission_jacobian.drain(..))
+        {
+            scratch::give_back(buffer);
+        }
         (cost, gradient)
     }
 
     /// Moves band parameters into the box the objective penalises leaving (for starts).
     pub fn clamp_to_box(&self, theta: &mut [f64]) {
-        for (n, (low, high)) in self.band_box() {
+        for &(n, (low, high)) in &self.band_box {
             let p = &mut theta[n];
             *p = if p.is_finite() {
                 p.clamp(low, high)
@@ -640,8 +671,9 @@ impl<'a> Problem<'a> {
     /// (parameter index, lower, upper) for every band parameter: centres within half the
     /// measured span beyond its ends, width parameters below ln(twice the span), heights
     /// below e⁶. The widths' lower end only stops θ drifting where the hard floor
-    /// ([`WidthFloor`]) alone sets the width (e^θ under 1 % of the floor).
-    pub(super) fn band_box(&self) -> Vec<(usize, (f64, f64))> {
+    /// ([`WidthFloor`]) alone sets the width (e^θ under 1 % of the floor). Computed once,
+    /// in [`Problem::new`] (the `band_box` field).
+    fn build_band_box(&self) -> Vec<(usize, (f64, f64))> {
         let mut boxes = Vec::new();
         for k in 0..self.layout.spec.components {
             for (range, grid, floor) in [
@@ -697,11 +729,11 @@ impl<'a> Problem<'a> {
         self.emission_floor.solver_params(gaussian)
     }
 
-    /// The soft box on band parameters ([`Problem::band_box`]). Adds its gradient to
+    /// The soft box on band parameters (the `band_box` field). Adds its gradient to
     /// `gradient` and returns its cost.
     pub(super) fn band_penalty(&self, theta: &[f64], gradient: &mut [f64]) -> f64 {
         let mut cost = 0.0;
-        for (n, (low, high)) in self.band_box() {
+        for &(n, (low, high)) in &self.band_box {
             let p = theta[n];
             let outside = if p < low {
                 p - low
@@ -753,24 +785,4 @@ impl<'a> Problem<'a> {
     pub fn diagonal_positions(&self) -> Vec<(usize, usize)> {
         self.diagonal.iter().map(|d| (d.row, d.column)).collect()
     }
-}
-
-/// The bands of solver parameters `params` (widths held above `floor`) at every abscissa
-/// of `u`, with their derivatives by the parameters (one row of `params.len()` per
-/// abscissa).
-fn floored_bands_with_jacobian(
-    floor: &WidthFloor,
-    params: &[f64],
-    u: &[f64],
-) -> (Vec<f64>, Vec<f64>) {
-    let (gaussian, chains) = floor.widen(params);
-    let terms = BandTerms::new(&gaussian);
-    let mut jacobian = vec![0.0; u.len() * params.len()];
-    let values = u
-        .iter()
-        .zip(jacobian.chunks_exact_mut(params.len().max(1)))
-        .map(|(&u, g)| terms.value_gradient(u, g))
-        .collect();
-    floor.chain(&chains, &mut jacobian);
-    (values, jacobian)
 }

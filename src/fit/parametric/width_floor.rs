@@ -8,7 +8,8 @@
 //! is continuously differentiable in θ and c, and a band at least twice the floor is
 //! exactly the one θ names as its ln width (fits of broad bands do not move).
 
-use crate::parametric::PARAMS_PER_BAND;
+use super::scratch;
+use crate::parametric::{BandTerms, PARAMS_PER_BAND};
 
 /// The narrowest band, in local grid steps Δ. At σ = ¾Δ the samples within ±2σ of any
 /// centre span 3Δ, so at least three see the band's core; midway between two samples
@@ -152,6 +153,26 @@ const BLEND_END: f64 = 2.0;
 /// The smallest x a start gives a band: a band pinned at the floor has ∂w/∂θ ≈ 0, so it
 /// starts where the data can still widen it (w = 1.06·f, ∂ln w/∂θ = 0.12).
 const START_X: f64 = 0.5;
+
+/// The bands of solver parameters `params` (widths held above `floor`) at every abscissa
+/// of `u`, with their derivatives by the parameters (one row of `params.len()` per
+/// abscissa).
+pub(super) fn floored_bands_with_jacobian(
+    floor: &WidthFloor,
+    params: &[f64],
+    u: &[f64],
+) -> (Vec<f64>, Vec<f64>) {
+    let (gaussian, chains) = floor.widen(params);
+    let terms = BandTerms::new(&gaussian);
+    let mut jacobian = scratch::zeros(u.len() * params.len());
+    let values = u
+        .iter()
+        .zip(jacobian.chunks_exact_mut(params.len().max(1)))
+        .map(|(&u, g)| terms.value_gradient(u, g))
+        .collect();
+    floor.chain(&chains, &mut jacobian);
+    (values, jacobian)
+}
 
 #[cfg(test)]
 mod tests {

@@ -3,6 +3,8 @@
 
 use super::*;
 use rayon::prelude::*;
+use std::cell::RefCell;
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Whether the energy form's photon law binds in `material` and may cost fit: for some
@@ -259,12 +261,7 @@ pub(super) fn fit_candidate(
             },
             _ => start(&problem, ctx, parent.filter(|_| with_parent), kind),
         };
-        theta0
-            .and_then(|t| refine(&problem, &t, options, ctx.tolerance, ctx.cancel))
-            .map(|(theta, refined)| {
-                let cost = problem.cost_gradient(&theta).0;
-                (theta, refined, cost)
-            })
+        theta0.and_then(|t| refine(&problem, &t, options, ctx.tolerance, ctx.cancel))
     };
     let refined_starts: Vec<Result<(Vec<f64>, crate::optimise::Refined, f64)>> = if ctx.parallel {
         // The nested start, the longest, begins first: begun last, the others' time
@@ -322,12 +319,13 @@ pub(super) fn fit_candidate(
     // The model bounds ρ on the grid; between samples (photon form: c·Φ·a(λ)·λ/λ̄e is
     // quadratic) it may pass 1 by a hair. Lowering r there keeps the law; a reflectance
     // form no longer matches the lowered samples and is dropped (r stays tabulated).
-    if material.lower_reflectance_to_energy_bound() > 0.0
+    let (lowered, margins) = material.lower_reflectance_to_energy_bound_with_margins();
+    if lowered > 0.0
         && let Some(forms) = material.forms.as_mut()
     {
         forms.reflectance = None;
     }
-    material.conservation = Some(material.conservation_margins());
+    material.conservation = Some(margins);
     // The samples were just tabulated from the forms: the search validates the chosen
     // candidate's forms against them once, not every candidate's.
     material
@@ -395,14 +393,14 @@ pub(super) fn fit_candidate(
     })
 }
 
-/// L-BFGS on the candidate's objective.
+/// L-BFGS on the candidate's objective: the optimum, the run, and the objective there.
 fn refine(
     problem: &Problem<'_>,
     theta0: &[f64],
     options: &FitOptions,
     tolerance: f64,
     cancel: Option<&AtomicBool>,
-) -> Result<(Vec<f64>, crate::optimise::Refined)> {
+) -> Result<(Vec<f64>, crate::optimise::Refined, f64)> {
     let (start_cost, start_gradient) = problem.cost_gradient(theta0);
     if !start_cost.is_finite() || start_gradient.iter().any(|g| !g.is_finite()) {
         return Err(Error::Fit(
@@ -419,8 +417,23 @@ fn refine(
         1.0
     };
     let ceiling = 1e12 * start_cost.max(1e-300) * scale;
+    // The objective at the points evaluated last, as (θ, cost): the solver's first
+    // evaluation is the start, whose objective is known, and its optimum is a point it
+    // evaluated, whose objective the candidate needs. Each was evaluated again (two of
+    // a start's 20–200 evaluations).
+    let recent: RefCell<VecDeque<(Vec<f64>, f64)>> = RefCell::new(VecDeque::new());
     let function = |theta: &[f64]| {
-        let (cost, gradient) = problem.cost_gradient(theta);
+        let (cost, gradient) = if same_bits(theta, theta0) {
+            (start_cost, start_gradient.clone())
+        } else {
+            problem.cost_gradient(theta)
+        };
+        if let Ok(mut recent) = recent.try_borrow_mut() {
+            if recent.len() == RECENT_EVALUATIONS {
+                recent.pop_front();
+            }
+            recent.push_back((theta.to_vec(), cost));
+        }
         if cost.is_finite() && gradient.iter().all(|g| g.is_finite()) {
             (cost * scale, gradient.iter().map(|g| g * scale).collect())
         } else {
@@ -441,5 +454,23 @@ fn refine(
             "the solver left the parameter space (non-finite parameters)".into(),
         ));
     }
-    Ok((refined.theta.clone(), refined))
+    let known = recent
+        .borrow()
+        .iter()
+        .rev()
+        .find(|(theta, _)| same_bits(theta, &refined.theta))
+        .map(|&(_, cost)| cost);
+    let cost = known.unwrap_or_else(|| problem.cost_gradient(&refined.theta).0);
+    Ok((refined.theta.clone(), refined, cost))
 }
+
+/// Whether `a` and `b` are the same parameters to the bit (the objective's bits follow
+/// its parameters' bits; −0 and 0 compare equal but need not give the same ones).
+fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
+/// How many of its last evaluations [`refine`] keeps to find its optimum's objective
+/// among: the optimum is the last accepted point, and a line search evaluates a few
+/// trial points after it at most.
+const RECENT_EVALUATIONS: usize = 8;

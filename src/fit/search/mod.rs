@@ -18,7 +18,7 @@ use crate::fit::assess::worst;
 use crate::material::YieldForm;
 use crate::material::{Candidate, FitReport, Material, ModelSearch};
 use crate::measurement::Measurement;
-use crate::parametric::fit::{fit_bands, fit_sigmoid_polynomial};
+use crate::parametric::fit::{BandGrowth, fit_bands, fit_sigmoid_polynomial};
 use crate::parametric::{BandDomain, PARAMS_PER_BAND, logit};
 
 use super::assess::bic;
