@@ -20,42 +20,11 @@ pub fn predict(
         Units::PerBin => bin_widths(emission_nm),
         Units::PerNm => vec![1.0; emission_nm.len()],
     };
-    let moments = material.emission_moments();
-    // Each fluorophore's factors once per row and once per column, not once per cell:
-    // the cell's value is the same sum of the same products as
-    // [`Material::fluorescence_with`]'s, bit for bit (it was 3 % of a model search).
-    let reradiated: Vec<Vec<f64>> = material
-        .fluorophores
-        .iter()
-        .zip(&moments)
-        .map(|(f, &(_, mean))| {
-            excitation_nm
-                .iter()
-                .map(|&li| f.reradiated_with_mean(li, mean))
-                .collect()
-        })
+    let fluorescence = material.fluorescence_on_grid(excitation_nm, emission_nm);
+    let values: Vec<f64> = fluorescence
+        .chunks_exact(emission_nm.len().max(1))
+        .flat_map(|row| row.iter().zip(&widths).map(|(f, w)| f * w))
         .collect();
-    let emitted: Vec<Vec<f64>> = material
-        .fluorophores
-        .iter()
-        .map(|f| {
-            emission_nm
-                .iter()
-                .map(|&lo| f.emission.eval_zero_outside(lo))
-                .collect()
-        })
-        .collect();
-    let mut values = Vec::with_capacity(excitation_nm.len() * emission_nm.len());
-    for i in 0..excitation_nm.len() {
-        for (j, w) in widths.iter().enumerate() {
-            let fluorescence: f64 = reradiated
-                .iter()
-                .zip(&emitted)
-                .map(|(r, e)| r[i] * e[j])
-                .sum();
-            values.push(fluorescence * w);
-        }
-    }
     let mut m = Measurement {
         name: name.to_string(),
         source: None,

@@ -173,8 +173,8 @@ impl DenseCells {
     }
 }
 
-/// The non-negative least-squares entry num/den, 0 where no cell constrains it (as the
-/// list walk's).
-fn nonnegative_quotient(num: f64, den: f64) -> f64 {
+/// The exact non-negative least-squares solution num/den of one factor entry, 0 where no
+/// cell constrains it (the dense sweep's and the cell walk's).
+pub(super) fn nonnegative_quotient(num: f64, den: f64) -> f64 {
     if den > 0.0 { (num / den).max(0.0) } else { 0.0 }
 }

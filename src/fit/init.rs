@@ -3,7 +3,7 @@
 //! solve), then the diagonal minus the fluorescent term.
 
 use super::data::{Cell, FitData};
-use super::dense_nmf::DenseCells;
+use super::dense_nmf::{DenseCells, nonnegative_quotient};
 
 /// A rank-1 factorisation M ≈ u·vᵀ of the off-diagonal cells.
 #[derive(Debug, Clone)]
@@ -160,12 +160,6 @@ pub(super) fn by_column(c: &Cell) -> (usize, usize) {
     (c.column, c.row)
 }
 
-/// The exact non-negative least-squares solution num/den of one factor entry, 0 where no
-/// cell constrains it.
-fn nonnegative_quotient(num: f64, den: f64) -> f64 {
-    if den > 0.0 { (num / den).max(0.0) } else { 0.0 }
-}
-
 /// One half-step of alternating least squares on `cells`: the non-negative factor along
 /// `at(cell).0` (length `n`) that best fits the cells given the other factor `other`
 /// (along `at(cell).1`), each cell weighted by `weights` (all 1 when None).
@@ -176,7 +170,7 @@ pub(super) fn fit_factor(
     n: usize,
     at: impl Fn(&Cell) -> (usize, usize),
 ) -> Vec<f64> {
-    let (num, den) = accumulate(cells, n, &at, |k, c, j| {
+    let (num, den) = accumulate(cells, n, &at, |k, c, _, j| {
         let w = weights.map_or(1.0, |w| w[k]);
         (w * c.value * other[j], w * other[j] * other[j])
     });
@@ -186,8 +180,8 @@ pub(super) fn fit_factor(
         .collect()
 }
 
-/// Σ of `term(k, cell k, j)`'s two parts over `cells` into `n` sums each, cell k adding to
-/// entry i where (i, j) = `at(cell)`, in cell order. A run of cells with the same i (a
+/// Σ of `term(k, cell k, i, j)`'s two parts over `cells` into `n` sums each, cell k adding
+/// to entry i where (i, j) = `at(cell)`, in cell order. A run of cells with the same i (a
 /// row's cells, for the half-step that fits the rows) is summed in registers: the same
 /// additions in the same order, without each waiting on the last one's store (the
 /// factorisations' half-steps were 8 % of a noise-aware search).
@@ -196,13 +190,13 @@ fn accumulate(
     cells: &[Cell],
     n: usize,
     at: &impl Fn(&Cell) -> (usize, usize),
-    term: impl Fn(usize, &Cell, usize) -> (f64, f64),
+    term: impl Fn(usize, &Cell, usize, usize) -> (f64, f64),
 ) -> (Vec<f64>, Vec<f64>) {
     let (mut num, mut den) = (vec![0.0; n], vec![0.0; n]);
     let mut run: Option<(usize, f64, f64)> = None;
     for (k, c) in cells.iter().enumerate() {
         let (i, j) = at(c);
-        let (a, b) = term(k, c, j);
+        let (a, b) = term(k, c, i, j);
         run = match run {
             Some((at_i, x, y)) if at_i == i => Some((i, x + a, y + b)),
             other => {
@@ -231,8 +225,8 @@ fn refit_component(
     other: &[f64],
     at: impl Fn(&Cell) -> (usize, usize),
 ) {
-    let (num, den) = accumulate(&data.off_diagonal, this.len(), &at, |k, c, j| {
-        let (i, v) = (at(c).0, other[j]);
+    let (num, den) = accumulate(&data.off_diagonal, this.len(), &at, |k, _, i, j| {
+        let v = other[j];
         ((residual[k] + this[i] * v) * v, v * v)
     });
     let old = this.to_vec();

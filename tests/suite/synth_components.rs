@@ -492,3 +492,30 @@ fn synth_writes_all_files_or_none() {
         "only the folder in the way remains"
     );
 }
+
+/// The matrix on a grid is each cell's `fluorescence_with`, bit for bit: two components,
+/// one of them in the photon form (Q(λ) grows with λ), on grids that reach past the
+/// spectra's samples (zero outside) and fall between them.
+#[test]
+fn the_fluorescence_on_a_grid_is_each_cells_value_bit_for_bit() {
+    let mut truth = SynthSpec::preset("two-dyes").unwrap().truth().unwrap();
+    assert_eq!(truth.fluorophores.len(), 2);
+    truth.fluorophores[1].yield_form = YieldForm::Photon;
+    let excitation: Vec<f64> = (0..37).map(|i| 251.5 + 13.0 * i as f64).collect();
+    let emission: Vec<f64> = (0..29).map(|j| 333.3 + 17.0 * j as f64).collect();
+    let grid = truth.fluorescence_on_grid(&excitation, &emission);
+    let moments = truth.emission_moments();
+    let mut nonzero = 0;
+    for (i, &li) in excitation.iter().enumerate() {
+        for (j, &lo) in emission.iter().enumerate() {
+            let cell = truth.fluorescence_with(li, lo, &moments);
+            assert_eq!(
+                grid[i * emission.len() + j].to_bits(),
+                cell.to_bits(),
+                "{li} → {lo}"
+            );
+            nonzero += usize::from(cell > 0.0);
+        }
+    }
+    assert!(nonzero > 100, "{nonzero}");
+}

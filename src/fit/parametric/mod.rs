@@ -255,7 +255,7 @@ pub struct Problem<'a> {
     reflectance_basis: Vec<f64>,
     /// (parameter index, lower, upper) for every band parameter: the box the objective
     /// penalises leaving. Fixed by the grids and the layout; built in every evaluation,
-    /// it was 1–2 % of a search.
+    /// it was about 1 % of a noise-aware search (perf).
     band_box: Vec<(usize, (f64, f64))>,
 }
 

@@ -428,12 +428,11 @@ fn refine(
         } else {
             problem.cost_gradient(theta)
         };
-        if let Ok(mut recent) = recent.try_borrow_mut() {
-            if recent.len() == RECENT_EVALUATIONS {
-                recent.pop_front();
-            }
-            recent.push_back((theta.to_vec(), cost));
+        let mut recent = recent.borrow_mut();
+        if recent.len() == RECENT_EVALUATIONS {
+            recent.pop_front();
         }
+        recent.push_back((theta.to_vec(), cost));
         if cost.is_finite() && gradient.iter().all(|g| g.is_finite()) {
             (cost * scale, gradient.iter().map(|g| g * scale).collect())
         } else {
