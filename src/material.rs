@@ -517,7 +517,19 @@ impl Material {
         reflectance: Spectrum,
         fluorophores: Vec<Fluorophore>,
     ) -> Self {
-        let mut m = Material {
+        let mut m = Material::without_margins(name, reflectance, fluorophores);
+        m.conservation = Some(m.conservation_margins());
+        m
+    }
+
+    /// A material from its parts without its conservation block (`conservation` is
+    /// `None`), for a caller that computes the block itself once the material is final.
+    pub fn without_margins(
+        name: impl Into<String>,
+        reflectance: Spectrum,
+        fluorophores: Vec<Fluorophore>,
+    ) -> Self {
+        Material {
             schema: SCHEMA.to_string(),
             name: name.into(),
             reflectance,
@@ -525,9 +537,7 @@ impl Material {
             fit: None,
             conservation: None,
             forms: None,
-        };
-        m.conservation = Some(m.conservation_margins());
-        m
+        }
     }
 
     /// Total fraction absorbed by fluorophores at `nm`: Σ c·a(λ).

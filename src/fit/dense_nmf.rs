@@ -173,6 +173,122 @@ impl DenseCells {
     }
 }
 
+/// A non-negative rank-1 fit of the cells with per-cell weights, by alternating weighted
+/// least squares: the same half-steps as the model search's list walk
+/// ([`super::init::fit_factor`] with weights), bit for bit, over the dense layout. A
+/// missing cell has weight 0 and value 0, so its terms (0·0)·x and (0·x)·x are zeros
+/// that leave each sum as it was, for finite x: where a weight or a factor entry is not
+/// finite, `None`, and the caller walks the list.
+pub(super) struct WeightedRankOne<'a> {
+    cells: &'a DenseCells,
+    /// The weights laid out as the cells are (0 outside them).
+    weight: Vec<f64>,
+}
+
+impl<'a> WeightedRankOne<'a> {
+    /// The fit of `cells` (from [`DenseCells::new`] on `data`) with `weights`, one per
+    /// cell of `data` in its order; `None` where their count differs or one is not
+    /// finite.
+    pub(super) fn new(cells: &'a DenseCells, data: &FitData, weights: &[f64]) -> Option<Self> {
+        let n_em = cells.n_em;
+        if weights.len() != data.off_diagonal.len() || weights.iter().any(|w| !w.is_finite()) {
+            return None;
+        }
+        let mut weight = vec![0.0; cells.mask.len()];
+        for (c, w) in data.off_diagonal.iter().zip(weights) {
+            weight[c.row * n_em + c.column] = *w;
+        }
+        Some(WeightedRankOne { cells, weight })
+    }
+
+    /// `sweeps` sweeps (rows, then columns) from column factor `column`: the row and
+    /// column factors, or `None` where an entry stops being finite.
+    pub(super) fn sweep(
+        &self,
+        mut column: Vec<f64>,
+        sweeps: usize,
+    ) -> Option<(Vec<f64>, Vec<f64>)> {
+        let n_em = self.cells.n_em;
+        let n_ex = self.weight.len() / n_em;
+        // Each factor is checked before the other is fitted from it: a 0·∞ term is NaN,
+        // and a NaN quotient would come back as 0 (`f64::max`), not as the list's value.
+        let finite = |x: &[f64]| x.iter().all(|x| x.is_finite());
+        let mut row = vec![0.0; n_ex];
+        if !finite(&column) {
+            return None;
+        }
+        for _ in 0..sweeps {
+            row = self.refit_rows(&column);
+            if !finite(&row) {
+                return None;
+            }
+            column = self.refit_columns(&row);
+            if !finite(&column) {
+                return None;
+            }
+        }
+        Some((row, column))
+    }
+
+    /// Per row, Σ_j (w·v)·c_j over Σ_j (w·c_j)·c_j, four rows at a time (one row's sum is
+    /// a chain of dependent additions).
+    fn refit_rows(&self, column: &[f64]) -> Vec<f64> {
+        let n_em = self.cells.n_em;
+        let (weights, values) = (&self.weight, &self.cells.value);
+        let mut out = Vec::with_capacity(weights.len() / n_em);
+        let block = 4 * n_em;
+        for (w4, v4) in weights.chunks_exact(block).zip(values.chunks_exact(block)) {
+            let w: [&[f64]; 4] = std::array::from_fn(|t| &w4[t * n_em..(t + 1) * n_em]);
+            let v: [&[f64]; 4] = std::array::from_fn(|t| &v4[t * n_em..(t + 1) * n_em]);
+            let (mut n, mut d) = ([0.0; 4], [0.0; 4]);
+            for (j, &c) in column.iter().enumerate() {
+                for t in 0..4 {
+                    n[t] += w[t][j] * v[t][j] * c;
+                    d[t] += w[t][j] * c * c;
+                }
+            }
+            out.extend((0..4).map(|t| nonnegative_quotient(n[t], d[t])));
+        }
+        // The rows left over (fewer than four), one at a time.
+        let done = out.len();
+        for (w, v) in weights
+            .chunks_exact(n_em)
+            .zip(values.chunks_exact(n_em))
+            .skip(done)
+        {
+            let (mut n, mut d) = (0.0, 0.0);
+            for (j, &c) in column.iter().enumerate() {
+                n += w[j] * v[j] * c;
+                d += w[j] * c * c;
+            }
+            out.push(nonnegative_quotient(n, d));
+        }
+        out
+    }
+
+    /// Per column, Σ_i (w·v)·r_i over Σ_i (w·r_i)·r_i in row order, every column
+    /// advancing together.
+    fn refit_columns(&self, row: &[f64]) -> Vec<f64> {
+        let n_em = self.cells.n_em;
+        let (mut num, mut den) = (vec![0.0; n_em], vec![0.0; n_em]);
+        for ((w, v), &r) in self
+            .weight
+            .chunks_exact(n_em)
+            .zip(self.cells.value.chunks_exact(n_em))
+            .zip(row)
+        {
+            for j in 0..n_em {
+                num[j] += w[j] * v[j] * r;
+                den[j] += w[j] * r * r;
+            }
+        }
+        num.iter()
+            .zip(&den)
+            .map(|(&n, &d)| nonnegative_quotient(n, d))
+            .collect()
+    }
+}
+
 /// The exact non-negative least-squares solution num/den of one factor entry, 0 where no
 /// cell constrains it (the dense sweep's and the cell walk's).
 pub(super) fn nonnegative_quotient(num: f64, den: f64) -> f64 {

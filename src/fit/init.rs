@@ -3,7 +3,7 @@
 //! solve), then the diagonal minus the fluorescent term.
 
 use super::data::{Cell, FitData};
-use super::dense_nmf::{DenseCells, nonnegative_quotient};
+use super::dense_nmf::{DenseCells, WeightedRankOne, nonnegative_quotient};
 
 /// A rank-1 factorisation M ≈ u·vᵀ of the off-diagonal cells.
 #[derive(Debug, Clone)]
@@ -120,6 +120,49 @@ pub fn masked_nmf(data: &FitData, start: Factors, sweeps: usize) -> Factors {
         }
         None => sparse_masked_nmf(data, start, sweeps),
     }
+}
+
+/// Non-negative rank-1 fit of the off-diagonal cells with per-cell `weights` (one per
+/// cell, in the list's order): alternating weighted least squares, rows then columns,
+/// started from the weighted positive column mass. Over the dense layout where that gives
+/// the cell walk's bits (the walk was 3 % of a noise-aware search).
+pub(super) fn weighted_rank_one(
+    data: &FitData,
+    weights: &[f64],
+    sweeps: usize,
+) -> (Vec<f64>, Vec<f64>) {
+    let column = positive_column_mass(data, weights);
+    DenseCells::new(data, &[], &[])
+        .as_ref()
+        .and_then(|cells| WeightedRankOne::new(cells, data, weights))
+        .and_then(|fit| fit.sweep(column, sweeps))
+        .unwrap_or_else(|| weighted_rank_one_by_cells(data, weights, sweeps))
+}
+
+/// The start of [`weighted_rank_one`]: Σ_i w·max(v, 0) per column.
+fn positive_column_mass(data: &FitData, weights: &[f64]) -> Vec<f64> {
+    let mut column = vec![0.0; data.n_emission()];
+    for (c, w) in data.off_diagonal.iter().zip(weights) {
+        column[c.column] += w * c.value.max(0.0);
+    }
+    column
+}
+
+/// [`weighted_rank_one`] walking the cell list: the reference the dense sweep equals bit
+/// for bit, and the path for cells it cannot take.
+fn weighted_rank_one_by_cells(
+    data: &FitData,
+    weights: &[f64],
+    sweeps: usize,
+) -> (Vec<f64>, Vec<f64>) {
+    let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
+    let mut column = positive_column_mass(data, weights);
+    let mut row = vec![0.0; n_ex];
+    for _ in 0..sweeps {
+        row = fit_factor(&data.off_diagonal, Some(weights), &column, n_ex, by_row);
+        column = fit_factor(&data.off_diagonal, Some(weights), &row, n_em, by_column);
+    }
+    (row, column)
 }
 
 /// [`masked_nmf`] over the cell list as it is ordered: the reference the dense sweep
@@ -325,5 +368,61 @@ mod tests {
         data.off_diagonal.swap(0, 1);
         data.off_diagonal[3].value = f64::NAN;
         assert!(DenseCells::new(&data, &start.rows, &start.columns).is_none());
+    }
+    #[test]
+    fn the_dense_weighted_rank_one_equals_the_cell_walk_bit_for_bit() {
+        let (data, _) = two_dyes_with_holes();
+        // Weights of every kind the starts give: zeros (cells another component
+        // explains), large and small, on cells with negative values (the noise term).
+        let weights: Vec<f64> = data
+            .off_diagonal
+            .iter()
+            .enumerate()
+            .map(|(k, c)| match k % 7 {
+                0 => 0.0,
+                1 => 1e4,
+                _ => 1.0 / (c.value.abs() + 0.03).powi(2),
+            })
+            .collect();
+        assert!(data.off_diagonal.iter().any(|c| c.value < 0.0));
+        let cells = DenseCells::new(&data, &[], &[]).unwrap();
+        let column = positive_column_mass(&data, &weights);
+        let dense = WeightedRankOne::new(&cells, &data, &weights)
+            .and_then(|fit| fit.sweep(column.clone(), 50))
+            .expect("finite weights and factors take the dense sweep");
+        let reference = weighted_rank_one_by_cells(&data, &weights, 50);
+        let bits = |(r, c): &(Vec<f64>, Vec<f64>)| -> Vec<u64> {
+            r.iter().chain(c).map(|x| x.to_bits()).collect()
+        };
+        assert_eq!(bits(&dense), bits(&reference));
+        assert_eq!(
+            bits(&weighted_rank_one(&data, &weights, 50)),
+            bits(&reference)
+        );
+        // The fit did move from its start, and follows the first dye's rows.
+        assert!(
+            dense
+                .1
+                .iter()
+                .zip(&column)
+                .any(|(a, b)| (a - b).abs() > 1e-6 * b.abs())
+        );
+        assert!(dense.0[3] > dense.0[12]);
+    }
+
+    #[test]
+    fn weights_or_factors_that_are_not_finite_take_the_cell_walk() {
+        let (data, _) = two_dyes_with_holes();
+        let cells = DenseCells::new(&data, &[], &[]).unwrap();
+        let mut weights = vec![1.0; data.off_diagonal.len()];
+        weights[4] = f64::INFINITY;
+        assert!(WeightedRankOne::new(&cells, &data, &weights).is_none());
+        assert!(WeightedRankOne::new(&cells, &data, &weights[1..]).is_none());
+        // A column start that is not finite: a 0·∞ term would be NaN, not the walk's.
+        weights[4] = 1.0;
+        let fit = WeightedRankOne::new(&cells, &data, &weights).unwrap();
+        let mut column = positive_column_mass(&data, &weights);
+        column[2] = f64::INFINITY;
+        assert!(fit.sweep(column, 5).is_none());
     }
 }

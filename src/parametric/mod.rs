@@ -159,7 +159,7 @@ pub fn bands_value_gradient(params: &[f64], u: f64, gradient: &mut [f64]) -> f64
 /// Raw band parameters with each band's height and width taken out of their logarithms
 /// once: a fit evaluates every band at every grid sample, and two of the three `exp` per
 /// band and sample were these (14 % of a two-component search's time went to `exp`).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct BandTerms {
     /// Per band: height, centre, width.
     bands: Vec<[f64; 3]>,
@@ -168,12 +168,20 @@ pub struct BandTerms {
 impl BandTerms {
     /// The terms of raw band parameters `params` (see [`GaussianBands::params`]).
     pub fn new(params: &[f64]) -> Self {
-        BandTerms {
-            bands: params
+        let mut terms = BandTerms::default();
+        terms.set(params);
+        terms
+    }
+
+    /// Makes these the terms of `params`, reusing their storage (an objective sets them
+    /// for every band spectrum of every evaluation).
+    pub fn set(&mut self, params: &[f64]) {
+        self.bands.clear();
+        self.bands.extend(
+            params
                 .chunks_exact(PARAMS_PER_BAND)
-                .map(|p| [p[0].exp(), p[1], p[2].exp()])
-                .collect(),
-        }
+                .map(|p| [p[0].exp(), p[1], p[2].exp()]),
+        );
     }
 
     /// The bands' value at solver coordinate `u`, ignoring the support, and its

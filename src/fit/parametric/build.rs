@@ -30,6 +30,16 @@ impl Problem<'_> {
     /// The material `theta` stands for: forms, their fine tabulation, c at its smallest
     /// feasible value per component (the gauge of the tabulated fit), and Q = k/c.
     pub fn material(&self, theta: &[f64], name: &str) -> Result<Material> {
+        let mut material = self.material_without_margins(theta, name)?;
+        material.conservation = Some(material.conservation_margins());
+        Ok(material)
+    }
+
+    /// [`Problem::material`] without its conservation block, for a caller that computes
+    /// it as it lowers the reflectance onto the energy bound
+    /// ([`Material::lower_reflectance_to_energy_bound_with_margins`]): each search of the
+    /// energy law's extrema was about 1 % of a noise-aware search.
+    pub fn material_without_margins(&self, theta: &[f64], name: &str) -> Result<Material> {
         let data = self.data;
         let spec = self.layout.spec;
         let gm = self.grid_model(theta);
@@ -204,7 +214,7 @@ impl Problem<'_> {
                 (Spectrum::new(diagonal_nm.clone(), r, "reflectance")?, None)
             }
         };
-        let mut material = Material::new(name.to_string(), reflectance, fluorophores);
+        let mut material = Material::without_margins(name.to_string(), reflectance, fluorophores);
         let absorbed_by = |l: f64| material.absorbed(l);
         // Feasible interval of each c with the others held: c ≥ k·γ, c·a ≤ 1 − d − Σ others.
         let ranges: Vec<[f64; 2]> = (0..material.fluorophores.len())
@@ -229,7 +239,6 @@ impl Problem<'_> {
             reflectance: reflectance_form,
             fluorophores: forms,
         });
-        // Material::new computed the conservation block; nothing since changes it.
         Ok(material)
     }
 }

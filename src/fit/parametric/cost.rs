@@ -1,6 +1,7 @@
 //! The parametric objective: the model on the grids for a parameter vector, the cost
 //! (matrix cells, colour term, penalties) and its analytic gradient.
 
+use super::scratch::Workspace;
 use super::*;
 
 impl<'a> Problem<'a> {
@@ -153,105 +154,6 @@ impl<'a> Problem<'a> {
         self
     }
 
-    /// The model's grid quantities at `theta`.
-    pub fn grid_model(&self, theta: &[f64]) -> GridModel {
-        let layout = &self.layout;
-        let data = self.data;
-        let k_count = layout.spec.components;
-        let mut m = GridModel {
-            kappa: layout.kappas(theta),
-            absorption: Vec::with_capacity(k_count),
-            absorption_peak: Vec::with_capacity(k_count),
-            peak_index: Vec::with_capacity(k_count),
-            emission: Vec::with_capacity(k_count),
-            normaliser: Vec::with_capacity(k_count),
-            emission_mean_nm: Vec::with_capacity(k_count),
-            shortest_absorbed_nm: Vec::with_capacity(k_count),
-            photon_factor: Vec::with_capacity(k_count),
-            scale: Vec::with_capacity(k_count),
-            excitation_factor: Vec::with_capacity(k_count),
-            cap_factor: Vec::with_capacity(k_count),
-            reflectance: Vec::new(),
-            absorption_jacobian: Vec::with_capacity(k_count),
-            emission_jacobian: Vec::with_capacity(k_count),
-        };
-        for k in 0..k_count {
-            let (raw, absorption_jacobian) = floored_bands_with_jacobian(
-                &self.excitation_floor,
-                &theta[layout.absorption(k)],
-                &self.excitation_u,
-            );
-            let (peak_index, peak) =
-                raw.iter().enumerate().fold(
-                    (0, f64::MIN),
-                    |best, (i, &v)| if v > best.1 { (i, v) } else { best },
-                );
-            let peak = peak.max(1e-300);
-            let absorption: Vec<f64> = raw.iter().map(|v| v / peak).collect();
-            let (emission, emission_jacobian) = floored_bands_with_jacobian(
-                &self.emission_floor,
-                &theta[layout.emission(k)],
-                &self.emission_u,
-            );
-            m.absorption_jacobian.push(absorption_jacobian);
-            m.emission_jacobian.push(emission_jacobian);
-            let (mut normaliser, mut moment) = (0.0, 0.0);
-            for ((e, w), l) in emission
-                .iter()
-                .zip(&data.emission_bin_widths)
-                .zip(&data.emission_nm)
-            {
-                normaliser += e * w;
-                moment += e * w * l;
-            }
-            let normaliser = normaliser.max(1e-300);
-            let mean = moment / normaliser;
-            let shortest = absorption
-                .iter()
-                .position(|&a| a >= ABSORPTION_FLOOR)
-                .map(|i| data.excitation_nm[i.saturating_sub(1)])
-                .unwrap_or(data.excitation_nm[0]);
-            let photon = layout.spec.photon();
-            let photon_factor = if photon {
-                1.0
-            } else {
-                (mean / shortest).max(1.0)
-            };
-            m.scale.push(m.kappa[k] / (photon_factor * normaliser));
-            let excitation_factor: Vec<f64> = if photon {
-                data.excitation_nm.iter().map(|l| l / mean).collect()
-            } else {
-                vec![1.0; data.excitation_nm.len()]
-            };
-            m.cap_factor
-                .push(excitation_factor.iter().map(|x| x.max(1.0)).collect());
-            m.excitation_factor.push(excitation_factor);
-            m.absorption.push(absorption);
-            m.absorption_peak.push(peak);
-            m.peak_index.push(peak_index);
-            m.emission.push(emission);
-            m.normaliser.push(normaliser);
-            m.emission_mean_nm.push(mean);
-            m.shortest_absorbed_nm.push(shortest);
-            m.photon_factor.push(photon_factor);
-        }
-        if let ReflectanceForm::Polynomial(_) = layout.spec.reflectance {
-            let coefficients = &theta[layout.reflectance()];
-            m.reflectance = self
-                .reflectance_basis
-                .chunks_exact(coefficients.len().max(1))
-                .map(|basis| {
-                    let mut p = 0.0;
-                    for (c, pn) in coefficients.iter().zip(basis) {
-                        p += c * pn;
-                    }
-                    sigmoid(p)
-                })
-                .collect();
-        }
-        m
-    }
-
     /// Σk κ_k·a_k·m_k at diagonal sample `d`: one minus the diagonal's cap (Σk κ_k·a_k
     /// in the energy form).
     pub(super) fn absorbed(&self, m: &GridModel, d: &DiagonalSample) -> f64 {
@@ -321,24 +223,41 @@ impl<'a> Problem<'a> {
     fn cost_gradient_body(&self, theta: &[f64]) -> (f64, Vec<f64>) {
         let data = self.data;
         let layout = &self.layout;
-        let mut m = self.grid_model(theta);
+        let mut workspace = scratch::take();
+        let Workspace {
+            model: m,
+            weighted_emission,
+            matrix: model,
+            diagonal: diag,
+            column_sum,
+            patch,
+            row_square,
+            q,
+            h,
+            scale_bar,
+            a_bar,
+            e_bar,
+            kappa_bar,
+            mean_bar,
+            r_bar,
+            light_weights,
+            column_adjoint,
+            row_dot,
+            g_bar,
+        } = &mut *workspace;
+        self.fill_grid_model(theta, m);
         let k_count = m.kappa.len();
         let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
         let n_lights = self.patches.len();
         // The model matrix, dense: F_ij = Σk s_k·a_ik·(e_jk·u_j).
-        let weighted_emission: Vec<Vec<f64>> = m
-            .emission
-            .iter()
-            .map(|e| {
-                e.iter()
-                    .zip(&self.column_factor)
-                    .map(|(e, u)| e * u)
-                    .collect()
-            })
-            .collect();
+        weighted_emission.resize_with(k_count, Vec::new);
+        for (weighted, e) in weighted_emission.iter_mut().zip(&m.emission) {
+            weighted.clear();
+            weighted.extend(e.iter().zip(&self.column_factor).map(|(e, u)| e * u));
+        }
         // Without a zeroed buffer first: 0 + x is x, so the first component's terms are
         // written as the sum's first additions would leave them.
-        let mut model = scratch::take();
+        model.clear();
         match weighted_emission.first() {
             Some(first) => {
                 for i in 0..n_ex {
@@ -356,21 +275,20 @@ impl<'a> Problem<'a> {
                 }
             }
         }
-        let diag: Vec<(f64, Option<Projection>)> = (0..self.diagonal.len())
-            .map(|p| {
-                let (d, projection) = self.diagonal_value(&m, p);
-                let s = &self.diagonal[p];
-                let residual = match (s.value, projection) {
-                    (None, _) | (_, Some(Projection::Free)) => 0.0,
-                    (Some(v), _) => v - model[s.row * n_em + s.column] - d,
-                };
-                (residual, projection)
-            })
-            .collect();
+        diag.clear();
+        diag.extend((0..self.diagonal.len()).map(|p| {
+            let (d, projection) = self.diagonal_value(m, p);
+            let s = &self.diagonal[p];
+            let residual = match (s.value, projection) {
+                (None, _) | (_, Some(Projection::Free)) => 0.0,
+                (Some(v), _) => v - model[s.row * n_em + s.column] - d,
+            };
+            (residual, projection)
+        }));
         // Residuals (0 outside the cells), and the patch rows they add up to. The model's
         // buffer becomes the residuals', then the adjoints' (one allocation of the matrix
         // instead of three).
-        let mut residual = model;
+        let residual = model;
         for ((f, v), mask) in residual
             .iter_mut()
             .zip(&self.cell_value)
@@ -379,7 +297,7 @@ impl<'a> Problem<'a> {
             *f = mask * (v - *f);
         }
         // Column sums Σ_i L_i·r_ij per light, then ΔLab per light.
-        let mut column_sum = scratch::zeros(n_lights * n_em);
+        scratch::zeroed(column_sum, n_lights * n_em);
         for (i, row) in residual.chunks_exact(n_em).enumerate() {
             for (light, sums) in self.patches.iter().zip(column_sum.chunks_exact_mut(n_em)) {
                 let w = light.light_weights[i];
@@ -391,7 +309,7 @@ impl<'a> Problem<'a> {
         // Each light and channel's sum over the columns in column order, the twelve
         // sums advancing together: one after another, each was a chain of dependent
         // additions (perf annotate).
-        let mut patch = vec![0.0; n_lights * 3];
+        scratch::zeroed(patch, n_lights * 3);
         for j in 0..n_em {
             let diagonal = self.diagonal_of_column[j].map(|p| diag[p].0);
             for (l, light) in self.patches.iter().enumerate() {
@@ -406,12 +324,12 @@ impl<'a> Problem<'a> {
             }
         }
         let mut cost = 0.0;
-        let mut row_square = vec![0.0; n_ex];
-        row_squares(&residual, n_em, &mut row_square);
+        scratch::zeroed(row_square, n_ex);
+        row_squares(residual, n_em, row_square);
         for (square, w) in row_square.iter().zip(&self.row_weight) {
             cost += 0.5 * w * square;
         }
-        for (s, (r, _)) in self.diagonal.iter().zip(&diag) {
+        for (s, (r, _)) in self.diagonal.iter().zip(diag.iter()) {
             cost += 0.5 * self.row_weight[s.row] * r * r;
         }
         // One sum in patch order, each term scaled by its light's weight (exactly 1 unless
@@ -424,8 +342,12 @@ impl<'a> Problem<'a> {
                 .map(|(k, p)| self.light_weight[k / 3] * p * p)
                 .sum::<f64>();
         // The colour term's pull on residuals of column j: q (reradiated) and h (diagonal).
-        let mut q = scratch::zeros(n_lights * n_em);
-        let mut h = scratch::zeros(n_lights * n_em);
+        // q is kept by quads of columns, each quad's lights side by side (lanes past the
+        // last column 0), as the adjoint loop below reads it; without lights, one quad of
+        // zeros per quad of columns.
+        let quad_len = 4 * n_lights.max(1);
+        scratch::zeroed(q, n_em.div_ceil(4) * quad_len);
+        scratch::zeroed(h, n_lights * n_em);
         for (l, light) in self.patches.iter().enumerate() {
             for j in 0..n_em {
                 let (mut qe, mut hr) = (0.0, 0.0);
@@ -434,24 +356,24 @@ impl<'a> Problem<'a> {
                     qe += p * light.emitted[channel][j];
                     hr += p * light.reflected[channel][j];
                 }
-                q[l * n_em + j] = qe * self.density_factor[j];
+                q[j / 4 * quad_len + 4 * l + j % 4] = qe * self.density_factor[j];
                 h[l * n_em + j] = hr;
             }
         }
 
         // Adjoints: ∂cost/∂F for every cell (F̄ = −δ), gathered densely, then through
         // the factors (two matrix-vector products per component).
-        let mut scale_bar = vec![0.0; k_count];
-        let mut a_bar = vec![vec![0.0; n_ex]; k_count];
-        let mut e_bar = vec![vec![0.0; n_em]; k_count];
-        let mut kappa_bar = vec![0.0; k_count];
+        scratch::zeroed(scale_bar, k_count);
+        scratch::zeroed_rows(a_bar, k_count, n_ex);
+        scratch::zeroed_rows(e_bar, k_count, n_em);
+        scratch::zeroed(kappa_bar, k_count);
         // ∂cost/∂λ̄e_k through the photon form's row and cap factors.
-        let mut mean_bar = vec![0.0; k_count];
-        let mut r_bar = vec![0.0; self.diagonal.len()];
+        scratch::zeroed(mean_bar, k_count);
+        scratch::zeroed(r_bar, self.diagonal.len());
         // Written row by row as 0 − δ (what subtracting from a zeroed buffer leaves), over
         // the residuals, which nothing reads after.
-        let mut f_bar = residual;
-        let mut light_weights = vec![0.0; n_lights];
+        let f_bar = residual;
+        scratch::zeroed(light_weights, n_lights);
         for (i, (row, mask_row)) in f_bar
             .chunks_exact_mut(n_em)
             .zip(self.cell_mask.chunks_exact(n_em))
@@ -459,39 +381,28 @@ impl<'a> Problem<'a> {
         {
             // δ_ij = w_i·r_ij + Σ_l L_li·q_lj on the cells. The lights' pull is summed in
             // registers four columns at a time, from 0 in light order as a zeroed row
-            // buffer summed it (which made four passes over memory per row).
+            // buffer summed it (which made four passes over memory per row); the quads
+            // of q side by side keep the loads contiguous and free of bounds checks.
             for (w, light) in light_weights.iter_mut().zip(&self.patches) {
                 *w = light.light_weights[i];
             }
             let w = self.row_weight[i];
-            for (quad, (f, mask)) in row
-                .chunks_exact_mut(4)
-                .zip(mask_row.chunks_exact(4))
-                .enumerate()
-            {
-                let j = 4 * quad;
-                let mut pull = [0.0; 4];
-                for (l, wl) in light_weights.iter().enumerate() {
-                    let q4 = &q[l * n_em + j..l * n_em + j + 4];
-                    for t in 0..4 {
-                        pull[t] += wl * q4[t];
-                    }
-                }
-                for t in 0..4 {
-                    f[t] = 0.0 - mask[t] * (w * f[t] + pull[t]);
-                }
+            let (row_quads, row_tail) = row.as_chunks_mut::<4>();
+            let (mask_quads, mask_tail) = mask_row.as_chunks::<4>();
+            let mut q_quads = q.chunks_exact(quad_len);
+            for ((f, mask), q_quad) in row_quads.iter_mut().zip(mask_quads).zip(&mut q_quads) {
+                let pull = light_pull(light_weights, q_quad);
+                let old = *f;
+                *f = std::array::from_fn(|t| 0.0 - mask[t] * (w * old[t] + pull[t]));
             }
-            let done = n_em - n_em % 4;
-            for (j, (f, mask)) in row[done..].iter_mut().zip(&mask_row[done..]).enumerate() {
-                let j = done + j;
-                let mut pull = 0.0;
-                for (l, wl) in light_weights.iter().enumerate() {
-                    pull += wl * q[l * n_em + j];
+            if let Some(q_quad) = q_quads.next() {
+                let pull = light_pull(light_weights, q_quad);
+                for ((f, mask), pull) in row_tail.iter_mut().zip(mask_tail).zip(pull) {
+                    *f = 0.0 - mask * (w * *f + pull);
                 }
-                *f = 0.0 - mask * (w * *f + pull);
             }
         }
-        for (p, (s, (r, projection))) in self.diagonal.iter().zip(&diag).enumerate() {
+        for (p, (s, (r, projection))) in self.diagonal.iter().zip(diag.iter()).enumerate() {
             if s.value.is_none() || *projection == Some(Projection::Free) {
                 continue;
             }
@@ -504,7 +415,7 @@ impl<'a> Problem<'a> {
             let d_bar = -delta;
             let absorbed_bar = match projection {
                 None => {
-                    let cap = 1.0 - self.absorbed(&m, s);
+                    let cap = 1.0 - self.absorbed(m, s);
                     r_bar[p] += d_bar * cap;
                     -d_bar * m.reflectance[p]
                 }
@@ -522,11 +433,11 @@ impl<'a> Problem<'a> {
             }
         }
 
-        let mut column_adjoint = vec![0.0; n_em];
-        let mut row_dot = vec![0.0; n_ex];
+        scratch::zeroed(column_adjoint, n_em);
+        scratch::zeroed(row_dot, n_ex);
         for k in 0..k_count {
             column_adjoint.iter_mut().for_each(|v| *v = 0.0);
-            row_dots(&f_bar, &weighted_emission[k], &mut row_dot);
+            row_dots(f_bar, &weighted_emission[k], row_dot);
             for (i, row) in f_bar.chunks_exact(n_em).enumerate() {
                 let x = m.excitation_factor[k][i];
                 let a = m.absorption[k][i] * x;
@@ -543,7 +454,7 @@ impl<'a> Problem<'a> {
             }
             for ((eb, v), u) in e_bar[k]
                 .iter_mut()
-                .zip(&column_adjoint)
+                .zip(column_adjoint.iter())
                 .zip(&self.column_factor)
             {
                 *eb += m.scale[k] * u * v;
@@ -595,7 +506,8 @@ impl<'a> Problem<'a> {
             }
             // a = g/G with G the grid peak.
             let peak = m.absorption_peak[k];
-            let mut g_bar: Vec<f64> = a_bar[k].iter().map(|ab| ab / peak).collect();
+            g_bar.clear();
+            g_bar.extend(a_bar[k].iter().map(|ab| ab / peak));
             let through_peak: f64 = a_bar[k]
                 .iter()
                 .zip(&m.absorption[k])
@@ -646,13 +558,7 @@ impl<'a> Problem<'a> {
                 }
             }
         }
-        for buffer in [f_bar, column_sum, q, h]
-            .into_iter()
-            .chain(m.absorption_jacobian.drain(..))
-            .chain(m.emission_jacobian.drain(..))
-        {
-            scratch::give_back(buffer);
-        }
+        scratch::give_back(workspace);
         (cost, gradient)
     }
 
@@ -785,4 +691,17 @@ impl<'a> Problem<'a> {
     pub fn diagonal_positions(&self) -> Vec<(usize, usize)> {
         self.diagonal.iter().map(|d| (d.row, d.column)).collect()
     }
+}
+
+/// Σ_l w_l·q_l over one quad of columns, from 0 in light order: `q_quad` holds each
+/// light's four values in turn.
+#[inline(always)]
+fn light_pull(light_weights: &[f64], q_quad: &[f64]) -> [f64; 4] {
+    let mut pull = [0.0; 4];
+    for (wl, q4) in light_weights.iter().zip(q_quad.as_chunks::<4>().0) {
+        for t in 0..4 {
+            pull[t] += wl * q4[t];
+        }
+    }
+    pull
 }

@@ -25,12 +25,13 @@ use super::data::FitData;
 
 mod build;
 mod cost;
+mod grid_model;
 mod scratch;
 mod width_floor;
 
 pub use build::{TABULATION_STEP_NM, fine_grid};
 pub use width_floor::FLOOR_STEPS;
-use width_floor::{WidthFloor, floored_bands_with_jacobian};
+use width_floor::{BandBuffers, WidthFloor, floored_bands_with_jacobian};
 
 /// Absorption below this fraction of its peak counts as none for the photon law: a
 /// Gaussian tail never reaches zero, and without a floor every band would be "absorbing"
@@ -182,14 +183,6 @@ impl Layout {
     pub fn reflectance(&self) -> std::ops::Range<usize> {
         self.reflectance..self.len
     }
-
-    /// κ_k = sin²t_k for every component.
-    fn kappas(&self, theta: &[f64]) -> Vec<f64> {
-        theta[..self.spec.components]
-            .iter()
-            .map(|t| t.sin().powi(2))
-            .collect()
-    }
 }
 
 /// The colour weights of one light on the fit grids: CIELAB of the patch, linearised at
@@ -260,9 +253,9 @@ pub struct Problem<'a> {
 }
 
 /// The model's quantities on the grids for one parameter vector.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct GridModel {
-    /// κ_k.
+    /// κ_k = sin²t_k.
     pub kappa: Vec<f64>,
     /// a_ik normalised to max 1 on the excitation grid, per component.
     pub absorption: Vec<Vec<f64>>,
@@ -296,6 +289,8 @@ pub struct GridModel {
     absorption_jacobian: Vec<Vec<f64>>,
     /// The same for the emission at each emission sample.
     emission_jacobian: Vec<Vec<f64>>,
+    /// What the band evaluations work in.
+    bands: BandBuffers,
 }
 
 /// How a tabulated diagonal sample was projected onto its feasible interval.
@@ -402,11 +397,12 @@ mod tests {
     #[test]
     fn gradient_matches_central_differences() {
         let data = problem_data();
-        let lights = Light::standard();
+        // With the lights' colour term, and without lights (the starts' problems).
         let cases = [ReflectanceForm::Polynomial(4), ReflectanceForm::Tabulated]
             .into_iter()
-            .flat_map(|r| [YieldForm::Energy, YieldForm::Photon].map(|y| (r, y)));
-        for (reflectance, yield_form) in cases {
+            .flat_map(|r| [YieldForm::Energy, YieldForm::Photon].map(|y| (r, y)))
+            .flat_map(|c| [Light::standard(), Vec::new()].map(|l| (c, l)));
+        for ((reflectance, yield_form), lights) in cases {
             for (components, absorption_bands, emission_bands) in [(1, 1, 1), (2, 2, 1)] {
                 let spec = ModelSpec {
                     components,
@@ -431,6 +427,53 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+    #[test]
+    fn an_evaluation_does_not_depend_on_the_one_before_it() {
+        // The objective keeps its buffers per thread: evaluations of problems of other
+        // sizes (components, lights, reflectance) between two of the same point must not
+        // change its bits.
+        let data = problem_data();
+        let lights = Light::standard();
+        let reference: Vec<Xyz> = lights.iter().map(|_| [40.0, 35.0, 20.0]).collect();
+        let spec = |components, reflectance| ModelSpec {
+            components,
+            absorption_bands: 2,
+            emission_bands: 1,
+            reflectance,
+            domain: BandDomain::Wavenumber,
+            yield_form: YieldForm::Photon,
+        };
+        let problem = Problem::new(
+            &data,
+            spec(2, ReflectanceForm::Tabulated),
+            &lights,
+            &reference,
+            0.3,
+        );
+        let theta = theta_for(&problem.layout);
+        let first = problem.cost_gradient(&theta);
+        for (components, reflectance, lit) in [
+            (1, ReflectanceForm::Polynomial(4), false),
+            (3, ReflectanceForm::Polynomial(2), true),
+        ] {
+            let (l, r) = if lit {
+                (&lights[..], &reference[..])
+            } else {
+                (&[][..], &[][..])
+            };
+            let other = Problem::new(&data, spec(components, reflectance), l, r, 0.3);
+            other.cost_gradient(&theta_for(&other.layout));
+            let again = problem.cost_gradient(&theta);
+            assert_eq!(again.0.to_bits(), first.0.to_bits());
+            assert!(
+                again
+                    .1
+                    .iter()
+                    .zip(&first.1)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+            );
         }
     }
 }

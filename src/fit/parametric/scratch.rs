@@ -1,42 +1,76 @@
-//! Buffers an evaluation of the objective borrows and gives back, per thread. The
-//! matrix, the per-light column sums and the band Jacobians are each larger than glibc's
-//! per-thread cache takes (1 KiB); allocating and freeing them every evaluation was part
-//! of the 5 % of a noise-aware search spent in the allocator. Their contents are written
-//! before they are read, so an evaluation's bits do not depend on what a buffer held.
+//! What an evaluation of the objective works in, kept per thread from one evaluation to
+//! the next. Allocating and freeing its buffers (the grid model's, the matrix, the
+//! adjoints: about fifty per evaluation) took about 8 % of a noise-aware search (perf,
+//! HERPICER). Every buffer is cleared or zeroed before it is written, so an evaluation's
+//! bits do not depend on what the buffers held.
 
-use std::cell::RefCell;
+use std::cell::Cell;
 
-/// How many buffers a thread keeps: one evaluation gives back at most 4 + 2·K.
-const KEPT: usize = 16;
+use super::{GridModel, Projection};
+
+/// The buffers of one evaluation of [`super::Problem::cost_gradient`].
+#[derive(Debug, Default)]
+pub(super) struct Workspace {
+    /// The model's grid quantities.
+    pub model: GridModel,
+    /// e_jk·u_j per component.
+    pub weighted_emission: Vec<Vec<f64>>,
+    /// The model matrix, then its residuals, then its adjoints.
+    pub matrix: Vec<f64>,
+    /// Per diagonal sample: its residual and how it was projected.
+    pub diagonal: Vec<(f64, Option<Projection>)>,
+    /// Per light and column: Σ_i L_i·r_ij.
+    pub column_sum: Vec<f64>,
+    /// Per light and Lab channel: the linearised colour difference.
+    pub patch: Vec<f64>,
+    /// Per row: Σ_j r_ij².
+    pub row_square: Vec<f64>,
+    /// Per light and column: the colour term's pull on reradiated and diagonal residuals.
+    pub q: Vec<f64>,
+    pub h: Vec<f64>,
+    /// The adjoints of the scales, absorptions, emissions, κ, mean emission wavelengths
+    /// and reflectances.
+    pub scale_bar: Vec<f64>,
+    pub a_bar: Vec<Vec<f64>>,
+    pub e_bar: Vec<Vec<f64>>,
+    pub kappa_bar: Vec<f64>,
+    pub mean_bar: Vec<f64>,
+    pub r_bar: Vec<f64>,
+    /// A row's light weights.
+    pub light_weights: Vec<f64>,
+    /// Σ_i F̄_ij·a_ik·x_ik for one component.
+    pub column_adjoint: Vec<f64>,
+    /// Σ_j F̄_ij·e_jk·u_j for one component.
+    pub row_dot: Vec<f64>,
+    /// The adjoint of one component's unnormalised absorption.
+    pub g_bar: Vec<f64>,
+}
 
 thread_local! {
-    static FREE: RefCell<Vec<Vec<f64>>> = const { RefCell::new(Vec::new()) };
+    static KEPT: Cell<Option<Box<Workspace>>> = const { Cell::new(None) };
 }
 
-/// An empty buffer, with whatever capacity it was given back with.
-pub(in crate::fit::parametric) fn take() -> Vec<f64> {
-    let mut buffer = FREE
-        .try_with(|free| free.borrow_mut().pop())
-        .ok()
-        .flatten()
-        .unwrap_or_default();
+/// This thread's workspace, or a new one (the first evaluation on a thread, or one whose
+/// thread's workspace is lent out).
+pub(super) fn take() -> Box<Workspace> {
+    KEPT.try_with(Cell::take).ok().flatten().unwrap_or_default()
+}
+
+/// Keeps `workspace` for this thread's next evaluation.
+pub(super) fn give_back(workspace: Box<Workspace>) {
+    let _ = KEPT.try_with(|kept| kept.set(Some(workspace)));
+}
+
+/// `buffer` as `n` zeros.
+pub(super) fn zeroed(buffer: &mut Vec<f64>, n: usize) {
     buffer.clear();
-    buffer
-}
-
-/// `n` zeros in a buffer given back earlier where there is one.
-pub(in crate::fit::parametric) fn zeros(n: usize) -> Vec<f64> {
-    let mut buffer = take();
     buffer.resize(n, 0.0);
-    buffer
 }
 
-/// Keeps `buffer` for this thread's next evaluation.
-pub(in crate::fit::parametric) fn give_back(buffer: Vec<f64>) {
-    let _ = FREE.try_with(|free| {
-        let mut free = free.borrow_mut();
-        if free.len() < KEPT {
-            free.push(buffer);
-        }
-    });
+/// `rows` as `count` rows of `n` zeros each.
+pub(super) fn zeroed_rows(rows: &mut Vec<Vec<f64>>, count: usize, n: usize) {
+    rows.resize_with(count, Vec::new);
+    for row in rows.iter_mut() {
+        zeroed(row, n);
+    }
 }

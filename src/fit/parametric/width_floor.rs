@@ -8,7 +8,6 @@
 //! is continuously differentiable in θ and c, and a band at least twice the floor is
 //! exactly the one θ names as its ln width (fits of broad bands do not move).
 
-use super::scratch;
 use crate::parametric::{BandTerms, PARAMS_PER_BAND};
 
 /// The narrowest band, in local grid steps Δ. At σ = ¾Δ the samples within ±2σ of any
@@ -87,30 +86,40 @@ impl WidthFloor {
     /// Gaussian parameters (ln height, centre, ln width) of solver parameters
     /// `params`, and per band the derivatives of its ln width.
     pub fn widen(&self, params: &[f64]) -> (Vec<f64>, Vec<WidthChain>) {
-        let mut gaussian = params.to_vec();
-        let chains = gaussian
-            .chunks_exact_mut(PARAMS_PER_BAND)
-            .map(|band| {
-                let (f, slope) = self.at(band[1]);
-                let ln_x = band[2] - f.ln();
-                if ln_x >= BLEND_END.ln() {
-                    return WidthChain {
-                        by_theta: 1.0,
-                        by_centre: 0.0,
-                    };
-                }
-                // w = f·g(x), g = 1 + x²/4: g(2) = 2 and g'(2) = 1 meet w = e^θ.
-                let x2 = (2.0 * ln_x).exp();
-                let g = 1.0 + 0.25 * x2;
-                band[2] = f.ln() + g.ln();
-                let by_theta = 0.5 * x2 / g;
-                WidthChain {
-                    by_theta,
-                    by_centre: (1.0 - by_theta) * slope / f,
-                }
-            })
-            .collect();
+        let (mut gaussian, mut chains) = (Vec::new(), Vec::new());
+        self.widen_into(params, &mut gaussian, &mut chains);
         (gaussian, chains)
+    }
+
+    /// [`WidthFloor::widen`] written into `gaussian` and `chains`, reusing their storage.
+    pub fn widen_into(
+        &self,
+        params: &[f64],
+        gaussian: &mut Vec<f64>,
+        chains: &mut Vec<WidthChain>,
+    ) {
+        gaussian.clear();
+        gaussian.extend_from_slice(params);
+        chains.clear();
+        chains.extend(gaussian.chunks_exact_mut(PARAMS_PER_BAND).map(|band| {
+            let (f, slope) = self.at(band[1]);
+            let ln_x = band[2] - f.ln();
+            if ln_x >= BLEND_END.ln() {
+                return WidthChain {
+                    by_theta: 1.0,
+                    by_centre: 0.0,
+                };
+            }
+            // w = f·g(x), g = 1 + x²/4: g(2) = 2 and g'(2) = 1 meet w = e^θ.
+            let x2 = (2.0 * ln_x).exp();
+            let g = 1.0 + 0.25 * x2;
+            band[2] = f.ln() + g.ln();
+            let by_theta = 0.5 * x2 / g;
+            WidthChain {
+                by_theta,
+                by_centre: (1.0 - by_theta) * slope / f,
+            }
+        }));
     }
 
     /// Turns a Jacobian by Gaussian parameters (sample × parameter, row-major) into one
@@ -154,24 +163,41 @@ const BLEND_END: f64 = 2.0;
 /// starts where the data can still widen it (w = 1.06·f, ∂ln w/∂θ = 0.12).
 const START_X: f64 = 0.5;
 
+/// What [`floored_bands_with_jacobian`] works in, kept from one evaluation to the next.
+#[derive(Debug, Clone, Default)]
+pub(super) struct BandBuffers {
+    gaussian: Vec<f64>,
+    chains: Vec<WidthChain>,
+    terms: BandTerms,
+}
+
 /// The bands of solver parameters `params` (widths held above `floor`) at every abscissa
-/// of `u`, with their derivatives by the parameters (one row of `params.len()` per
-/// abscissa).
+/// of `u`, written to `values`, with their derivatives by the parameters written to
+/// `jacobian` (one row of `params.len()` per abscissa).
 pub(super) fn floored_bands_with_jacobian(
     floor: &WidthFloor,
     params: &[f64],
     u: &[f64],
-) -> (Vec<f64>, Vec<f64>) {
-    let (gaussian, chains) = floor.widen(params);
-    let terms = BandTerms::new(&gaussian);
-    let mut jacobian = scratch::zeros(u.len() * params.len());
-    let values = u
-        .iter()
-        .zip(jacobian.chunks_exact_mut(params.len().max(1)))
-        .map(|(&u, g)| terms.value_gradient(u, g))
-        .collect();
-    floor.chain(&chains, &mut jacobian);
-    (values, jacobian)
+    buffers: &mut BandBuffers,
+    values: &mut Vec<f64>,
+    jacobian: &mut Vec<f64>,
+) {
+    floor.widen_into(params, &mut buffers.gaussian, &mut buffers.chains);
+    buffers.terms.set(&buffers.gaussian);
+    jacobian.clear();
+    jacobian.resize(u.len() * params.len(), 0.0);
+    values.clear();
+    // Each row is chained while it is in registers (a second pass over the Jacobian
+    // was a tenth of this function's time).
+    values.extend(
+        u.iter()
+            .zip(jacobian.chunks_exact_mut(params.len().max(1)))
+            .map(|(&u, g)| {
+                let value = buffers.terms.value_gradient(u, g);
+                floor.chain(&buffers.chains, g);
+                value
+            }),
+    );
 }
 
 #[cfg(test)]

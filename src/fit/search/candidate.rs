@@ -315,7 +315,8 @@ pub(super) fn fit_candidate(
         return Err(last_error.unwrap_or_else(|| Error::Fit("no start".into())));
     };
     let m = ctx.m;
-    let mut material = problem.material(&theta, &m.name)?;
+    // Its conservation block comes from lowering r onto the energy bound, below.
+    let mut material = problem.material_without_margins(&theta, &m.name)?;
     // The model bounds ρ on the grid; between samples (photon form: c·Φ·a(λ)·λ/λ̄e is
     // quadratic) it may pass 1 by a hair. Lowering r there keeps the law; a reflectance
     // form no longer matches the lowered samples and is dropped (r stays tabulated).

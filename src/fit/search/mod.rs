@@ -23,7 +23,7 @@ use crate::parametric::{BandDomain, PARAMS_PER_BAND, logit};
 
 use super::assess::bic;
 use super::data::FitData;
-use super::init::{Factors, by_column, by_row, fit_factor, masked_nmf};
+use super::init::{Factors, masked_nmf, weighted_rank_one};
 use super::parametric::{ModelSpec, PHOTON_SUFFIX, Problem, ReflectanceForm};
 use super::representation::START_KAPPA_CAP;
 use super::tabulated::CrosstalkPlan;

@@ -620,23 +620,3 @@ fn split_factors(
         Factors { rows, columns }
     }
 }
-
-/// Non-negative rank-1 fit of the off-diagonal cells with per-cell weights (alternating
-/// weighted least squares, started from the positive column mass).
-pub(super) fn weighted_rank_one(
-    data: &FitData,
-    weights: &[f64],
-    sweeps: usize,
-) -> (Vec<f64>, Vec<f64>) {
-    let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
-    let mut column = vec![0.0; n_em];
-    for (c, w) in data.off_diagonal.iter().zip(weights) {
-        column[c.column] += w * c.value.max(0.0);
-    }
-    let mut row = vec![0.0; n_ex];
-    for _ in 0..sweeps {
-        row = fit_factor(&data.off_diagonal, Some(weights), &column, n_ex, by_row);
-        column = fit_factor(&data.off_diagonal, Some(weights), &row, n_em, by_column);
-    }
-    (row, column)
-}
