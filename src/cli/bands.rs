@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use fluorite::Error;
+use fluorite::fit::BandAxisChoice;
 use fluorite::import::{read_spectrum, spectrum_columns};
 use fluorite::parametric::fit::{
     BandFit, check_band_search, fit_bands_to_tolerance, positive_range,
@@ -21,9 +22,10 @@ pub struct BandsArgs {
     /// over its measured range (first to last positive value).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
-    /// The axis the bands are Gaussian in.
-    #[arg(long, value_enum, default_value = "both")]
-    pub domain: DomainChoice,
+    /// The axis the bands are Gaussian in: wavenumber, wavelength, or both (each curve
+    /// fitted on each, to compare them).
+    #[arg(long, value_enum, default_value = "both", hide_possible_values = true)]
+    pub domain: BandAxisChoice,
     /// Largest accepted RMS of fit − data, as a fraction of the curve's peak.
     #[arg(long, default_value_t = 0.01)]
     pub tolerance: f64,
@@ -34,27 +36,6 @@ pub struct BandsArgs {
     /// of tables.
     #[arg(long)]
     pub json: bool,
-}
-
-/// Which band domains to fit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum DomainChoice {
-    /// Gaussian in wavenumber.
-    Wavenumber,
-    /// Gaussian in wavelength.
-    Wavelength,
-    /// Both, to compare them.
-    Both,
-}
-
-impl DomainChoice {
-    fn domains(self) -> &'static [BandDomain] {
-        match self {
-            DomainChoice::Wavenumber => &[BandDomain::Wavenumber],
-            DomainChoice::Wavelength => &[BandDomain::Wavelength],
-            DomainChoice::Both => &[BandDomain::Wavenumber, BandDomain::Wavelength],
-        }
-    }
 }
 
 /// One fit attempt in the JSON output.
@@ -102,7 +83,7 @@ pub fn run(args: BandsArgs) -> anyhow::Result<ExitCode> {
             };
             let nm = &spectrum.wavelength_nm[range.clone()];
             let values = &spectrum.value[range];
-            for &domain in args.domain.domains() {
+            for &domain in args.domain.axes() {
                 let start = Instant::now();
                 let fits =
                     fit_bands_to_tolerance(nm, values, domain, args.max_bands, args.tolerance)
@@ -126,7 +107,7 @@ pub fn run(args: BandsArgs) -> anyhow::Result<ExitCode> {
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&results)?);
-    } else if args.domain == DomainChoice::Both {
+    } else if args.domain == BandAxisChoice::Both {
         print_totals(&results);
     }
     Ok(ExitCode::SUCCESS)

@@ -543,7 +543,7 @@ fn bands_command_reports_each_curve() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("possible values: wavenumber, wavelength, both"),
+        err.contains("possible values: both, wavenumber, wavelength"),
         "{err}"
     );
 }
