@@ -286,8 +286,8 @@ impl<'a> Problem<'a> {
             (residual, projection)
         }));
         // Residuals (0 outside the cells), and the patch rows they add up to. The model's
-        // buffer becomes the residuals', then the adjoints' (one allocation of the matrix
-        // instead of three).
+        // buffer becomes the residuals', then the adjoints' (one matrix in memory for the
+        // three).
         let residual = model;
         for ((f, v), mask) in residual
             .iter_mut()
