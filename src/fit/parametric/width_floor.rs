@@ -8,7 +8,7 @@
 //! is continuously differentiable in θ and c, and a band at least twice the floor is
 //! exactly the one θ names as its ln width (fits of broad bands do not move).
 
-use crate::parametric::{BandTerms, PARAMS_PER_BAND};
+use crate::parametric::{BandTerms, BandWork, PARAMS_PER_BAND};
 
 /// The narrowest band, in local grid steps Δ. At σ = ¾Δ the samples within ±2σ of any
 /// centre span 3Δ, so at least three see the band's core; midway between two samples
@@ -169,6 +169,7 @@ pub(super) struct BandBuffers {
     gaussian: Vec<f64>,
     chains: Vec<WidthChain>,
     terms: BandTerms,
+    work: BandWork,
 }
 
 /// The bands of solver parameters `params` (widths held above `floor`) at every abscissa
@@ -184,20 +185,10 @@ pub(super) fn floored_bands_with_jacobian(
 ) {
     floor.widen_into(params, &mut buffers.gaussian, &mut buffers.chains);
     buffers.terms.set(&buffers.gaussian);
-    jacobian.clear();
-    jacobian.resize(u.len() * params.len(), 0.0);
-    values.clear();
-    // Each row is chained while it is in registers (a second pass over the Jacobian
-    // was a tenth of this function's time).
-    values.extend(
-        u.iter()
-            .zip(jacobian.chunks_exact_mut(params.len().max(1)))
-            .map(|(&u, g)| {
-                let value = buffers.terms.value_gradient(u, g);
-                floor.chain(&buffers.chains, g);
-                value
-            }),
-    );
+    buffers
+        .terms
+        .values_gradients(u, values, jacobian, &mut buffers.work);
+    floor.chain(&buffers.chains, jacobian);
 }
 
 #[cfg(test)]
