@@ -369,6 +369,7 @@ mod tests {
         data.off_diagonal[3].value = f64::NAN;
         assert!(DenseCells::new(&data, &start.rows, &start.columns).is_none());
     }
+
     #[test]
     fn the_dense_weighted_rank_one_equals_the_cell_walk_bit_for_bit() {
         let (data, _) = two_dyes_with_holes();

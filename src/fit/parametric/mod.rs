@@ -429,6 +429,7 @@ mod tests {
             }
         }
     }
+
     #[test]
     fn an_evaluation_does_not_depend_on_the_one_before_it() {
         // The objective keeps its buffers per thread: evaluations of problems of other
