@@ -23,11 +23,10 @@ pub(super) struct DenseCells {
 }
 
 impl DenseCells {
-    /// The dense cells of `data`, or `None` where the dense sweep would not equal the
-    /// list's: cells not strictly row-major (sorted by row, then column, each once),
-    /// values that are not finite, or factors (`rows`, `columns`) not of the grid's
-    /// lengths.
-    pub(super) fn new(data: &FitData, rows: &[Vec<f64>], columns: &[Vec<f64>]) -> Option<Self> {
+    /// The dense cells of `data`, or `None` where a dense sweep would not equal the
+    /// list's: cells not strictly row-major (sorted by row, then column, each once) or
+    /// values that are not finite.
+    pub(super) fn new(data: &FitData) -> Option<Self> {
         let (n_ex, n_em) = (data.n_excitation(), data.n_emission());
         let cells = &data.off_diagonal;
         let row_major = cells
@@ -36,10 +35,7 @@ impl DenseCells {
         let in_grid = cells
             .iter()
             .all(|c| c.row < n_ex && c.column < n_em && c.value.is_finite());
-        let lengths = rows.len() == columns.len()
-            && rows.iter().all(|r| r.len() == n_ex)
-            && columns.iter().all(|c| c.len() == n_em);
-        if n_ex == 0 || n_em == 0 || !(row_major && in_grid && lengths) {
+        if n_ex == 0 || n_em == 0 || !(row_major && in_grid) {
             return None;
         }
         let mut mask = vec![0.0; n_ex * n_em];
@@ -51,8 +47,17 @@ impl DenseCells {
         Some(DenseCells { n_em, mask, value })
     }
 
+    /// Whether factors `rows` and `columns` (per component) fit these cells' grid, as
+    /// [`DenseCells::sweep`] needs.
+    pub(super) fn takes(&self, rows: &[Vec<f64>], columns: &[Vec<f64>]) -> bool {
+        let n_ex = self.mask.len() / self.n_em;
+        rows.len() == columns.len()
+            && rows.iter().all(|r| r.len() == n_ex)
+            && columns.iter().all(|c| c.len() == self.n_em)
+    }
+
     /// `sweeps` sweeps of [`super::init::masked_nmf`] on the factors `rows` and
-    /// `columns` (per component, as [`DenseCells::new`] was given them).
+    /// `columns` (per component, of lengths [`DenseCells::takes`] accepts).
     pub(super) fn sweep(&self, rows: &mut [Vec<f64>], columns: &mut [Vec<f64>], sweeps: usize) {
         let n_em = self.n_em;
         // The residual of every component, as the list walk computes it per cell (0

@@ -10,7 +10,8 @@ pub(super) fn guard_fraction(data: &FitData) -> f64 {
 }
 
 /// Turns grid spectra into a material: normalises a and e, computes the diagonal, the
-/// feasible interval of c and the split of k into c and Q.
+/// feasible interval of c and the split of k into c and Q. Its `conservation` is left
+/// `None` for the caller to write once r is final.
 pub(super) fn build_material(
     m: &Measurement,
     data: &FitData,
@@ -194,7 +195,10 @@ pub(super) fn build_material(
         absorption: Spectrum::new(data.excitation_nm.clone(), absorption, "absorption")?,
         emission: Spectrum::new(data.emission_nm.clone(), emission, "emission")?,
     };
-    let mut material = Material::new(
+    // Without its conservation block: the one caller lowers r onto the energy bound and
+    // takes the block from that search of the law's extrema (a second search here was
+    // spent for nothing).
+    let mut material = Material::without_margins(
         m.name.clone(),
         Spectrum::new(wavelengths, reflectance, "reflectance")?,
         vec![fluorophore],

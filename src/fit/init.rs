@@ -109,7 +109,7 @@ pub struct Factors {
 /// fixed, clamped at zero. Several fluorophores excited in different bands separate
 /// because each row's emission is the mix the data show there.
 pub fn masked_nmf(data: &FitData, start: Factors, sweeps: usize) -> Factors {
-    match DenseCells::new(data, &start.rows, &start.columns) {
+    match DenseCells::new(data).filter(|cells| cells.takes(&start.rows, &start.columns)) {
         Some(cells) => {
             let Factors {
                 mut rows,
@@ -132,7 +132,7 @@ pub(super) fn weighted_rank_one(
     sweeps: usize,
 ) -> (Vec<f64>, Vec<f64>) {
     let column = positive_column_mass(data, weights);
-    DenseCells::new(data, &[], &[])
+    DenseCells::new(data)
         .as_ref()
         .and_then(|cells| WeightedRankOne::new(cells, data, weights))
         .and_then(|fit| fit.sweep(column, sweeps))
@@ -339,7 +339,7 @@ mod tests {
     #[test]
     fn the_dense_sweep_equals_the_cell_walk_bit_for_bit_on_row_major_cells() {
         let (data, start) = two_dyes_with_holes();
-        assert!(DenseCells::new(&data, &start.rows, &start.columns).is_some());
+        assert!(DenseCells::new(&data).is_some_and(|c| c.takes(&start.rows, &start.columns)));
         let fast = masked_nmf(&data, start.clone(), 40);
         let reference = sparse_masked_nmf(&data, start, 40);
         let bits = |f: &Factors| -> Vec<u64> {
@@ -363,11 +363,15 @@ mod tests {
     #[test]
     fn cells_out_of_row_major_order_or_not_finite_take_the_cell_walk() {
         let (mut data, start) = two_dyes_with_holes();
+        // Factors of other lengths than the grid's are not the dense sweep's either.
+        let cells = DenseCells::new(&data).unwrap();
+        assert!(!cells.takes(&start.rows[..1], &start.columns));
+        assert!(!cells.takes(&[vec![0.5; 3]], &start.columns[..1]));
         data.off_diagonal.swap(0, 1);
-        assert!(DenseCells::new(&data, &start.rows, &start.columns).is_none());
+        assert!(DenseCells::new(&data).is_none());
         data.off_diagonal.swap(0, 1);
         data.off_diagonal[3].value = f64::NAN;
-        assert!(DenseCells::new(&data, &start.rows, &start.columns).is_none());
+        assert!(DenseCells::new(&data).is_none());
     }
 
     #[test]
@@ -386,7 +390,7 @@ mod tests {
             })
             .collect();
         assert!(data.off_diagonal.iter().any(|c| c.value < 0.0));
-        let cells = DenseCells::new(&data, &[], &[]).unwrap();
+        let cells = DenseCells::new(&data).unwrap();
         let column = positive_column_mass(&data, &weights);
         let dense = WeightedRankOne::new(&cells, &data, &weights)
             .and_then(|fit| fit.sweep(column.clone(), 50))
@@ -414,7 +418,7 @@ mod tests {
     #[test]
     fn weights_or_factors_that_are_not_finite_take_the_cell_walk() {
         let (data, _) = two_dyes_with_holes();
-        let cells = DenseCells::new(&data, &[], &[]).unwrap();
+        let cells = DenseCells::new(&data).unwrap();
         let mut weights = vec![1.0; data.off_diagonal.len()];
         weights[4] = f64::INFINITY;
         assert!(WeightedRankOne::new(&cells, &data, &weights).is_none());

@@ -433,10 +433,9 @@ impl<'a> Problem<'a> {
             }
         }
 
-        scratch::zeroed(column_adjoint, n_em);
         scratch::zeroed(row_dot, n_ex);
         for k in 0..k_count {
-            column_adjoint.iter_mut().for_each(|v| *v = 0.0);
+            scratch::zeroed(column_adjoint, n_em);
             row_dots(f_bar, &weighted_emission[k], row_dot);
             for (i, row) in f_bar.chunks_exact(n_em).enumerate() {
                 let x = m.excitation_factor[k][i];
