@@ -14,6 +14,7 @@ mod cli_fit;
 mod cli_usage;
 mod colour_noise;
 mod colour_reference;
+mod committed_fits;
 mod conservation;
 mod crosstalk;
 mod default_fit;
