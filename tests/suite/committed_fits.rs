@@ -145,3 +145,42 @@ fn the_committed_fits_of_the_shared_surfaces_are_what_the_code_makes() {
         "committed-measured",
     );
 }
+
+/// `fits/class.csv`'s rows of `names`, each without its time (the last column).
+fn class_rows_without_times(csv: &str, names: &[&str]) -> Vec<String> {
+    csv.lines()
+        .filter(|line| names.iter().any(|n| line.starts_with(&format!("{n},"))))
+        .map(|line| {
+            line.rsplit_once(',')
+                .map_or(line, |(rest, _)| rest)
+                .to_string()
+        })
+        .collect()
+}
+
+#[test]
+fn the_committed_class_sweep_is_what_the_code_makes() {
+    // The worst of each method on the default seed and a few ordinary cases: README and
+    // docs/results.md quote fits/class.md, written with fits/class.csv.
+    let names = ["case000", "case062", "case085", "case113", "case127"];
+    let out = common::temp_dir("committed-class");
+    let csv = out.join("class.csv");
+    common::succeed(
+        Command::new(env!("CARGO_BIN_EXE_fluorite"))
+            .current_dir(repository())
+            .args(["class", "-q", "--case", &names.join(","), "--report"])
+            .arg(out.join("class.md"))
+            .arg("--csv")
+            .arg(&csv),
+    );
+    let made = std::fs::read_to_string(&csv).unwrap();
+    let committed = std::fs::read_to_string(repository().join("fits/class.csv")).unwrap();
+    let made_rows = class_rows_without_times(&made, &names);
+    assert_eq!(made_rows.len(), 4 * names.len(), "{made}");
+    assert_eq!(
+        made_rows,
+        class_rows_without_times(&committed, &names),
+        "`fluorite class --case {}` against fits/class.csv: run scripts/regenerate.sh --timings",
+        names.join(",")
+    );
+}
