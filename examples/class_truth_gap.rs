@@ -13,19 +13,12 @@
 use std::path::Path;
 
 use fluorite::colour::Light;
-use fluorite::evaluate::class::{ClassConfig, DEFAULT_SEED, draw};
+use fluorite::evaluate::class::{ClassConfig, DEFAULT_SEED, draw, parse_seed};
 use fluorite::evaluate::stability::material_delta_e;
 use fluorite::material::Material;
 use fluorite::parametric::SpectralForm;
 use fluorite::spectrum::{Spectrum, uniform_grid};
 use fluorite::synth::SynthSpec;
-
-fn parse_seed(text: &str) -> anyhow::Result<u64> {
-    Ok(match text.strip_prefix("0x") {
-        Some(hex) => u64::from_str_radix(hex, 16)?,
-        None => text.parse()?,
-    })
-}
 
 /// The truth's bands and sigmoid evaluated every 1 nm over the case's grids, scaled as its
 /// samples are (`SynthSpec::truth_with_forms`).
@@ -63,7 +56,9 @@ fn banded_truth(spec: &SynthSpec) -> anyhow::Result<Material> {
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
-    let seed = args.get(1).map_or(Ok(DEFAULT_SEED), |s| parse_seed(s))?;
+    let seed = args.get(1).map_or(Ok(DEFAULT_SEED), |s| {
+        parse_seed(s).map_err(anyhow::Error::msg)
+    })?;
     let dump = args.get(2);
     let methods = args
         .get(3)

@@ -12,23 +12,10 @@
 //! true σ and in the σ the fit estimates (default: the class's seed).
 
 use fluorite::colour::{Light, PatchColorimeter, delta_e2000};
-use fluorite::evaluate::class::{ClassConfig, DEFAULT_SEED, draw};
+use fluorite::evaluate::class::{ClassConfig, DEFAULT_SEED, draw, parse_seed};
 use fluorite::fit::assess;
 use fluorite::fit::data::FitData;
-
-fn parse_seed(text: &str) -> anyhow::Result<u64> {
-    Ok(match text.strip_prefix("0x") {
-        Some(hex) => u64::from_str_radix(hex, 16)?,
-        None => text.parse()?,
-    })
-}
-
-/// The `q`-quantile of `values` (sorted in place), by the nearest rank.
-fn quantile(values: &mut [f64], q: f64) -> f64 {
-    values.sort_by(f64::total_cmp);
-    let rank = ((q * values.len() as f64).ceil() as usize).clamp(1, values.len());
-    values[rank - 1]
-}
+use fluorite::numeric::quantile;
 
 fn main() -> anyhow::Result<()> {
     let arguments: Vec<String> = std::env::args().skip(1).collect();
@@ -37,7 +24,8 @@ fn main() -> anyhow::Result<()> {
         .iter()
         .filter(|a| !a.starts_with("--"))
         .map(|a| parse_seed(a))
-        .collect::<anyhow::Result<_>>()?;
+        .collect::<Result<_, String>>()
+        .map_err(anyhow::Error::msg)?;
     if seeds.is_empty() {
         seeds.push(DEFAULT_SEED);
     }
@@ -80,7 +68,7 @@ fn main() -> anyhow::Result<()> {
             }
         }
     }
-    for (sigma, by_light) in ["true σ", "estimated σ"].iter().zip(&mut chi2_by_light) {
+    for (sigma, by_light) in ["true σ", "estimated σ"].iter().zip(&chi2_by_light) {
         for (light, values) in lights.iter().zip(by_light) {
             let n = values.len();
             let mean = values.iter().sum::<f64>() / n.max(1) as f64;

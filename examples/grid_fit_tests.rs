@@ -14,7 +14,7 @@
 //! ...]` (decimal or 0x hex; default: the class's default seed).
 
 use fluorite::colour::Light;
-use fluorite::evaluate::class::{ClassConfig, draw};
+use fluorite::evaluate::class::{ClassConfig, draw, parse_seed};
 use fluorite::fit::assess::{
     NOISE_CHI2_LIMIT, SECOND_FLUOROPHORE_ENERGY, misfit_colour_chi2, second_fluorophore_energy,
 };
@@ -23,13 +23,6 @@ use fluorite::fit::escalate::judged_light_names;
 use fluorite::fit::{FitOptions, FitOutcome, ModelChoice, fit};
 use fluorite::model::predict_like;
 use fluorite::numeric::quantile;
-
-fn parse_seed(text: &str) -> Option<u64> {
-    match text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
-        Some(hex) => u64::from_str_radix(hex, 16).ok(),
-        None => text.parse().ok(),
-    }
-}
 
 /// `n`, median, p90, p99, max and the share above `limit`, as one table row.
 fn row(what: &str, values: &[f64], limit: f64) -> String {
@@ -49,7 +42,7 @@ fn main() {
     let seeds: Vec<u64> = {
         let given: Vec<u64> = std::env::args()
             .skip(1)
-            .filter_map(|a| parse_seed(&a))
+            .filter_map(|a| parse_seed(&a).ok())
             .collect();
         if given.is_empty() {
             vec![ClassConfig::default().seed]

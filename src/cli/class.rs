@@ -16,7 +16,7 @@ pub struct ClassArgs {
     #[arg(long, default_value_t = DEFAULT_CASES)]
     pub cases: usize,
     /// Seed of the draws (decimal or 0x-prefixed hexadecimal).
-    #[arg(long, default_value_t = DEFAULT_SEED, value_parser = parse_seed)]
+    #[arg(long, default_value_t = DEFAULT_SEED, value_parser = class::parse_seed)]
     pub seed: u64,
     /// Markdown report: what was drawn, summaries, the worst cases.
     #[arg(long)]
@@ -49,14 +49,6 @@ pub struct ClassArgs {
     /// Print nothing (otherwise the report's summary tables are printed).
     #[arg(short, long)]
     pub quiet: bool,
-}
-
-fn parse_seed(text: &str) -> Result<u64, String> {
-    let parsed = match text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
-        Some(hex) => u64::from_str_radix(&hex.replace('_', ""), 16),
-        None => text.parse(),
-    };
-    parsed.map_err(|e| format!("\"{text}\" is not a seed ({e}); give e.g. 42 or 0xC1A55EE9"))
 }
 
 /// Runs `fluorite class`.

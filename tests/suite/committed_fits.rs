@@ -7,11 +7,8 @@
 use crate::common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn repository() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use common::repository;
 
 /// What a table row or a material JSON says of one fit: the model (empty for a plain
 /// reflector), its parameter count and ΔE2000 under D65, A, F11 and UV to two decimals,
@@ -109,7 +106,7 @@ fn every_committed_table_row_is_what_the_material_beside_it_holds() {
 fn refit_matches_committed(inputs: &[PathBuf], arguments: &[&str], committed: &Path, tag: &str) {
     let out = common::temp_dir(tag);
     common::succeed(
-        Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        common::fluorite()
             .current_dir(repository())
             .arg("fit")
             .args(inputs)
@@ -202,7 +199,7 @@ fn the_committed_class_sweep_is_what_the_code_makes() {
     let out = common::temp_dir("committed-class");
     let csv = out.join("class.csv");
     common::succeed(
-        Command::new(env!("CARGO_BIN_EXE_fluorite"))
+        common::fluorite()
             .current_dir(repository())
             .args(["class", "-q", "--case", &names.join(","), "--report"])
             .arg(out.join("class.md"))

@@ -21,9 +21,7 @@ use exr::prelude::{
 
 use crate::common;
 
-fn repository() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use common::repository;
 
 /// `fluorite synth --image --quiet --size SIZE --out DIR ARGS` from the repository's root
 /// (where the default materials are); returns `DIR/image.exr`.

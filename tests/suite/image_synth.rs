@@ -5,7 +5,7 @@
 
 use crate::common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use fluorite::colour::{Light, PatchColorimeter, delta_e2000, xyz_to_lab};
 use fluorite::image::map::LoadedTextures;
@@ -14,9 +14,7 @@ use fluorite::measurement::Units;
 use fluorite::model::predict;
 use fluorite::spectrum::{find_wavelength, uniform_grid};
 
-fn repository() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use common::repository;
 
 /// Runs `fluorite synth --image --out <fresh folder> ARGS` from the repository's root
 /// (so the default materials are found) and returns the folder.

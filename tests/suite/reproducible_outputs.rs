@@ -4,12 +4,10 @@
 
 use crate::common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-fn repository() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use common::repository;
 
 fn fluorite() -> Command {
     let mut command = Command::new(env!("CARGO_BIN_EXE_fluorite"));

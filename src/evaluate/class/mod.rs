@@ -33,6 +33,16 @@ pub use report::{CSV_HEADER, case_files, to_csv, to_markdown};
 pub const DEFAULT_CASES: usize = 150;
 /// Seed of `fluorite class` by default.
 pub const DEFAULT_SEED: u64 = 0xC1A5_5EE9_2026_1130;
+
+/// A seed as `fluorite class --seed` takes it: decimal, or hexadecimal after `0x` (`_`
+/// allowed between the digits, as in [`DEFAULT_SEED`]). The error says what was given.
+pub fn parse_seed(text: &str) -> std::result::Result<u64, String> {
+    let parsed = match text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
+        Some(hex) => u64::from_str_radix(&hex.replace('_', ""), 16),
+        None => text.parse(),
+    };
+    parsed.map_err(|e| format!("\"{text}\" is not a seed ({e}); give e.g. 42 or 0xC1A55EE9"))
+}
 /// Draws the synthesiser may refuse per case before [`draw`] gives up.
 const MAX_REFUSALS_PER_CASE: usize = 100;
 /// Name of the default grid fit in tables.

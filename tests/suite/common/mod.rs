@@ -254,6 +254,11 @@ pub fn dorrit_classic_options(split_half: bool) -> fluorite::fit::joint::JointOp
     }
 }
 
+/// The repository's root (the crate's manifest folder).
+pub fn repository() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
 /// The `fluorite` binary under test, as a command to add arguments to.
 pub fn fluorite() -> std::process::Command {
     std::process::Command::new(env!("CARGO_BIN_EXE_fluorite"))
